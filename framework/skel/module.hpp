@@ -1,0 +1,236 @@
+#pragma once
+// Module API: a module declares ports and parameters once, in a ModuleSpec (which feeds the YAML
+// validator, the CLI docs and the GUI panel), and implements run(RunContext&).
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "skel/data.hpp"
+#include "skel/error.hpp"
+#include "skel/interrupter.hpp"
+#include "skel/param.hpp"
+#include "skel/volume.hpp"
+
+namespace skel {
+
+// Maps a C++ data type to its port type ids (used by ModuleSpec::input<T>/output<T>).
+template <class T> struct PortTypes { static std::vector<std::string> ids() { return {T{}.type_id()}; } };
+template <class T> struct PortTypes<Volume<T>> {
+  static std::vector<std::string> ids() { return {VoxelTraits<T>::id}; }
+};
+// Marker types for ports accepting several types.
+struct AnyVolume {};
+struct AnyIntegerVolume {};
+template <> struct PortTypes<AnyVolume> { static std::vector<std::string> ids() { return all_volume_types(); } };
+template <> struct PortTypes<AnyIntegerVolume> {
+  static std::vector<std::string> ids() { return integer_volume_types(); }
+};
+
+struct PortSpec {
+  std::string name;
+  std::vector<std::string> types;  // accepted (inputs) or possible (outputs) type ids
+  std::string doc;
+  bool required = true;            // inputs only
+};
+
+template <class T> struct ParamTypeOf;
+template <> struct ParamTypeOf<bool> { static constexpr ParamType value = ParamType::Bool; };
+template <> struct ParamTypeOf<int64_t> { static constexpr ParamType value = ParamType::Int; };
+template <> struct ParamTypeOf<int> { static constexpr ParamType value = ParamType::Int; };
+template <> struct ParamTypeOf<double> { static constexpr ParamType value = ParamType::Float; };
+template <> struct ParamTypeOf<std::string> { static constexpr ParamType value = ParamType::String; };
+template <> struct ParamTypeOf<std::vector<int64_t>> { static constexpr ParamType value = ParamType::IntList; };
+template <> struct ParamTypeOf<std::vector<double>> { static constexpr ParamType value = ParamType::FloatList; };
+
+class ModuleSpec {
+public:
+  ModuleSpec() = default;
+  // name: "family.name" in snake_case; doc: one line; the long description goes in details().
+  ModuleSpec(std::string name, std::string doc) : name_(std::move(name)), doc_(std::move(doc)) {}
+
+  // --- ports ---
+  template <class T>
+  ModuleSpec& input(std::string name, std::string doc) {
+    return add_input(std::move(name), PortTypes<T>::ids(), std::move(doc), true);
+  }
+  template <class T>
+  ModuleSpec& optional_input(std::string name, std::string doc) {
+    return add_input(std::move(name), PortTypes<T>::ids(), std::move(doc), false);
+  }
+  template <class T>
+  ModuleSpec& output(std::string name, std::string doc) {
+    return add_output(std::move(name), PortTypes<T>::ids(), std::move(doc));
+  }
+  ModuleSpec& add_input(std::string name, std::vector<std::string> types, std::string doc, bool required);
+  ModuleSpec& add_output(std::string name, std::vector<std::string> types, std::string doc);
+
+  // --- parameters (modifiers below apply to the last one added) ---
+  template <class T>
+  ModuleSpec& param(std::string name, T default_value, std::string doc) {
+    ParamSpec p;
+    p.name = std::move(name);
+    p.type = ParamTypeOf<T>::value;
+    if constexpr (std::is_same_v<T, int>) p.default_value = static_cast<int64_t>(default_value);
+    else p.default_value = std::move(default_value);
+    p.doc = std::move(doc);
+    return add_param(std::move(p));
+  }
+  ModuleSpec& param(std::string name, const char* default_value, std::string doc) {
+    return param<std::string>(std::move(name), std::string(default_value), std::move(doc));
+  }
+  ModuleSpec& choice(std::string name, std::vector<std::string> choices, std::string default_value,
+                     std::string doc);
+  ModuleSpec& path(std::string name, std::string default_value, PathRole role, std::string doc);
+  ModuleSpec& range(double min, double max);
+  ModuleSpec& min(double min);
+  ModuleSpec& max(double max);
+  ModuleSpec& unit(std::string unit);
+  ModuleSpec& length(int n);          // lists: exact length
+  ModuleSpec& optional_value();       // empty string / empty list means "not given"
+  ModuleSpec& renamed_from(std::string old_name);
+  ModuleSpec& add_param(ParamSpec p);
+
+  // Long documentation (markdown): algorithm, memory per voxel, conventions, references.
+  ModuleSpec& details(std::string text);
+
+  [[nodiscard]] const std::string& name() const { return name_; }
+  [[nodiscard]] std::string family() const { return name_.substr(0, name_.find('.')); }
+  [[nodiscard]] const std::string& doc() const { return doc_; }
+  [[nodiscard]] const std::string& details() const { return details_; }
+  [[nodiscard]] const std::vector<PortSpec>& inputs() const { return inputs_; }
+  [[nodiscard]] const std::vector<PortSpec>& outputs() const { return outputs_; }
+  [[nodiscard]] const std::vector<ParamSpec>& params() const { return params_; }
+  [[nodiscard]] const PortSpec* find_input(const std::string& n) const;
+  [[nodiscard]] const PortSpec* find_output(const std::string& n) const;
+  // Finds a parameter by its name or one of its old names.
+  [[nodiscard]] const ParamSpec* find_param(const std::string& n) const;
+
+private:
+  std::string name_, doc_, details_;
+  std::vector<PortSpec> inputs_, outputs_;
+  std::vector<ParamSpec> params_;
+};
+
+using ParamMap = std::map<std::string, ParamValue>;
+
+// Everything run() may use: inputs, parameters, outputs, progress, cancellation, threads, paths.
+class RunContext {
+public:
+  virtual ~RunContext() = default;
+
+  // Input data, or nullptr for an unconnected optional input.
+  [[nodiscard]] virtual DataPtr input_data(const std::string& port) const = 0;
+  [[nodiscard]] bool has_input(const std::string& port) const { return input_data(port) != nullptr; }
+  // Typed input; throws InputError naming the port when missing or of another type.
+  template <class T>
+  [[nodiscard]] std::shared_ptr<const T> input(const std::string& port) const {
+    DataPtr d = input_data(port);
+    if (!d) throw InputError("input '" + port + "' is not connected");
+    auto t = std::dynamic_pointer_cast<const T>(d);
+    if (!t) {
+      throw InputError("input '" + port + "': expected " + PortTypes<T>::ids().front() + ", got " +
+                       d->type_id());
+    }
+    return t;
+  }
+  // Optional typed input: nullptr when not connected.
+  template <class T>
+  [[nodiscard]] std::shared_ptr<const T> optional_input(const std::string& port) const {
+    return has_input(port) ? input<T>(port) : nullptr;
+  }
+
+  // Parameter value (defaults already applied). T must match the declared type (int64_t for Int,
+  // double for Float, std::string for String/Choice/Path, vectors for lists).
+  [[nodiscard]] virtual const ParamValue& param_value(const std::string& name) const = 0;
+  template <class T>
+  [[nodiscard]] T param(const std::string& name) const {
+    const ParamValue& v = param_value(name);
+    if constexpr (std::is_same_v<T, int>) {
+      return static_cast<int>(std::get<int64_t>(v));
+    } else {
+      if (auto* p = std::get_if<T>(&v)) return *p;
+      throw Error("parameter '" + name + "' requested with the wrong C++ type");
+    }
+  }
+
+  virtual void output(const std::string& port, DataPtr data) = 0;
+  template <class T>
+  void output(const std::string& port, T&& value) {
+    output(port, DataPtr(std::make_shared<std::decay_t<T>>(std::forward<T>(value))));
+  }
+
+  [[nodiscard]] virtual const Interrupter& progress() const = 0;
+  [[nodiscard]] bool cancelled() const { return progress().cancelled(); }
+  [[nodiscard]] virtual int threads() const = 0;
+  [[nodiscard]] virtual const std::string& node_id() const = 0;
+  virtual void warn(const std::string& message) = 0;
+
+  // Absolute path for an input file parameter (relative to the pipeline file's folder).
+  [[nodiscard]] virtual std::filesystem::path input_path(const std::string& param_name) const = 0;
+  // Temporary path to write an output file parameter to; the engine renames it to its final place
+  // when the whole run succeeds and deletes it otherwise (no partial outputs). Directories are
+  // created. The final path is returned by final_output_path().
+  [[nodiscard]] virtual std::filesystem::path output_path(const std::string& param_name) = 0;
+  [[nodiscard]] virtual std::filesystem::path final_output_path(const std::string& param_name) const = 0;
+};
+
+class Module {
+public:
+  virtual ~Module() = default;
+  virtual void run(RunContext& ctx) = 0;
+};
+
+// Inspects a file for `skelflow info` (registered by io modules, so framework names no format).
+struct FileInspector {
+  std::string name;                     // e.g. "HDF5 volume"
+  std::vector<std::string> extensions;  // lower case, with dot: ".h5", ".hdf5"
+  std::function<std::string(const std::filesystem::path&)> describe;
+};
+
+class Registry {
+public:
+  using Factory = std::function<std::unique_ptr<Module>()>;
+  static Registry& instance();
+
+  void add(ModuleSpec spec, Factory factory);  // throws Error on a duplicate name
+  void add_inspector(FileInspector inspector);
+  [[nodiscard]] const ModuleSpec* find(const std::string& name) const;
+  [[nodiscard]] std::unique_ptr<Module> create(const std::string& name) const;  // throws if unknown
+  // All specs sorted by name.
+  [[nodiscard]] std::vector<const ModuleSpec*> specs() const;
+  [[nodiscard]] const std::vector<FileInspector>& inspectors() const { return inspectors_; }
+
+private:
+  struct Entry {
+    ModuleSpec spec;
+    Factory factory;
+  };
+  std::map<std::string, Entry> entries_;
+  std::vector<FileInspector> inspectors_;
+};
+
+namespace detail {
+template <class M>
+struct Registrar {
+  Registrar() { Registry::instance().add(M::spec(), [] { return std::make_unique<M>(); }); }
+};
+struct InspectorRegistrar {
+  explicit InspectorRegistrar(FileInspector i) { Registry::instance().add_inspector(std::move(i)); }
+};
+}  // namespace detail
+
+#define SKEL_CONCAT_INNER(a, b) a##b
+#define SKEL_CONCAT(a, b) SKEL_CONCAT_INNER(a, b)
+// Registers module class M (with `static ModuleSpec spec()`) at static-initialisation time.
+#define SKEL_REGISTER_MODULE(M) \
+  static const ::skel::detail::Registrar<M> SKEL_CONCAT(skel_registrar_, __LINE__) {}
+#define SKEL_REGISTER_INSPECTOR(...)                                                       \
+  static const ::skel::detail::InspectorRegistrar SKEL_CONCAT(skel_inspector_, __LINE__) { \
+    ::skel::FileInspector{__VA_ARGS__}                                                     \
+  }
+
+}  // namespace skel

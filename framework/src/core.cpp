@@ -1,0 +1,170 @@
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <iomanip>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include "skel/data.hpp"
+#include "skel/error.hpp"
+#include "skel/fs.hpp"
+#include "skel/interrupter.hpp"
+#include "skel/parallel.hpp"
+#include "skel/volume.hpp"
+
+namespace skel {
+
+void rethrow_with_context(const std::string& context) {
+  try {
+    throw;
+  } catch (const Cancelled&) {
+    throw;  // cancellation needs no context
+  } catch (const InputError& e) {
+    throw InputError(e.with_context(context));
+  } catch (const Error& e) {
+    throw Error(e.with_context(context));
+  } catch (const std::bad_alloc&) {
+    throw Error(context + ": out of memory");
+  } catch (const std::exception& e) {
+    throw Error(context + ": " + e.what());
+  }
+}
+
+// ---------------------------------------------------------------- Interrupter
+void Interrupter::report(double fraction) const {
+  if (report_ && *report_) {
+    fraction = std::clamp(fraction, 0.0, 1.0);
+    (*report_)(begin_ + (end_ - begin_) * fraction);
+  }
+}
+void Interrupter::check() const {
+  if (cancelled()) throw Cancelled();
+}
+void Interrupter::check(double fraction) const {
+  check();
+  report(fraction);
+}
+Interrupter Interrupter::sub(double begin, double end) const {
+  Interrupter s = *this;
+  s.begin_ = begin_ + (end_ - begin_) * begin;
+  s.end_ = begin_ + (end_ - begin_) * end;
+  return s;
+}
+
+// ---------------------------------------------------------------- parallel
+int hardware_threads() {
+  unsigned n = std::thread::hardware_concurrency();
+  return n == 0 ? 1 : static_cast<int>(n);
+}
+int effective_threads(int threads) { return threads <= 0 ? hardware_threads() : threads; }
+
+void parallel_for(int64_t begin, int64_t end, int threads,
+                  const std::function<void(int64_t, int64_t)>& body, int64_t grain) {
+  if (end <= begin) return;
+  threads = effective_threads(threads);
+  grain = std::max<int64_t>(1, grain);
+  if (threads == 1 || end - begin <= grain) {
+    body(begin, end);
+    return;
+  }
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<int64_t>(begin, end, static_cast<size_t>(grain)),
+                      [&](const tbb::blocked_range<int64_t>& r) { body(r.begin(), r.end()); });
+  });
+}
+
+void parallel_chunks(int64_t begin, int64_t end, int64_t chunks, int threads,
+                     const std::function<void(int64_t, int64_t, int64_t)>& body) {
+  if (chunks <= 0) return;
+  const int64_t n = std::max<int64_t>(0, end - begin);
+  auto run_chunk = [&](int64_t c) {
+    const int64_t b = begin + n * c / chunks, e = begin + n * (c + 1) / chunks;
+    body(c, b, e);
+  };
+  parallel_for(0, chunks, threads, [&](int64_t c0, int64_t c1) {
+    for (int64_t c = c0; c < c1; ++c) run_chunk(c);
+  });
+}
+
+// ---------------------------------------------------------------- data / volume
+const std::vector<std::string>& all_volume_types() {
+  static const std::vector<std::string> t{type_ids::volume_u8,  type_ids::volume_u16,
+                                          type_ids::volume_u32, type_ids::volume_i32,
+                                          type_ids::volume_f32, type_ids::volume_f64};
+  return t;
+}
+const std::vector<std::string>& integer_volume_types() {
+  static const std::vector<std::string> t{type_ids::volume_u8, type_ids::volume_u16,
+                                          type_ids::volume_u32, type_ids::volume_i32};
+  return t;
+}
+
+void Grid::validate() const {
+  static const char* axis[3] = {"x", "y", "z"};
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 0) {
+      throw InputError("dims " + std::string(axis[a]) + " = " + std::to_string(dims[a]) +
+                       "; expected >= 0");
+    }
+    if (!(spacing[a] > 0.0) || !std::isfinite(spacing[a])) {
+      std::ostringstream s;
+      s << "spacing " << axis[a] << " = " << spacing[a] << "; expected > 0";
+      throw InputError(s.str());
+    }
+    if (!std::isfinite(origin[a])) {
+      throw InputError("origin " + std::string(axis[a]) + " is not finite");
+    }
+  }
+  // Overflow guard: product of dims must fit in int64.
+  if (dims[0] > 0 && dims[1] > 0 && dims[2] > 0) {
+    const double n = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
+    if (n > 9.0e18) throw InputError("volume dims are too large");
+  }
+}
+
+const Grid& volume_grid(const DataObject& data, const std::string& what) {
+  return visit_volume(data, what, [](const auto& v) -> const Grid& { return v.grid(); });
+}
+
+// ---------------------------------------------------------------- fs
+std::filesystem::path temp_sibling(const std::filesystem::path& final_path) {
+  static std::atomic<uint64_t> counter{0};
+  std::random_device rd;
+  std::ostringstream name;
+  name << "." << final_path.filename().string() << ".tmp-" << std::hex << std::setw(6)
+       << std::setfill('0') << ((rd() ^ (counter++ * 2654435761u)) & 0xffffff);
+  return final_path.parent_path() / name.str();
+}
+
+void write_atomically(const std::filesystem::path& final_path,
+                      const std::function<void(const std::filesystem::path&)>& write) {
+  namespace fs = std::filesystem;
+  if (final_path.has_parent_path()) {
+    std::error_code ec;
+    fs::create_directories(final_path.parent_path(), ec);
+    if (ec) {
+      throw InputError("cannot create directory " + final_path.parent_path().string() + ": " +
+                       ec.message());
+    }
+  }
+  const fs::path tmp = temp_sibling(final_path);
+  try {
+    write(tmp);
+    std::error_code ec;
+    fs::rename(tmp, final_path, ec);
+    if (ec) throw Error("cannot rename " + tmp.string() + " to " + final_path.string() + ": " + ec.message());
+  } catch (...) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw;
+  }
+}
+
+}  // namespace skel

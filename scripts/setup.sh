@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Installs the Debian packages Skelflow needs (only those missing), then configures and builds.
+# Idempotent: a second run installs nothing and rebuilds only what changed.
+#   scripts/setup.sh [--no-build] [--build-dir DIR] [--build-type TYPE]
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+build_dir="$here/build"
+build_type=RelWithDebInfo
+do_build=1
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --no-build) do_build=0 ;;
+    --build-dir) build_dir=$2; shift ;;
+    --build-type) build_type=$2; shift ;;
+    *) echo "setup.sh: unknown option $1" >&2; exit 2 ;;
+  esac
+  shift
+done
+
+packages=(
+  build-essential cmake ninja-build pkg-config git ccache
+  qtbase5-dev libqt5opengl5-dev libvtk9-dev libvtk9-qt-dev
+  libhdf5-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libeigen3-dev libtbb-dev libnanoflann-dev
+  libopenmpi-dev libhdf5-openmpi-dev
+  xvfb xauth
+  python3-scipy python3-skimage python3-h5py python3-numpy
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${#missing[@]} missing package(s): ${missing[*]}"
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd=sudo
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo_cmd apt-get update -qq
+  $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}"
+else
+  echo "setup: all packages present"
+fi
+
+[ $do_build = 1 ] || exit 0
+jobs=$(nproc)
+cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="$build_type"
+cmake --build "$build_dir" -j "$jobs"

@@ -1,0 +1,110 @@
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+
+#include "skel/fs.hpp"
+#include "skel/module.hpp"
+#include "skel/parallel.hpp"
+#include "skel/table.hpp"
+#include "skel/volume.hpp"
+
+using namespace skel;
+
+TEST(Volume, IndexingIsXFastest) {
+  VolumeU16 v({4, 3, 2}, 0);
+  EXPECT_EQ(v.size(), 24);
+  v(1, 2, 1) = 7;
+  EXPECT_EQ(v[1 + 4 * (2 + 3 * 1)], 7);
+  EXPECT_EQ(v.type_id(), "volume.u16");
+  EXPECT_EQ(v.bytes(), 48u);
+  VolumeU16 c = v;
+  EXPECT_EQ(c, v);
+  c(0, 0, 0) = 1;
+  EXPECT_FALSE(c == v);
+}
+
+TEST(Volume, RejectsBadSpacing) {
+  try {
+    VolumeU8 v({2, 2, 2}, 0, {1.0, 0.0, 1.0});
+    FAIL() << "expected an error";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "spacing y = 0; expected > 0");
+  }
+}
+
+TEST(Volume, VisitAndConvert) {
+  VolumeF32 f({2, 1, 1}, 2.5f);
+  auto u = convert_volume<uint8_t>(f, "input 'x'");
+  EXPECT_EQ(u[0], 2);
+  EXPECT_EQ(volume_grid(f, "x").dims[0], 2);
+  Table t;
+  EXPECT_THROW((void)volume_grid(t, "input 'mask'"), InputError);
+}
+
+TEST(Table, CsvAndTypes) {
+  Table t;
+  t.add("id", std::vector<int64_t>{1, 2}).add("size", std::vector<double>{0.5, 3}, "µm").add(
+      "name", std::vector<std::string>{"a", "b,c"});
+  EXPECT_EQ(t.rows(), 2);
+  EXPECT_EQ(t.to_csv(), "id,size [µm],name\n1,0.5,a\n2,3,\"b,c\"\n");
+  EXPECT_THROW(t.add("x", std::vector<int64_t>{1}), Error);
+  EXPECT_THROW((void)t.reals("id"), Error);
+}
+
+TEST(Parallel, ChunksCoverRangeOnce) {
+  for (int threads : {1, 2, 4}) {
+    std::vector<std::atomic<int>> hits(1000);
+    parallel_for(0, 1000, threads, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) hits[static_cast<size_t>(i)]++;
+    });
+    for (auto& h : hits) EXPECT_EQ(h.load(), 1);
+    std::vector<int64_t> sums(7, 0);
+    parallel_chunks(0, 1000, 7, threads, [&](int64_t c, int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) sums[static_cast<size_t>(c)] += i;
+    });
+    EXPECT_EQ(std::accumulate(sums.begin(), sums.end(), int64_t{0}), 999 * 1000 / 2);
+  }
+}
+
+TEST(Interrupter, SubRangesAndCancel) {
+  std::atomic<bool> cancel{false};
+  double last = -1;
+  Interrupter it([&](double f) { last = f; }, &cancel);
+  it.sub(0.5, 1.0).check(0.5);
+  EXPECT_DOUBLE_EQ(last, 0.75);
+  cancel = true;
+  EXPECT_THROW(it.check(), Cancelled);
+  EXPECT_NO_THROW(Interrupter{}.check(0.3));
+}
+
+TEST(Fs, FailedWriteLeavesNoFile) {
+  namespace fs = std::filesystem;
+  fs::path dir = fs::temp_directory_path() / "skel_fs_test";
+  fs::remove_all(dir);
+  fs::path target = dir / "sub" / "out.txt";
+  EXPECT_THROW(write_atomically(target,
+                                [](const fs::path& tmp) {
+                                  std::ofstream(tmp) << "partial";
+                                  throw Error("disk full");
+                                }),
+               Error);
+  EXPECT_FALSE(fs::exists(target));
+  EXPECT_TRUE(fs::is_empty(dir / "sub"));
+  write_atomically(target, [](const fs::path& tmp) { std::ofstream(tmp) << "ok"; });
+  EXPECT_TRUE(fs::exists(target));
+  fs::remove_all(dir);
+}
+
+TEST(ParamSpec, Checks) {
+  ModuleSpec s("test.x", "doc");
+  s.param<double>("sigma", 1.0, "s").range(0, 10).unit("µm");
+  s.choice("shape", {"rods", "plates"}, "rods", "shape");
+  s.param<std::vector<int64_t>>("size", {1, 2, 3}, "size").length(3).min(1);
+  EXPECT_EQ(s.find_param("sigma")->check(11.0), "value 11 is out of range [0, 10] µm");
+  EXPECT_EQ(s.find_param("shape")->check(std::string("tubes")), "'tubes' is not one of: rods plates");
+  EXPECT_EQ(s.find_param("size")->check(std::vector<int64_t>{1, 2}), "expected a list of 3 values, got 2");
+  EXPECT_EQ(s.find_param("size")->check(std::vector<int64_t>{1, 2, 3}), "");
+}
