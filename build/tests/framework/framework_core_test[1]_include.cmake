@@ -1,5 +1,0 @@
-if(EXISTS "/work/main/build/tests/framework/framework_core_test[1]_tests.cmake")
-  include("/work/main/build/tests/framework/framework_core_test[1]_tests.cmake")
-else()
-  add_test(framework_core_test_NOT_BUILT framework_core_test_NOT_BUILT)
-endif()
