@@ -13,6 +13,7 @@ namespace type_ids {
 inline constexpr const char* volume_u8 = "volume.u8";
 inline constexpr const char* volume_u16 = "volume.u16";
 inline constexpr const char* volume_u32 = "volume.u32";
+inline constexpr const char* volume_u64 = "volume.u64";
 inline constexpr const char* volume_i32 = "volume.i32";
 inline constexpr const char* volume_f32 = "volume.f32";
 inline constexpr const char* volume_f64 = "volume.f64";

@@ -1,3 +1,4 @@
+#include <sys/mman.h>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -19,6 +20,14 @@
 #include "skel/volume.hpp"
 
 namespace skel {
+
+void advise_huge_pages(void* data, size_t bytes) {
+  constexpr uintptr_t kHuge = uintptr_t{2} << 20;
+  if (bytes < 4 * kHuge) return;
+  const uintptr_t b = (reinterpret_cast<uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+  const uintptr_t e = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kHuge - 1);
+  if (e > b) (void)madvise(reinterpret_cast<void*>(b), e - b, MADV_HUGEPAGE);
+}
 
 void rethrow_with_context(const std::string& context) {
   try {
@@ -73,7 +82,8 @@ void parallel_for(int64_t begin, int64_t end, int threads,
     body(begin, end);
     return;
   }
-  tbb::task_arena arena(threads);
+  // More arena slots than cores only makes TBB complain; the split into ranges stays the same.
+  tbb::task_arena arena(std::min(threads, std::max(2, hardware_threads())));
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<int64_t>(begin, end, static_cast<size_t>(grain)),
                       [&](const tbb::blocked_range<int64_t>& r) { body(r.begin(), r.end()); });
@@ -96,13 +106,15 @@ void parallel_chunks(int64_t begin, int64_t end, int64_t chunks, int threads,
 // ---------------------------------------------------------------- data / volume
 const std::vector<std::string>& all_volume_types() {
   static const std::vector<std::string> t{type_ids::volume_u8,  type_ids::volume_u16,
-                                          type_ids::volume_u32, type_ids::volume_i32,
-                                          type_ids::volume_f32, type_ids::volume_f64};
+                                          type_ids::volume_u32, type_ids::volume_u64,
+                                          type_ids::volume_i32, type_ids::volume_f32,
+                                          type_ids::volume_f64};
   return t;
 }
 const std::vector<std::string>& integer_volume_types() {
   static const std::vector<std::string> t{type_ids::volume_u8, type_ids::volume_u16,
-                                          type_ids::volume_u32, type_ids::volume_i32};
+                                          type_ids::volume_u32, type_ids::volume_u64,
+                                          type_ids::volume_i32};
   return t;
 }
 

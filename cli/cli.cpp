@@ -1,0 +1,368 @@
+// skelflow: the headless command line. Runs and validates YAML pipelines, documents modules and
+// describes data files.
+//
+// Exit codes: 0 done, 2 invalid pipeline or input, 1 failure while running, 130 interrupted.
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "skel/error.hpp"
+#include "skel/executor.hpp"
+#include "skel/fs.hpp"
+#include "skel/module.hpp"
+#include "skel/pipeline.hpp"
+#include "cli.hpp"
+
+namespace fs = std::filesystem;
+using namespace skel;
+
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_sigint(int) { g_interrupted.store(true); }
+
+constexpr int kOk = 0, kFailed = 1, kInvalid = 2, kInterrupted = 130;
+
+const char* kUsage = R"(usage: skelflow <command> [options]
+
+commands:
+  run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]
+               [--target NODE]... [--quiet]
+      Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths
+      resolve against --output-dir when given. Outputs appear only when the whole run succeeds.
+  validate PIPELINE
+      Checks a pipeline (modules, parameters, connections, types, cycles) without running it.
+  modules [--markdown] [NAME]
+      Lists the modules, or documents one (or all, with --markdown) in full.
+  info FILE
+      Describes what a volume, graph or pipeline file holds.
+  help
+      Shows this text.
+
+exit codes: 0 done, 2 invalid pipeline or input, 1 failure while running, 130 interrupted.
+)";
+
+// ---------------------------------------------------------------- progress display
+class Progress {
+public:
+  explicit Progress(bool quiet) : quiet_(quiet), tty_(isatty(STDERR_FILENO) != 0) {}
+
+  void status(const std::string& node, const NodeStatus& s) {
+    std::lock_guard lock(m_);
+    if (quiet_) return;
+    if (s.state == NodeState::Running) {
+      current_ = node;
+      return;
+    }
+    if (s.state == NodeState::Done || s.state == NodeState::Cached || s.state == NodeState::Error) {
+      clear_line();
+      if (s.state == NodeState::Error) std::fprintf(stderr, "  %-24s error\n", node.c_str());
+      else std::fprintf(stderr, "  %-24s %s\n", node.c_str(), to_string(s.state));
+      draw();
+    }
+  }
+  void overall(double f) {
+    std::lock_guard lock(m_);
+    fraction_ = f;
+    if (quiet_) return;
+    auto now = std::chrono::steady_clock::now();
+    if (tty_) {
+      if (now - last_ < std::chrono::milliseconds(100) && f < 1.0) return;
+      last_ = now;
+      draw();
+    } else if (now - last_ >= std::chrono::seconds(5)) {  // plain lines for logs, not too many
+      last_ = now;
+      std::fprintf(stderr, "progress %3.0f%% (%s)\n", f * 100.0, current_.c_str());
+    }
+  }
+  void warning(const std::string& node, const std::string& msg) {
+    std::lock_guard lock(m_);
+    clear_line();
+    std::fprintf(stderr, "warning: node '%s': %s\n", node.c_str(), msg.c_str());
+    draw();
+  }
+  void finish() {
+    std::lock_guard lock(m_);
+    clear_line();
+  }
+
+private:
+  void clear_line() {
+    if (tty_ && drawn_) std::fprintf(stderr, "\r\033[K");
+    drawn_ = false;
+  }
+  void draw() {
+    if (!tty_ || quiet_) return;
+    const int width = 30;
+    int filled = static_cast<int>(fraction_ * width + 0.5);
+    std::string bar(static_cast<size_t>(filled), '#');
+    bar.resize(width, '-');
+    std::fprintf(stderr, "\r\033[K[%s] %3.0f%% %s", bar.c_str(), fraction_ * 100.0, current_.c_str());
+    std::fflush(stderr);
+    drawn_ = true;
+  }
+  std::mutex m_;
+  bool quiet_, tty_;
+  bool drawn_ = false;
+  double fraction_ = 0;
+  std::string current_;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+// ---------------------------------------------------------------- module docs
+std::string default_text(const ParamSpec& p) {
+  std::string v = format_value(p.default_value);
+  if (v.empty()) return p.optional_value ? "(not set)" : "(required)";
+  return v;
+}
+
+std::string range_text(const ParamSpec& p) {
+  std::ostringstream s;
+  if (!p.choices.empty()) {
+    for (size_t i = 0; i < p.choices.size(); ++i) s << (i ? " \\| " : "") << p.choices[i];
+    return s.str();
+  }
+  if (p.min || p.max) {
+    s << "[" << (p.min ? format_value(*p.min) : std::string("-inf")) << ", "
+      << (p.max ? format_value(*p.max) : std::string("inf")) << "]";
+  }
+  if (p.list_length >= 0) s << (s.str().empty() ? "" : ", ") << p.list_length << " values";
+  return s.str();
+}
+
+std::string types_text(const std::vector<std::string>& ts) {
+  if (ts == all_volume_types()) return "any volume";
+  if (ts == integer_volume_types()) return "integer volume";
+  std::string s;
+  for (const auto& t : ts) {
+    if (!s.empty()) s += ", ";
+    s += t;
+  }
+  return s;
+}
+
+void print_markdown(const ModuleSpec& m, std::ostream& o) {
+  o << "### `" << m.name() << "`\n\n" << m.doc() << "\n\n";
+  if (!m.inputs().empty()) {
+    o << "| input | type | required | description |\n|---|---|---|---|\n";
+    for (const auto& p : m.inputs())
+      o << "| `" << p.name << "` | " << types_text(p.types) << " | " << (p.required ? "yes" : "no") << " | "
+        << p.doc << " |\n";
+    o << "\n";
+  }
+  if (!m.outputs().empty()) {
+    o << "| output | type | description |\n|---|---|---|\n";
+    for (const auto& p : m.outputs()) o << "| `" << p.name << "` | " << types_text(p.types) << " | " << p.doc << " |\n";
+    o << "\n";
+  }
+  if (!m.params().empty()) {
+    o << "| parameter | type | default | range | unit | description |\n|---|---|---|---|---|---|\n";
+    for (const auto& p : m.params())
+      o << "| `" << p.name << "` | " << to_string(p.type) << " | `" << default_text(p) << "` | " << range_text(p)
+        << " | " << p.unit << " | " << p.doc << " |\n";
+    o << "\n";
+  }
+  if (!m.details().empty()) o << m.details() << "\n\n";
+}
+
+int cmd_modules(const std::vector<std::string>& args) {
+  bool markdown = false;
+  std::string name;
+  for (const auto& a : args) {
+    if (a == "--markdown") markdown = true;
+    else if (!a.empty() && a[0] == '-') throw InputError("modules: unknown option " + a);
+    else name = a;
+  }
+  const auto& reg = Registry::instance();
+  if (!name.empty()) {
+    const ModuleSpec* m = reg.find(name);
+    if (!m) throw InputError("unknown module '" + name + "'");
+    print_markdown(*m, std::cout);
+    return kOk;
+  }
+  if (markdown) {
+    std::cout << "# Skelflow modules\n\nGenerated by `skelflow modules --markdown`. Every module reads its inputs "
+                 "from other nodes' outputs (`node.port` in YAML) and takes the parameters listed.\n\n";
+    std::string family;
+    for (const auto* m : reg.specs()) {
+      if (m->family() != family) {
+        family = m->family();
+        std::cout << "## " << family << "\n\n";
+      }
+      print_markdown(*m, std::cout);
+    }
+    return kOk;
+  }
+  for (const auto* m : reg.specs()) std::printf("%-34s %s\n", m->name().c_str(), m->doc().c_str());
+  return kOk;
+}
+
+// ---------------------------------------------------------------- info
+int cmd_info(const std::vector<std::string>& args) {
+  if (args.size() != 1) throw InputError("info: expected one FILE");
+  fs::path f = args[0];
+  std::error_code ec;
+  if (!fs::exists(f, ec)) throw InputError(f.string() + ": file not found");
+  std::string ext = f.extension().string();
+  for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".yaml" || ext == ".yml") {
+    Pipeline p = Pipeline::load_file(f);
+    std::cout << f.string() << ": Skelflow pipeline, " << p.nodes().size() << " nodes\n";
+    for (const auto& n : p.nodes()) {
+      std::cout << "  " << n.id << ": " << n.module;
+      for (const auto& [port, ref] : n.inputs) std::cout << "  " << port << "<-" << ref.str();
+      std::cout << "\n";
+    }
+    auto ds = validate(p);
+    for (const auto& d : ds) std::cout << "  problem: " << d.format() << "\n";
+    return ds.empty() ? kOk : kInvalid;
+  }
+  for (const auto& ins : Registry::instance().inspectors()) {
+    if (std::find(ins.extensions.begin(), ins.extensions.end(), ext) != ins.extensions.end()) {
+      std::cout << f.string() << ": " << ins.name << "\n" << ins.describe(f);
+      return kOk;
+    }
+  }
+  std::string known;
+  for (const auto& ins : Registry::instance().inspectors())
+    for (const auto& e : ins.extensions) known += " " + e;
+  throw InputError(f.string() + ": unknown file type '" + ext + "' (known: .yaml" + known + ")");
+}
+
+// ---------------------------------------------------------------- validate / run
+int cmd_validate(const std::vector<std::string>& args) {
+  if (args.size() != 1) throw InputError("validate: expected one PIPELINE file");
+  Pipeline p = Pipeline::load_file(args[0]);
+  validate_or_throw(p);
+  std::printf("%s: valid (%zu nodes)\n", args[0].c_str(), p.nodes().size());
+  return kOk;
+}
+
+int cmd_run(const std::vector<std::string>& args) {
+  std::string file, report_path;
+  ExecOptions opt;
+  bool quiet = false;
+  auto need = [&](size_t& i, const std::string& what) -> const std::string& {
+    if (i + 1 >= args.size()) throw InputError("run: " + what + " needs a value");
+    return args[++i];
+  };
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--set") {
+      const std::string& s = need(i, "--set");
+      auto eq = s.find('=');
+      auto dot = s.find('.');
+      if (eq == std::string::npos || dot == std::string::npos || dot > eq)
+        throw InputError("--set " + s + ": expected node.param=value");
+      opt.overrides[s.substr(0, dot)][s.substr(dot + 1, eq - dot - 1)] = parse_param_text(s.substr(eq + 1));
+    } else if (a == "--threads") {
+      const std::string& v = need(i, "--threads");
+      try {
+        opt.threads = std::stoi(v);
+      } catch (...) {
+        throw InputError("--threads " + v + ": expected a number");
+      }
+      if (opt.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+    } else if (a == "--output-dir") {
+      opt.output_dir = need(i, "--output-dir");
+    } else if (a == "--report") {
+      report_path = need(i, "--report");
+    } else if (a == "--target") {
+      opt.targets.push_back(need(i, "--target"));
+    } else if (a == "--quiet" || a == "-q") {
+      quiet = true;
+    } else if (!a.empty() && a[0] == '-') {
+      throw InputError("run: unknown option " + a);
+    } else if (file.empty()) {
+      file = a;
+    } else {
+      throw InputError("run: more than one pipeline given");
+    }
+  }
+  if (file.empty()) throw InputError("run: no PIPELINE given");
+  Pipeline p = Pipeline::load_file(file);
+
+  Progress progress(quiet);
+  opt.cancel = &g_interrupted;
+  opt.on_status = [&](const std::string& n, const NodeStatus& s) { progress.status(n, s); };
+  opt.on_progress = [&](double f) { progress.overall(f); };
+  opt.on_warning = [&](const std::string& n, const std::string& w) { progress.warning(n, w); };
+
+  Executor ex;
+  auto write_report = [&](const RunReport& r) {
+    if (report_path.empty()) return;
+    write_atomically(report_path, [&](const fs::path& tmp) {
+      std::ofstream o(tmp);
+      o << r.to_json();
+      if (!o.flush()) throw Error("cannot write the report " + report_path);
+    });
+  };
+  try {
+    RunReport r = ex.run(p, opt);
+    progress.finish();
+    write_report(r);
+    if (!quiet) {
+      std::fprintf(stderr, "done in %.2f s, peak memory %.0f MiB\n", r.seconds, r.peak_rss_mib);
+      for (const auto& n : r.nodes)
+        for (const auto& f : n.outputs_written) std::printf("wrote %s\n", f.c_str());
+    }
+    return kOk;
+  } catch (...) {
+    progress.finish();
+    RunReport r = ex.last_report();
+    if (!r.pipeline.empty()) {
+      try {
+        write_report(r);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "skelflow: %s\n", e.what());
+      }
+    }
+    throw;
+  }
+}
+
+}  // namespace
+
+int skelflow_main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
+    std::fputs(kUsage, args.empty() ? stderr : stdout);
+    return args.empty() ? kInvalid : kOk;
+  }
+  struct sigaction sa {};
+  sa.sa_handler = on_sigint;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  const std::string cmd = args[0];
+  std::vector<std::string> rest(args.begin() + 1, args.end());
+  try {
+    if (cmd == "run") return cmd_run(rest);
+    if (cmd == "validate") return cmd_validate(rest);
+    if (cmd == "modules") return cmd_modules(rest);
+    if (cmd == "info") return cmd_info(rest);
+    std::fprintf(stderr, "skelflow: unknown command '%s'\n\n%s", cmd.c_str(), kUsage);
+    return kInvalid;
+  } catch (const Cancelled&) {
+    std::fprintf(stderr, "skelflow: interrupted; no partial outputs were left\n");
+    return kInterrupted;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "skelflow: %s\n", e.what());
+    return kInvalid;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "skelflow: %s\n", e.what());
+    return kFailed;
+  }
+}

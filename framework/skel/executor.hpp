@@ -1,0 +1,98 @@
+#pragma once
+// Executes a validated Pipeline: topological order, independent nodes in parallel, results cached by
+// a hash of module + parameters + input identities (changing one parameter re-runs only that node and
+// its dependants), intermediates freed early in headless runs, progress, cancellation, transactional
+// output files, and a run report.
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "skel/pipeline.hpp"
+
+namespace skel {
+
+enum class NodeState { Idle, Stale, Waiting, Running, Done, Cached, Error, Cancelled };
+const char* to_string(NodeState s);
+
+struct NodeStatus {
+  NodeState state = NodeState::Idle;
+  double progress = 0.0;   // 0..1 while running
+  std::string message;     // error message or last warning
+};
+
+struct ExecOptions {
+  int threads = 0;                        // total thread budget; 0 = all hardware threads
+  std::filesystem::path output_dir;       // relative output paths resolve here if set
+  bool keep_outputs = false;              // GUI: keep every output in the cache for viewing
+  std::vector<std::string> targets;       // run only these and what they need; empty = all
+  std::map<std::string, ParamMap> overrides;  // --set node.param=value (already typed)
+  const std::atomic<bool>* cancel = nullptr;  // extra external cancel flag (signal handler)
+  // Callbacks may be called from worker threads, at most ~20 times per second per node for progress.
+  std::function<void(const std::string& node, const NodeStatus&)> on_status;
+  std::function<void(double overall)> on_progress;
+  std::function<void(const std::string& node, const std::string& message)> on_warning;
+};
+
+struct NodeReport {
+  std::string id, module;
+  bool cached = false;          // result came from the cache
+  double seconds = 0;           // wall time of run()
+  double peak_rss_mib = 0;      // process peak RSS when the node finished
+  double rss_mib = 0;           // process RSS when the node finished (0 for nodes under 10 ms)
+  std::map<std::string, uint64_t> output_bytes;
+  std::vector<std::string> outputs_written;  // final file paths
+  std::vector<std::string> warnings;
+};
+
+struct RunReport {
+  std::string pipeline;
+  bool ok = false;
+  std::string error;            // first error, if any
+  double seconds = 0;
+  double peak_rss_mib = 0;
+  int threads = 0;
+  std::vector<NodeReport> nodes;  // in completion order
+  [[nodiscard]] std::string to_json() const;
+};
+
+class Executor {
+public:
+  explicit Executor(const Registry& registry = Registry::instance());
+  ~Executor();
+  Executor(const Executor&) = delete;
+  Executor& operator=(const Executor&) = delete;
+
+  // Validates, then runs. Throws InputError (invalid pipeline/input: nothing ran), Error (a node
+  // failed; message names the node), Cancelled. Output files are renamed into place only when the
+  // whole run succeeds; otherwise none is left. The report is filled in every case (see last_report).
+  RunReport run(const Pipeline& pipeline, const ExecOptions& options = {});
+  // Requests cancellation of the current run (thread-safe; the run stops within about a second).
+  void cancel();
+
+  // Cached output of a node for the current parameters (nullptr if not computed or stale).
+  [[nodiscard]] DataPtr output(const Pipeline& pipeline, const std::string& node, const std::string& port) const;
+  // Nodes whose results are in the cache for the current parameters and inputs.
+  [[nodiscard]] std::set<std::string> up_to_date(const Pipeline& pipeline) const;
+  [[nodiscard]] RunReport last_report() const;
+  // How many times run() was called on a module (tests: proves caching).
+  [[nodiscard]] int64_t modules_run() const { return modules_run_.load(); }
+  void clear_cache();
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::atomic<int64_t> modules_run_{0};
+};
+
+// Peak resident set size of this process (MiB) and current RSS.
+double peak_rss_mib();
+double current_rss_mib();
+
+}  // namespace skel

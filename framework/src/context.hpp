@@ -1,0 +1,70 @@
+#pragma once
+// Internal: the RunContext implementation shared by the executor and run_module.
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "skel/module.hpp"
+
+namespace skel::detail {
+
+// Files written by one run: temporaries renamed into place on success, removed otherwise.
+class OutputFiles {
+public:
+  std::filesystem::path add(const std::filesystem::path& final_path);
+  void commit();     // renames every temporary to its final path
+  void rollback();   // removes every temporary (never throws)
+  [[nodiscard]] std::vector<std::filesystem::path> finals() const;
+  ~OutputFiles() { rollback(); }
+
+private:
+  mutable std::mutex mutex_;
+  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> files_;  // tmp, final
+};
+
+class NodeContext final : public RunContext {
+public:
+  NodeContext(const ModuleSpec& spec, std::string node_id, std::map<std::string, DataPtr> inputs,
+              ParamMap params, int threads, Interrupter progress, std::filesystem::path input_base,
+              std::filesystem::path output_base, OutputFiles& files,
+              std::function<void(const std::string&)> on_warning);
+
+  [[nodiscard]] DataPtr input_data(const std::string& port) const override;
+  [[nodiscard]] const ParamValue& param_value(const std::string& name) const override;
+  void output(const std::string& port, DataPtr data) override;
+  using RunContext::output;
+  [[nodiscard]] const Interrupter& progress() const override { return progress_; }
+  [[nodiscard]] int threads() const override { return threads_; }
+  [[nodiscard]] const std::string& node_id() const override { return node_id_; }
+  void warn(const std::string& message) override;
+  [[nodiscard]] std::filesystem::path input_path(const std::string& param_name) const override;
+  [[nodiscard]] std::filesystem::path output_path(const std::string& param_name) override;
+  [[nodiscard]] std::filesystem::path final_output_path(const std::string& param_name) const override;
+
+  std::map<std::string, DataPtr>& outputs() { return outputs_; }
+  [[nodiscard]] const std::vector<std::string>& warnings() const { return warnings_; }
+  [[nodiscard]] const std::vector<std::string>& written() const { return written_; }
+
+private:
+  const ModuleSpec& spec_;
+  std::string node_id_;
+  std::map<std::string, DataPtr> inputs_;
+  ParamMap params_;
+  int threads_;
+  Interrupter progress_;
+  std::filesystem::path input_base_, output_base_;
+  OutputFiles& files_;
+  std::function<void(const std::string&)> on_warning_;
+  std::map<std::string, DataPtr> outputs_;
+  std::vector<std::string> warnings_, written_;
+  std::map<std::string, std::filesystem::path> tmp_paths_;
+};
+
+// Resolves a (possibly relative) path against `base`.
+std::filesystem::path resolve_path(const std::filesystem::path& base, const std::string& p);
+
+}  // namespace skel::detail

@@ -1,0 +1,720 @@
+#include "skel/pipeline.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include <yaml-cpp/yaml.h>
+
+#include "skel/fs.hpp"
+
+namespace fs = std::filesystem;
+
+namespace skel {
+
+std::optional<PortRef> parse_port_ref(const std::string& text) {
+  auto dot = text.rfind('.');
+  if (dot == std::string::npos || dot == 0 || dot + 1 == text.size()) return std::nullopt;
+  return PortRef{text.substr(0, dot), text.substr(dot + 1)};
+}
+
+std::string Diagnostic::format() const {
+  std::string s;
+  if (!file.empty()) {
+    s += file;
+    if (pos.known()) s += ":" + std::to_string(pos.line) + ":" + std::to_string(pos.column);
+    s += ": ";
+  } else if (pos.known()) {
+    s += std::to_string(pos.line) + ":" + std::to_string(pos.column) + ": ";
+  }
+  if (!node.empty()) s += "node '" + node + "': ";
+  return s + message;
+}
+
+// ---------------------------------------------------------------- scalar parsing / formatting
+namespace {
+
+SourcePos pos_of(const YAML::Node& n) {
+  const YAML::Mark m = n.Mark();
+  if (m.line < 0) return {};
+  return {m.line + 1, m.column + 1};
+}
+
+[[noreturn]] void fail(const std::string& file, SourcePos pos, const std::string& msg) {
+  Diagnostic d{file, pos, "", msg};
+  throw InputError(d.format());
+}
+
+bool parse_int(const std::string& s, int64_t& out) {
+  const char* b = s.data();
+  const char* e = b + s.size();
+  if (b != e && *b == '+') ++b;
+  auto r = std::from_chars(b, e, out);
+  return r.ec == std::errc() && r.ptr == e && b != e;
+}
+
+bool parse_double(const std::string& s, double& out) {
+  if (s == ".inf" || s == ".Inf" || s == "+.inf" || s == "inf") { out = std::numeric_limits<double>::infinity(); return true; }
+  if (s == "-.inf" || s == "-.Inf" || s == "-inf") { out = -std::numeric_limits<double>::infinity(); return true; }
+  if (s == ".nan" || s == ".NaN" || s == "nan") { out = std::numeric_limits<double>::quiet_NaN(); return true; }
+  const char* b = s.data();
+  const char* e = b + s.size();
+  if (b != e && *b == '+') ++b;
+  auto r = std::from_chars(b, e, out);
+  return r.ec == std::errc() && r.ptr == e && b != e;
+}
+
+bool parse_bool(const std::string& s, bool& out) {
+  if (s == "true" || s == "True" || s == "TRUE" || s == "yes" || s == "on") { out = true; return true; }
+  if (s == "false" || s == "False" || s == "FALSE" || s == "no" || s == "off") { out = false; return true; }
+  return false;
+}
+
+// A plain scalar's most specific value: bool, int, float, else string. Quoted scalars are strings.
+ParamValue guess_scalar(const YAML::Node& n) {
+  const std::string& s = n.Scalar();
+  if (n.Tag() == "!") return s;  // quoted
+  bool b;
+  int64_t i;
+  double d;
+  if (parse_bool(s, b)) return b;
+  if (parse_int(s, i)) return i;
+  if (parse_double(s, d)) return d;
+  return s;
+}
+
+std::string fmt_double(double d) {
+  if (std::isnan(d)) return ".nan";
+  if (std::isinf(d)) return d > 0 ? ".inf" : "-.inf";
+  char buf[64];
+  auto r = std::to_chars(buf, buf + sizeof buf, d);
+  std::string s(buf, r.ptr);
+  if (s.find_first_of(".eEn") == std::string::npos) s += ".0";
+  return s;
+}
+
+// Would a plain scalar with this text read back as something other than this string?
+bool needs_quotes(const std::string& s) {
+  if (s.empty()) return true;
+  bool b;
+  int64_t i;
+  double d;
+  if (parse_bool(s, b) || parse_int(s, i) || parse_double(s, d)) return true;
+  if (s == "null" || s == "~" || s == "Null" || s == "NULL") return true;
+  return false;
+}
+
+void emit_value(YAML::Emitter& out, const ParamValue& v) {
+  std::visit(
+      [&](const auto& x) {
+        using T = std::decay_t<decltype(x)>;
+        if constexpr (std::is_same_v<T, bool>) out << (x ? "true" : "false");
+        else if constexpr (std::is_same_v<T, int64_t>) out << std::to_string(x);
+        else if constexpr (std::is_same_v<T, double>) out << fmt_double(x);
+        else if constexpr (std::is_same_v<T, std::string>) {
+          if (needs_quotes(x)) out << YAML::DoubleQuoted << x;
+          else out << x;
+        } else {
+          out << YAML::Flow << YAML::BeginSeq;
+          for (const auto& e : x) {
+            if constexpr (std::is_same_v<T, std::vector<double>>) out << fmt_double(e);
+            else out << std::to_string(e);
+          }
+          out << YAML::EndSeq;
+        }
+      },
+      v);
+}
+
+ParamValue parse_param_value(const YAML::Node& n, const std::string& file, const std::string& what) {
+  if (n.IsScalar()) return guess_scalar(n);
+  if (n.IsNull()) return std::string();
+  if (n.IsSequence()) {
+    std::vector<int64_t> ints;
+    std::vector<double> reals;
+    bool all_int = true;
+    for (const auto& e : n) {
+      if (!e.IsScalar()) fail(file, pos_of(e), what + ": list elements must be numbers");
+      ParamValue g = guess_scalar(e);
+      if (auto* i = std::get_if<int64_t>(&g)) {
+        ints.push_back(*i);
+        reals.push_back(static_cast<double>(*i));
+      } else if (auto* d = std::get_if<double>(&g)) {
+        all_int = false;
+        reals.push_back(*d);
+      } else {
+        fail(file, pos_of(e), what + ": list elements must be numbers, got '" + e.Scalar() + "'");
+      }
+    }
+    if (all_int) return ints;
+    return reals;
+  }
+  fail(file, pos_of(n), what + ": expected a value or a list of numbers, got a mapping");
+}
+
+bool valid_id(const std::string& id) {
+  if (id.empty()) return false;
+  if (!(std::isalpha(static_cast<unsigned char>(id[0])) || id[0] == '_')) return false;
+  return std::all_of(id.begin(), id.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-';
+  });
+}
+
+}  // namespace
+
+ParamValue parse_param_text(const std::string& text) {
+  YAML::Node n;
+  try {
+    n = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw InputError("cannot read the value '" + text + "': " + e.msg);
+  }
+  if (!n.IsDefined() || n.IsNull()) return std::string();
+  return parse_param_value(n, "", "value '" + text + "'");
+}
+
+std::optional<ParamValue> coerce_param(const ParamSpec& spec, const ParamValue& v) {
+  switch (spec.type) {
+    case ParamType::Bool:
+      if (std::holds_alternative<bool>(v)) return v;
+      return std::nullopt;
+    case ParamType::Int:
+      if (std::holds_alternative<int64_t>(v)) return v;
+      if (auto* d = std::get_if<double>(&v)) {
+        if (std::isfinite(*d) && std::floor(*d) == *d && std::abs(*d) < 9e15) return static_cast<int64_t>(*d);
+      }
+      return std::nullopt;
+    case ParamType::Float:
+      if (std::holds_alternative<double>(v)) return v;
+      if (auto* i = std::get_if<int64_t>(&v)) return static_cast<double>(*i);
+      return std::nullopt;
+    case ParamType::String:
+    case ParamType::Choice:
+    case ParamType::Path:
+      if (std::holds_alternative<std::string>(v)) return v;
+      // A plain scalar such as `yes` or `12` meant as text.
+      if (spec.type != ParamType::Path && !std::holds_alternative<std::vector<int64_t>>(v) &&
+          !std::holds_alternative<std::vector<double>>(v)) {
+        if (auto* b = std::get_if<bool>(&v)) return std::string(*b ? "true" : "false");
+        if (auto* i = std::get_if<int64_t>(&v)) return std::to_string(*i);
+      }
+      return std::nullopt;
+    case ParamType::IntList:
+      if (std::holds_alternative<std::vector<int64_t>>(v)) return v;
+      if (auto* s = std::get_if<std::string>(&v); s && s->empty() && spec.optional_value)
+        return std::vector<int64_t>{};
+      if (auto* i = std::get_if<int64_t>(&v)) return std::vector<int64_t>{*i};
+      return std::nullopt;
+    case ParamType::FloatList:
+      if (std::holds_alternative<std::vector<double>>(v)) return v;
+      if (auto* iv = std::get_if<std::vector<int64_t>>(&v))
+        return std::vector<double>(iv->begin(), iv->end());
+      if (auto* s = std::get_if<std::string>(&v); s && s->empty() && spec.optional_value)
+        return std::vector<double>{};
+      if (auto* d = std::get_if<double>(&v)) return std::vector<double>{*d};
+      if (auto* i = std::get_if<int64_t>(&v)) return std::vector<double>{static_cast<double>(*i)};
+      return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+ParamMap effective_params(const PipelineNode& node, const ModuleSpec& spec) {
+  ParamMap eff;
+  for (const auto& p : spec.params()) eff[p.name] = p.default_value;
+  for (const auto& [name, value] : node.params) {
+    const ParamSpec* p = spec.find_param(name);
+    if (!p) continue;
+    auto c = coerce_param(*p, value);
+    eff[p->name] = c ? *c : value;
+  }
+  return eff;
+}
+
+// ---------------------------------------------------------------- load
+Pipeline Pipeline::load_file(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw InputError(path.string() + ": pipeline file not found");
+    throw InputError(path.string() + ": cannot read the pipeline file");
+  }
+  std::stringstream ss;
+  ss << in.rdbuf();
+  fs::path base = fs::absolute(path).parent_path();
+  Pipeline p = parse(ss.str(), path.string(), base);
+  return p;
+}
+
+Pipeline Pipeline::parse(const std::string& text, const std::string& file, const fs::path& base_dir) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    fail(file, {e.mark.line + 1, e.mark.column + 1}, "YAML syntax error: " + e.msg);
+  } catch (const YAML::Exception& e) {
+    fail(file, {e.mark.line + 1, e.mark.column + 1}, std::string("YAML error: ") + e.what());
+  }
+  Pipeline p;
+  p.file_ = file;
+  p.base_dir_ = base_dir;
+  if (!root.IsMap()) fail(file, pos_of(root), "a pipeline must be a mapping with keys 'skelflow' and 'nodes'");
+  bool have_version = false, have_nodes = false;
+  for (const auto& kv : root) {
+    const std::string key = kv.first.Scalar();
+    if (key == "skelflow") {
+      have_version = true;
+      int64_t v = 0;
+      if (!kv.second.IsScalar() || !parse_int(kv.second.Scalar(), v) || v != 1)
+        fail(file, pos_of(kv.second), "unsupported format version '" + (kv.second.IsScalar() ? kv.second.Scalar() : std::string("?")) +
+                                          "' (this Skelflow reads version 1)");
+    } else if (key == "nodes") {
+      have_nodes = true;
+      const YAML::Node& nodes = kv.second;
+      if (nodes.IsNull()) continue;
+      if (!nodes.IsMap()) fail(file, pos_of(nodes), "'nodes' must be a mapping of node id to node");
+      for (const auto& nkv : nodes) {
+        PipelineNode n;
+        n.id = nkv.first.Scalar();
+        n.pos = pos_of(nkv.first);
+        if (!valid_id(n.id))
+          fail(file, n.pos, "invalid node id '" + n.id + "' (letters, digits, '_' and '-'; starts with a letter)");
+        if (p.find(n.id)) {
+          const PipelineNode* first = p.find(n.id);
+          fail(file, n.pos, "duplicate node id '" + n.id + "' (first defined at line " +
+                                std::to_string(first->pos.line) + ")");
+        }
+        const YAML::Node& body = nkv.second;
+        if (!body.IsMap()) fail(file, pos_of(body), "node '" + n.id + "' must be a mapping with 'module'");
+        for (const auto& f : body) {
+          const std::string fk = f.first.Scalar();
+          if (fk == "module") {
+            if (!f.second.IsScalar()) fail(file, pos_of(f.second), "node '" + n.id + "': 'module' must be a name");
+            n.module = f.second.Scalar();
+            n.module_pos = pos_of(f.second);
+          } else if (fk == "params") {
+            if (f.second.IsNull()) continue;
+            if (!f.second.IsMap()) fail(file, pos_of(f.second), "node '" + n.id + "': 'params' must be a mapping");
+            for (const auto& pk : f.second) {
+              const std::string name = pk.first.Scalar();
+              if (n.params.count(name))
+                fail(file, pos_of(pk.first), "node '" + n.id + "': parameter '" + name + "' given twice");
+              n.params[name] = parse_param_value(pk.second, file, "node '" + n.id + "': param '" + name + "'");
+              n.param_pos[name] = pos_of(pk.second);
+            }
+          } else if (fk == "inputs") {
+            if (f.second.IsNull()) continue;
+            if (!f.second.IsMap()) fail(file, pos_of(f.second), "node '" + n.id + "': 'inputs' must be a mapping");
+            for (const auto& ik : f.second) {
+              const std::string port = ik.first.Scalar();
+              if (!ik.second.IsScalar())
+                fail(file, pos_of(ik.second), "node '" + n.id + "': input '" + port + "' must be 'node.port'");
+              auto ref = parse_port_ref(ik.second.Scalar());
+              if (!ref)
+                fail(file, pos_of(ik.second), "node '" + n.id + "': input '" + port + "': '" +
+                                                  ik.second.Scalar() + "' is not of the form node.port");
+              if (n.inputs.count(port))
+                fail(file, pos_of(ik.first), "node '" + n.id + "': input '" + port + "' given twice");
+              n.inputs[port] = *ref;
+              n.input_pos[port] = pos_of(ik.second);
+            }
+          } else {
+            fail(file, pos_of(f.first), "node '" + n.id + "': unknown key '" + fk +
+                                            "' (expected module, inputs, params)");
+          }
+        }
+        if (n.module.empty()) fail(file, n.pos, "node '" + n.id + "' has no 'module'");
+        p.nodes_.push_back(std::move(n));
+      }
+    } else if (key == "gui") {
+      if (!kv.second.IsNull()) {
+        YAML::Emitter e;
+        e << kv.second;
+        p.gui_yaml_ = e.c_str();
+      }
+    } else {
+      fail(file, pos_of(kv.first), "unknown top-level key '" + key + "' (expected skelflow, nodes, gui)");
+    }
+  }
+  if (!have_version) fail(file, pos_of(root), "missing 'skelflow: 1' (the format version)");
+  if (!have_nodes) fail(file, pos_of(root), "missing 'nodes'");
+  return p;
+}
+
+// ---------------------------------------------------------------- save
+std::string Pipeline::to_yaml() const {
+  const Registry& reg = Registry::instance();
+  YAML::Emitter out;
+  out << YAML::BeginMap;
+  out << YAML::Key << "skelflow" << YAML::Value << 1;
+  out << YAML::Key << "nodes" << YAML::Value;
+  if (nodes_.empty()) {
+    out << YAML::Flow << YAML::BeginMap << YAML::EndMap;
+  } else {
+    out << YAML::BeginMap;
+    for (const auto& n : nodes_) {
+      out << YAML::Key << n.id << YAML::Value << YAML::BeginMap;
+      out << YAML::Key << "module" << YAML::Value << n.module;
+      const ModuleSpec* spec = reg.find(n.module);
+      if (!n.inputs.empty()) {
+        out << YAML::Key << "inputs" << YAML::Value << YAML::Flow << YAML::BeginMap;
+        // Declared order when the module is known, then the rest.
+        std::vector<std::string> order;
+        if (spec)
+          for (const auto& ps : spec->inputs())
+            if (n.inputs.count(ps.name)) order.push_back(ps.name);
+        for (const auto& [port, ref] : n.inputs)
+          if (std::find(order.begin(), order.end(), port) == order.end()) order.push_back(port);
+        for (const auto& port : order) out << YAML::Key << port << YAML::Value << n.inputs.at(port).str();
+        out << YAML::EndMap;
+      }
+      if (!n.params.empty()) {
+        out << YAML::Key << "params" << YAML::Value << YAML::Flow << YAML::BeginMap;
+        std::vector<std::string> order;
+        if (spec)
+          for (const auto& ps : spec->params())
+            if (n.params.count(ps.name)) order.push_back(ps.name);
+        for (const auto& [name, v] : n.params)
+          if (std::find(order.begin(), order.end(), name) == order.end()) order.push_back(name);
+        for (const auto& name : order) {
+          ParamValue v = n.params.at(name);
+          if (spec)
+            if (const ParamSpec* ps = spec->find_param(name))
+              if (auto c = coerce_param(*ps, v)) v = *c;
+          out << YAML::Key << name << YAML::Value;
+          emit_value(out, v);
+        }
+        out << YAML::EndMap;
+      }
+      out << YAML::EndMap;
+    }
+    out << YAML::EndMap;
+  }
+  if (!gui_yaml_.empty()) {
+    out << YAML::Key << "gui" << YAML::Value << YAML::Load(gui_yaml_);
+  }
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
+void Pipeline::save(const fs::path& path) {
+  const std::string text = to_yaml();
+  write_atomically(path, [&](const fs::path& tmp) {
+    std::ofstream o(tmp, std::ios::binary);
+    o << text;
+    if (!o.flush()) throw Error("cannot write " + tmp.string());
+  });
+  file_ = path.string();
+  base_dir_ = fs::absolute(path).parent_path();
+}
+
+// ---------------------------------------------------------------- editing
+const PipelineNode* Pipeline::find(const std::string& id) const {
+  for (const auto& n : nodes_)
+    if (n.id == id) return &n;
+  return nullptr;
+}
+PipelineNode* Pipeline::find(const std::string& id) {
+  for (auto& n : nodes_)
+    if (n.id == id) return &n;
+  return nullptr;
+}
+
+PipelineNode& Pipeline::add_node(const std::string& id, const std::string& module) {
+  if (!valid_id(id)) throw InputError("invalid node id '" + id + "'");
+  if (find(id)) throw InputError("duplicate node id '" + id + "'");
+  PipelineNode n;
+  n.id = id;
+  n.module = module;
+  nodes_.push_back(std::move(n));
+  return nodes_.back();
+}
+
+void Pipeline::remove_node(const std::string& id) {
+  auto it = std::find_if(nodes_.begin(), nodes_.end(), [&](const PipelineNode& n) { return n.id == id; });
+  if (it == nodes_.end()) throw InputError("unknown node '" + id + "'");
+  nodes_.erase(it);
+  for (auto& n : nodes_) {
+    for (auto i = n.inputs.begin(); i != n.inputs.end();) {
+      if (i->second.node == id) i = n.inputs.erase(i);
+      else ++i;
+    }
+  }
+}
+
+void Pipeline::rename_node(const std::string& id, const std::string& new_id) {
+  if (id == new_id) return;
+  PipelineNode* n = find(id);
+  if (!n) throw InputError("unknown node '" + id + "'");
+  if (!valid_id(new_id)) throw InputError("invalid node id '" + new_id + "'");
+  if (find(new_id)) throw InputError("duplicate node id '" + new_id + "'");
+  n->id = new_id;
+  for (auto& m : nodes_)
+    for (auto& [port, ref] : m.inputs)
+      if (ref.node == id) ref.node = new_id;
+}
+
+void Pipeline::set_param(const std::string& node, const std::string& param, ParamValue value) {
+  PipelineNode* n = find(node);
+  if (!n) throw InputError("unknown node '" + node + "'");
+  n->params[param] = std::move(value);
+}
+
+void Pipeline::reset_param(const std::string& node, const std::string& param) {
+  PipelineNode* n = find(node);
+  if (!n) throw InputError("unknown node '" + node + "'");
+  n->params.erase(param);
+}
+
+std::string Pipeline::connect(const PortRef& from, const std::string& to_node, const std::string& to_port,
+                              const Registry& registry) {
+  const PipelineNode* src = find(from.node);
+  PipelineNode* dst = find(to_node);
+  if (!src) return "unknown node '" + from.node + "'";
+  if (!dst) return "unknown node '" + to_node + "'";
+  if (from.node == to_node) return "a node cannot be connected to itself";
+  const ModuleSpec* ss = registry.find(src->module);
+  const ModuleSpec* ds = registry.find(dst->module);
+  if (!ss) return "unknown module '" + src->module + "'";
+  if (!ds) return "unknown module '" + dst->module + "'";
+  const PortSpec* op = ss->find_output(from.port);
+  const PortSpec* ip = ds->find_input(to_port);
+  if (!op) return "module " + ss->name() + " has no output '" + from.port + "'";
+  if (!ip) return "module " + ds->name() + " has no input '" + to_port + "'";
+  bool compatible = false;
+  for (const auto& t : op->types)
+    if (std::find(ip->types.begin(), ip->types.end(), t) != ip->types.end()) compatible = true;
+  if (!compatible) {
+    std::string a, b;
+    for (const auto& t : op->types) { if (!a.empty()) a += "|"; a += t; }
+    for (const auto& t : ip->types) { if (!b.empty()) b += "|"; b += t; }
+    return "type mismatch: " + from.str() + " gives " + a + " but " + to_node + "." + to_port + " takes " + b;
+  }
+  // Would it create a cycle? It does if to_node is upstream of from.node.
+  std::set<std::string> up = upstream_closure({from.node});
+  if (up.count(to_node)) return "connecting " + from.str() + " to " + to_node + "." + to_port + " would create a cycle";
+  dst->inputs[to_port] = from;
+  return {};
+}
+
+void Pipeline::disconnect(const std::string& to_node, const std::string& to_port) {
+  PipelineNode* n = find(to_node);
+  if (!n) throw InputError("unknown node '" + to_node + "'");
+  n->inputs.erase(to_port);
+}
+
+std::string Pipeline::unique_id(const std::string& stem_in) const {
+  std::string stem = stem_in;
+  if (auto d = stem.rfind('.'); d != std::string::npos) stem = stem.substr(d + 1);
+  if (!valid_id(stem)) stem = "node";
+  if (!find(stem)) return stem;
+  for (int i = 2;; ++i) {
+    std::string c = stem + std::to_string(i);
+    if (!find(c)) return c;
+  }
+}
+
+std::set<std::string> Pipeline::upstream_closure(const std::vector<std::string>& targets) const {
+  std::set<std::string> seen;
+  if (targets.empty()) {
+    for (const auto& n : nodes_) seen.insert(n.id);
+    return seen;
+  }
+  std::vector<std::string> stack(targets.begin(), targets.end());
+  while (!stack.empty()) {
+    std::string id = stack.back();
+    stack.pop_back();
+    if (!seen.insert(id).second) continue;
+    if (const PipelineNode* n = find(id))
+      for (const auto& [port, ref] : n->inputs) stack.push_back(ref.node);
+  }
+  return seen;
+}
+
+std::vector<std::string> Pipeline::topological_order() const {
+  // Kahn's algorithm, picking the earliest node in file order among the ready ones.
+  std::map<std::string, size_t> index;
+  for (size_t i = 0; i < nodes_.size(); ++i) index[nodes_[i].id] = i;
+  std::vector<int> indeg(nodes_.size(), 0);
+  std::vector<std::vector<size_t>> users(nodes_.size());
+  for (size_t i = 0; i < nodes_.size(); ++i) {
+    std::set<size_t> deps;
+    for (const auto& [port, ref] : nodes_[i].inputs) {
+      auto it = index.find(ref.node);
+      if (it != index.end()) deps.insert(it->second);
+    }
+    for (size_t d : deps) {
+      users[d].push_back(i);
+      ++indeg[i];
+    }
+  }
+  std::set<size_t> ready;
+  for (size_t i = 0; i < nodes_.size(); ++i)
+    if (indeg[i] == 0) ready.insert(i);
+  std::vector<std::string> order;
+  while (!ready.empty()) {
+    size_t i = *ready.begin();
+    ready.erase(ready.begin());
+    order.push_back(nodes_[i].id);
+    for (size_t u : users[i])
+      if (--indeg[u] == 0) ready.insert(u);
+  }
+  if (order.size() != nodes_.size()) {
+    std::string cyc;
+    for (size_t i = 0; i < nodes_.size(); ++i)
+      if (indeg[i] > 0) { if (!cyc.empty()) cyc += ", "; cyc += nodes_[i].id; }
+    throw InputError(file_ + ": the pipeline has a cycle through nodes " + cyc);
+  }
+  return order;
+}
+
+bool Pipeline::operator==(const Pipeline& o) const {
+  if (nodes_.size() != o.nodes_.size()) return false;
+  for (size_t i = 0; i < nodes_.size(); ++i) {
+    const auto& a = nodes_[i];
+    const auto& b = o.nodes_[i];
+    if (a.id != b.id || a.module != b.module || a.inputs != b.inputs) return false;
+    if (a.params.size() != b.params.size()) return false;
+    const ModuleSpec* spec = Registry::instance().find(a.module);
+    for (const auto& [k, v] : a.params) {
+      auto it = b.params.find(k);
+      if (it == b.params.end()) return false;
+      ParamValue va = v, vb = it->second;
+      if (spec)
+        if (const ParamSpec* ps = spec->find_param(k)) {
+          if (auto c = coerce_param(*ps, va)) va = *c;
+          if (auto c = coerce_param(*ps, vb)) vb = *c;
+        }
+      if (!(va == vb)) return false;
+    }
+  }
+  auto norm = [](const std::string& g) -> std::string {
+    if (g.empty()) return {};
+    YAML::Emitter e;
+    e << YAML::Load(g);
+    return e.c_str();
+  };
+  return norm(gui_yaml_) == norm(o.gui_yaml_);
+}
+
+// ---------------------------------------------------------------- validation
+namespace {
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    cur[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j)
+      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    std::swap(prev, cur);
+  }
+  return prev[b.size()];
+}
+std::string suggest(const std::string& name, const std::vector<std::string>& candidates) {
+  std::string best;
+  size_t bd = 3;
+  for (const auto& c : candidates) {
+    size_t d = edit_distance(name, c);
+    if (d < bd) { bd = d; best = c; }
+  }
+  return best.empty() ? std::string() : " (did you mean '" + best + "'?)";
+}
+std::string join_types(const std::vector<std::string>& ts) {
+  std::string s;
+  for (const auto& t : ts) { if (!s.empty()) s += "|"; s += t; }
+  return s;
+}
+}  // namespace
+
+std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
+  std::vector<Diagnostic> ds;
+  auto add = [&](const PipelineNode& n, SourcePos pos, std::string msg) {
+    ds.push_back({p.file(), pos.known() ? pos : n.pos, n.id, std::move(msg)});
+  };
+  std::vector<std::string> module_names;
+  for (const auto* s : registry.specs()) module_names.push_back(s->name());
+  for (const auto& n : p.nodes()) {
+    const ModuleSpec* spec = registry.find(n.module);
+    if (!spec) {
+      add(n, n.module_pos, "unknown module '" + n.module + "'" + suggest(n.module, module_names) +
+                               " (`skelflow modules` lists them)");
+      continue;
+    }
+    // Parameters.
+    std::vector<std::string> pnames;
+    for (const auto& ps : spec->params()) pnames.push_back(ps.name);
+    for (const auto& [name, value] : n.params) {
+      SourcePos pos = n.param_pos.count(name) ? n.param_pos.at(name) : n.pos;
+      const ParamSpec* ps = spec->find_param(name);
+      if (!ps) {
+        add(n, pos, "unknown parameter '" + name + "' of " + n.module + suggest(name, pnames));
+        continue;
+      }
+      auto c = coerce_param(*ps, value);
+      if (!c) {
+        add(n, pos, "param '" + name + "': expected " + to_string(ps->type) + ", got '" + format_value(value) + "'");
+        continue;
+      }
+      std::string m = ps->check(*c);
+      if (!m.empty()) add(n, pos, "param '" + name + "': " + m);
+    }
+    for (const auto& ps : spec->params()) {
+      if (ps.type == ParamType::Path && !ps.optional_value && !n.params.count(ps.name) &&
+          std::get<std::string>(ps.default_value).empty())
+        add(n, n.pos, "param '" + ps.name + "' (a file path) is required");
+    }
+    // Inputs.
+    std::vector<std::string> inames;
+    for (const auto& ip : spec->inputs()) inames.push_back(ip.name);
+    for (const auto& [port, ref] : n.inputs) {
+      SourcePos pos = n.input_pos.count(port) ? n.input_pos.at(port) : n.pos;
+      const PortSpec* ip = spec->find_input(port);
+      if (!ip) {
+        add(n, pos, "unknown input port '" + port + "' of " + n.module + suggest(port, inames));
+        continue;
+      }
+      const PipelineNode* src = p.find(ref.node);
+      if (!src) {
+        add(n, pos, "input '" + port + "': no node '" + ref.node + "'");
+        continue;
+      }
+      const ModuleSpec* ss = registry.find(src->module);
+      if (!ss) continue;  // reported on that node
+      const PortSpec* op = ss->find_output(ref.port);
+      if (!op) {
+        std::vector<std::string> onames;
+        for (const auto& o : ss->outputs()) onames.push_back(o.name);
+        add(n, pos, "input '" + port + "': node '" + ref.node + "' (" + src->module + ") has no output '" +
+                        ref.port + "'" + suggest(ref.port, onames));
+        continue;
+      }
+      bool ok = false;
+      for (const auto& t : op->types)
+        if (std::find(ip->types.begin(), ip->types.end(), t) != ip->types.end()) ok = true;
+      if (!ok)
+        add(n, pos, "input '" + port + "': type mismatch: " + ref.str() + " gives " + join_types(op->types) +
+                        ", but '" + port + "' takes " + join_types(ip->types));
+    }
+    for (const auto& ip : spec->inputs())
+      if (ip.required && !n.inputs.count(ip.name))
+        add(n, n.pos, "required input '" + ip.name + "' (" + join_types(ip.types) + ") is not connected");
+  }
+  try {
+    (void)p.topological_order();
+  } catch (const InputError& e) {
+    ds.push_back({"", {}, "", e.what()});
+  }
+  return ds;
+}
+
+void validate_or_throw(const Pipeline& p, const Registry& registry) {
+  auto ds = validate(p, registry);
+  if (ds.empty()) return;
+  std::string msg;
+  for (const auto& d : ds) { if (!msg.empty()) msg += "\n"; msg += d.format(); }
+  throw InputError(msg);
+}
+
+}  // namespace skel

@@ -1,0 +1,375 @@
+// Pipeline model, YAML, validation and executor, on the test-only modules.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "skel/executor.hpp"
+#include "skel/pipeline.hpp"
+#include "skel/run_module.hpp"
+#include "skel/table.hpp"
+#include "skel/volume.hpp"
+#include "test_modules.hpp"
+
+namespace fs = std::filesystem;
+using namespace skel;
+
+namespace {
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+std::string validation_errors(const std::string& yaml) {
+  Pipeline p = Pipeline::parse(yaml, "p.yaml");
+  std::string all;
+  for (const auto& d : validate(p)) all += d.format() + "\n";
+  return all;
+}
+
+fs::path scratch(const std::string& name) {
+  fs::path d = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / name;
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+const char* kChain = R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [6, 5, 4]}}
+  a: {module: test.scale, inputs: {volume: src.volume}, params: {factor: 3}}
+  b: {module: test.scale, inputs: {volume: src.volume}, params: {factor: -1.5}}
+  sum: {module: test.sum, inputs: {a: a.volume, b: b.volume}}
+)";
+
+}  // namespace
+
+// ---------------------------------------------------------------- registry
+TEST(Registry, FindsModulesAndRejectsDuplicates) {
+  auto& r = Registry::instance();
+  ASSERT_NE(r.find("test.source"), nullptr);
+  EXPECT_EQ(r.find("test.source")->family(), "test");
+  EXPECT_EQ(r.find("no.such"), nullptr);
+  EXPECT_NE(error_of([&] { r.add(ModuleSpec("test.source", "again"), nullptr); }).find("registered twice"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { (void)r.create("no.such"); }).find("unknown module 'no.such'"), std::string::npos);
+  auto specs = r.specs();
+  EXPECT_TRUE(std::is_sorted(specs.begin(), specs.end(),
+                             [](auto* a, auto* b) { return a->name() < b->name(); }));
+}
+
+// ---------------------------------------------------------------- YAML loading errors
+TEST(PipelineYaml, SyntaxErrorHasLineAndColumn) {
+  std::string e = error_of([] { Pipeline::parse("skelflow: 1\nnodes:\n  a: {module: test.source\n", "x.yaml"); });
+  EXPECT_NE(e.find("x.yaml:"), std::string::npos) << e;
+  EXPECT_NE(e.find("YAML syntax error"), std::string::npos) << e;
+}
+
+TEST(PipelineYaml, StructuralErrors) {
+  EXPECT_NE(error_of([] { Pipeline::parse("nodes: {}\n", "x.yaml"); }).find("missing 'skelflow: 1'"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { Pipeline::parse("skelflow: 2\nnodes: {}\n", "x.yaml"); }).find("x.yaml:1:11: unsupported format version '2'"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { Pipeline::parse("skelflow: 1\nnodes: {}\nextra: 1\n", "x.yaml"); })
+                .find("x.yaml:3:1: unknown top-level key 'extra'"),
+            std::string::npos);
+  std::string dup = error_of([] {
+    Pipeline::parse("skelflow: 1\nnodes:\n  a: {module: test.source}\n  a: {module: test.source}\n", "x.yaml");
+  });
+  EXPECT_NE(dup.find("x.yaml:4:3: duplicate node id 'a' (first defined at line 3)"), std::string::npos) << dup;
+  std::string badref = error_of([] {
+    Pipeline::parse("skelflow: 1\nnodes:\n  a: {module: test.scale, inputs: {volume: srcvolume}}\n", "x.yaml");
+  });
+  EXPECT_NE(badref.find("x.yaml:3:44: node 'a': input 'volume': 'srcvolume' is not of the form node.port"),
+            std::string::npos)
+      << badref;
+  EXPECT_NE(error_of([] { Pipeline::parse("skelflow: 1\nnodes:\n  a: {params: {}}\n", "x.yaml"); })
+                .find("node 'a' has no 'module'"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { Pipeline::parse("skelflow: 1\nnodes:\n  a: {module: m, colour: red}\n", "x.yaml"); })
+                .find("x.yaml:3:18: node 'a': unknown key 'colour'"),
+            std::string::npos);
+}
+
+// ---------------------------------------------------------------- validation: every error, with position
+TEST(PipelineValidate, UnknownModuleSuggests) {
+  std::string e = validation_errors("skelflow: 1\nnodes:\n  s: {module: test.sourse}\n");
+  EXPECT_NE(e.find("p.yaml:3:15: node 's': unknown module 'test.sourse' (did you mean 'test.source'?)"),
+            std::string::npos)
+      << e;
+}
+
+TEST(PipelineValidate, UnknownAndMistypedAndOutOfRangeParams) {
+  std::string e = validation_errors(
+      "skelflow: 1\nnodes:\n"
+      "  s: {module: test.source, params: {sise: [1, 2, 3]}}\n"
+      "  t: {module: test.scale, inputs: {volume: s.volume}, params: {factor: abc}}\n"
+      "  u: {module: test.scale, inputs: {volume: s.volume}, params: {factor: 1000}}\n"
+      "  v: {module: test.source, params: {size: [1, 2]}}\n");
+  EXPECT_NE(e.find("p.yaml:3:43: node 's': unknown parameter 'sise' of test.source (did you mean 'size'?)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("p.yaml:4:72: node 't': param 'factor': expected float, got 'abc'"), std::string::npos) << e;
+  EXPECT_NE(e.find("p.yaml:5:72: node 'u': param 'factor': value 1000 is out of range [-100, 100]"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("node 'v': param 'size': expected a list of 3 values, got 2"), std::string::npos) << e;
+}
+
+TEST(PipelineValidate, PortsTypesAndMissingInputs) {
+  std::string e = validation_errors(
+      "skelflow: 1\nnodes:\n"
+      "  s: {module: test.source}\n"
+      "  m: {module: test.mask}\n"
+      "  a: {module: test.scale, inputs: {volum: s.volume}}\n"
+      "  b: {module: test.scale, inputs: {volume: s.vol}}\n"
+      "  c: {module: test.scale, inputs: {volume: m.mask}}\n"
+      "  d: {module: test.scale, inputs: {volume: nobody.volume}}\n");
+  EXPECT_NE(e.find("p.yaml:5:43: node 'a': unknown input port 'volum' of test.scale (did you mean 'volume'?)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("p.yaml:5:3: node 'a': required input 'volume' (volume.f32) is not connected"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("p.yaml:6:44: node 'b': input 'volume': node 's' (test.source) has no output 'vol'"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("p.yaml:7:44: node 'c': input 'volume': type mismatch: m.mask gives volume.u8, but 'volume' takes volume.f32"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("node 'd': input 'volume': no node 'nobody'"), std::string::npos) << e;
+}
+
+TEST(PipelineValidate, Cycle) {
+  std::string e = validation_errors(
+      "skelflow: 1\nnodes:\n"
+      "  a: {module: test.scale, inputs: {volume: b.volume}}\n"
+      "  b: {module: test.scale, inputs: {volume: a.volume}}\n");
+  EXPECT_NE(e.find("the pipeline has a cycle through nodes a, b"), std::string::npos) << e;
+}
+
+TEST(PipelineValidate, ValidPipelineHasNoDiagnostics) {
+  EXPECT_EQ(validation_errors(kChain), "");
+}
+
+// ---------------------------------------------------------------- round trip
+TEST(PipelineYaml, RoundTripIsLosslessAndCanonical) {
+  const std::string text = std::string(kChain) +
+                           "  w: {module: test.write, inputs: {volume: sum.volume}, params: {path: \"out/1.txt\"}}\n"
+                           "gui:\n  positions: {src: [0, 0], a: [120.5, -3]}\n  zoom: 1.25\n";
+  Pipeline p = Pipeline::parse(text, "p.yaml");
+  std::string y1 = p.to_yaml();
+  Pipeline q = Pipeline::parse(y1, "q.yaml");
+  EXPECT_TRUE(p == q) << y1;
+  EXPECT_EQ(q.to_yaml(), y1);  // canonical: saving again changes nothing
+  EXPECT_NE(y1.find("factor: 3.0"), std::string::npos) << y1;  // typed by the spec
+  EXPECT_NE(y1.find("zoom: 1.25"), std::string::npos) << y1;
+  EXPECT_EQ(q.find("a")->inputs.at("volume").str(), "src.volume");
+}
+
+TEST(PipelineYaml, StringsThatLookLikeNumbersStayStrings) {
+  Pipeline p;
+  p.add_node("w", "test.write");
+  p.set_param("w", "path", std::string("123"));
+  Pipeline q = Pipeline::parse(p.to_yaml());
+  EXPECT_EQ(std::get<std::string>(q.find("w")->params.at("path")), "123");
+  p.set_param("w", "path", std::string("true"));
+  q = Pipeline::parse(p.to_yaml());
+  EXPECT_EQ(std::get<std::string>(q.find("w")->params.at("path")), "true");
+}
+
+TEST(PipelineEdit, ConnectRefusesWithReason) {
+  Pipeline p = Pipeline::parse(kChain);
+  p.add_node("m", "test.mask");
+  p.add_node("x", "test.scale");
+  EXPECT_NE(p.connect({"m", "mask"}, "x", "volume").find("type mismatch"), std::string::npos);
+  EXPECT_NE(p.connect({"sum", "volume"}, "src", "volume").find("has no input"), std::string::npos);
+  EXPECT_NE(p.connect({"sum", "volume"}, "a", "volume").find("cycle"), std::string::npos);
+  EXPECT_EQ(p.connect({"sum", "volume"}, "x", "volume"), "");
+  EXPECT_TRUE(validate(p).empty());
+  p.rename_node("sum", "total");
+  EXPECT_EQ(p.find("x")->inputs.at("volume").node, "total");
+  p.remove_node("total");
+  EXPECT_TRUE(p.find("x")->inputs.empty());
+  EXPECT_EQ(p.unique_id("test.scale"), "scale");
+  EXPECT_EQ(p.unique_id("a"), "a2");
+}
+
+// ---------------------------------------------------------------- executor
+TEST(Executor, RunsAndCachesOnlyWhatChanged) {
+  Pipeline p = Pipeline::parse(kChain);
+  Executor ex;
+  ExecOptions o;
+  o.keep_outputs = true;
+  o.threads = 2;
+  ex.run(p, o);
+  EXPECT_EQ(ex.modules_run(), 4);
+  auto sum1 = std::dynamic_pointer_cast<const VolumeF32>(ex.output(p, "sum", "volume"));
+  ASSERT_TRUE(sum1);
+  EXPECT_FLOAT_EQ((*sum1)[5], 5 * 3.0f - 5 * 1.5f);
+  const int src_before = skel::test_counters::g_source_runs.load(), scale_before = skel::test_counters::g_scale_runs.load();
+  // Same pipeline again: nothing runs.
+  ex.run(p, o);
+  EXPECT_EQ(ex.modules_run(), 4);
+  // Change one parameter of `b`: only b and sum re-run.
+  p.set_param("b", "factor", 2.0);
+  EXPECT_EQ(ex.up_to_date(p), (std::set<std::string>{"src", "a"}));
+  RunReport r = ex.run(p, o);
+  EXPECT_EQ(ex.modules_run(), 6);
+  EXPECT_EQ(skel::test_counters::g_source_runs.load(), src_before);
+  EXPECT_EQ(skel::test_counters::g_scale_runs.load(), scale_before + 1);
+  int cached = 0;
+  for (const auto& n : r.nodes) cached += n.cached;
+  EXPECT_EQ(cached, 2);
+  auto sum2 = std::dynamic_pointer_cast<const VolumeF32>(ex.output(p, "sum", "volume"));
+  EXPECT_FLOAT_EQ((*sum2)[5], 5 * 3.0f + 5 * 2.0f);
+  // Outputs are shared, not copied: the cached source volume is the same object.
+  EXPECT_EQ(ex.output(p, "src", "volume").get(), ex.output(p, "src", "volume").get());
+}
+
+TEST(Executor, ParallelEqualsSequential) {
+  Pipeline p = Pipeline::parse(kChain);
+  for (int i = 0; i < 6; ++i) {
+    std::string id = "s" + std::to_string(i);
+    p.add_node(id, "test.scale");
+    p.set_param(id, "factor", 1.0 + i);
+    ASSERT_EQ(p.connect({"sum", "volume"}, id, "volume"), "");
+  }
+  Executor e1, e4;
+  ExecOptions o1, o4;
+  o1.threads = 1;
+  o4.threads = 4;
+  o1.keep_outputs = o4.keep_outputs = true;
+  e1.run(p, o1);
+  e4.run(p, o4);
+  for (int i = 0; i < 6; ++i) {
+    std::string id = "s" + std::to_string(i);
+    auto a = std::dynamic_pointer_cast<const VolumeF32>(e1.output(p, id, "volume"));
+    auto b = std::dynamic_pointer_cast<const VolumeF32>(e4.output(p, id, "volume"));
+    ASSERT_TRUE(a && b);
+    EXPECT_TRUE(*a == *b);
+  }
+}
+
+TEST(Executor, TargetsRunOnlyWhatIsNeeded) {
+  Pipeline p = Pipeline::parse(kChain);
+  Executor ex;
+  ExecOptions o;
+  o.keep_outputs = true;
+  o.targets = {"a"};
+  RunReport r = ex.run(p, o);
+  EXPECT_EQ(r.nodes.size(), 2u);
+  EXPECT_EQ(ex.up_to_date(p), (std::set<std::string>{"src", "a"}));
+}
+
+TEST(Executor, HeadlessFreesIntermediates) {
+  Pipeline p = Pipeline::parse(kChain);
+  Executor ex;
+  RunReport r = ex.run(p, {});
+  EXPECT_TRUE(r.ok);
+  EXPECT_EQ(ex.output(p, "src", "volume"), nullptr);  // nothing kept
+  EXPECT_EQ(r.nodes.size(), 4u);
+  EXPECT_GT(r.nodes.front().output_bytes.at("volume"), 0u);
+  std::string json = r.to_json();
+  EXPECT_NE(json.find("\"peak_rss_mib\""), std::string::npos);
+  EXPECT_NE(json.find("\"id\": \"sum\""), std::string::npos);
+}
+
+TEST(Executor, CancellationStopsQuicklyAndLeavesNoFiles) {
+  fs::path dir = scratch("cancel");
+  Pipeline p = Pipeline::parse(
+      "skelflow: 1\nnodes:\n"
+      "  src: {module: test.source}\n"
+      "  w: {module: test.write, inputs: {volume: src.volume}, params: {path: early.txt}}\n"
+      "  slow: {module: test.slow, inputs: {volume: src.volume}, params: {seconds: 30}}\n",
+      "c.yaml", dir);
+  Executor ex;
+  std::atomic<bool> flag{false};
+  ExecOptions o;
+  o.cancel = &flag;
+  std::thread t([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    flag = true;
+  });
+  auto t0 = std::chrono::steady_clock::now();
+  EXPECT_THROW(ex.run(p, o), Cancelled);
+  double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  t.join();
+  EXPECT_LT(secs, 1.5);
+  EXPECT_FALSE(fs::exists(dir / "early.txt"));
+  EXPECT_TRUE(fs::is_empty(dir));  // no temporaries either
+  EXPECT_EQ(ex.last_report().error, "cancelled");
+}
+
+TEST(Executor, FailureNamesTheNodeAndLeavesNoFiles) {
+  fs::path dir = scratch("fail");
+  Pipeline p = Pipeline::parse(
+      "skelflow: 1\nnodes:\n"
+      "  src: {module: test.source}\n"
+      "  w: {module: test.write, inputs: {volume: src.volume}, params: {path: sub/out.txt}}\n"
+      "  bad: {module: test.fail, inputs: {volume: src.volume}}\n",
+      "f.yaml", dir);
+  Executor ex;
+  ExecOptions o;
+  o.threads = 1;
+  std::string e = error_of([&] { ex.run(p, o); });
+  EXPECT_EQ(e, "node 'bad' (test.fail): failed on purpose");
+  EXPECT_FALSE(fs::exists(dir / "sub" / "out.txt"));
+  p.set_param("bad", "input_error", true);
+  EXPECT_THROW(ex.run(p, o), InputError);
+  // Without the failing node the file appears, at the path relative to the pipeline folder.
+  p.remove_node("bad");
+  RunReport r = ex.run(p, o);
+  EXPECT_TRUE(fs::exists(dir / "sub" / "out.txt"));
+  ASSERT_EQ(r.nodes.back().outputs_written.size(), 1u);
+  EXPECT_EQ(r.nodes.back().outputs_written[0], (dir / "sub" / "out.txt").string());
+}
+
+TEST(Executor, InvalidPipelineRunsNothing) {
+  Pipeline p = Pipeline::parse("skelflow: 1\nnodes:\n  s: {module: test.source, params: {offset: x}}\n", "i.yaml");
+  Executor ex;
+  std::string e = error_of([&] { ex.run(p, {}); });
+  EXPECT_NE(e.find("i.yaml:3:45: node 's': param 'offset': expected float, got 'x'"), std::string::npos) << e;
+  EXPECT_EQ(ex.modules_run(), 0);
+}
+
+TEST(Executor, OverridesApply) {
+  Pipeline p = Pipeline::parse(kChain);
+  Executor ex;
+  ExecOptions o;
+  o.keep_outputs = true;
+  o.overrides["a"]["factor"] = parse_param_text("10");
+  ex.run(p, o);
+  // The override does not change the pipeline itself.
+  EXPECT_EQ(std::get<int64_t>(p.find("a")->params.at("factor")), 3);
+  EXPECT_THROW(
+      {
+        ExecOptions bad;
+        bad.overrides["nobody"]["x"] = int64_t{1};
+        ex.run(p, bad);
+      },
+      InputError);
+}
+
+// ---------------------------------------------------------------- run_module
+TEST(RunModule, ValidatesAndRuns) {
+  auto r = run_module("test.source", {}, {{"size", std::vector<int64_t>{3, 4, 5}}});
+  auto v = r.get<VolumeF32>("volume");
+  EXPECT_EQ(v->dims(), (Dims{3, 4, 5}));
+  EXPECT_NE(error_of([] { run_module("test.source", {}, {{"bogus", int64_t{1}}}); }).find("unknown parameter 'bogus'"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { run_module("test.scale", {}, {}); }).find("required input 'volume' is not connected"),
+            std::string::npos);
+  DataPtr mask = std::make_shared<VolumeU8>(Dims{1, 1, 1});
+  EXPECT_NE(error_of([&] { run_module("test.scale", {{"volume", mask}}); }).find("does not accept volume.u8"),
+            std::string::npos);
+  auto s = run_module("test.scale", {{"volume", r.data("volume")}}, {{"factor", int64_t{2}}});
+  EXPECT_FLOAT_EQ((*s.get<VolumeF32>("volume"))[1], 2.0f);
+}
