@@ -45,7 +45,9 @@ public:
         .length(3)
         .min(1)
         .unit("voxels")
-        .details("The output origin is moved so that every voxel keeps its physical position.");
+        .details("The output origin is moved so that every voxel keeps its physical position. The box is "
+                 "clipped to the volume; a box entirely outside it is an error naming the parameter. "
+                 "Memory: the output only (same bytes per voxel as the input).");
   }
   void run(RunContext& ctx) override {
     auto b = ctx.param<std::vector<int64_t>>("begin");

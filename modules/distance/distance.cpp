@@ -1,0 +1,818 @@
+// Distance transforms: chamfer raster scans, chamfer b(p), separable exact Euclidean DT and feature
+// transform, seeded Euclidean distance. See distance.hpp for conventions.
+#include "distance/distance.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <vector>
+
+#include <sys/mman.h>
+
+#if defined(__SSE4_1__)
+#include <smmintrin.h>
+#endif
+
+#include "skel/error.hpp"
+#include "skel/parallel.hpp"
+
+namespace skel::distance {
+namespace {
+
+// ============================================================================================ chamfer
+
+// Asks the kernel for transparent huge pages on a fresh output buffer before its first touch: the
+// first write to every 4 KiB page otherwise costs a page fault, a large part of a memory-bound pass.
+void advise_huge_pages(void* data, size_t bytes) {
+  constexpr uintptr_t kHuge = uintptr_t{2} << 20;
+  const uintptr_t b = (reinterpret_cast<uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+  const uintptr_t e = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kHuge - 1);
+  if (e > b) (void)madvise(reinterpret_cast<void*>(b), e - b, MADV_HUGEPAGE);
+}
+
+template <class T> Volume<T> new_output(const Grid& g) {
+  Volume<T> v = Volume<T>::uninitialized(g);
+  if (v.size() > 0) advise_huge_pages(v.data(), static_cast<size_t>(v.bytes()));
+  return v;
+}
+
+
+struct Weights64 {
+  uint64_t fx, fy, fz, exy, exz, eyz, v;
+};
+
+Weights64 effective_weights(const Grid& grid, const ChamferOptions& o) {
+  const ChamferWeights w =
+      o.derive_from_spacing ? chamfer_weights_from_spacing(grid.spacing, o.spacing_scale) : o.weights;
+  const uint32_t all[7] = {w.face_x, w.face_y, w.face_z, w.edge_xy, w.edge_xz, w.edge_yz, w.vertex};
+  for (uint32_t v : all)
+    if (v == 0) throw InputError("weights: chamfer weights must be >= 1");
+  return {w.face_x, w.face_y, w.face_z, w.edge_xy, w.edge_xz, w.edge_yz, w.vertex};
+}
+
+uint64_t upper_bound(const Grid& grid, const Weights64& w, bool border_is_object) {
+  const auto& d = grid.dims;
+  const uint64_t f[3] = {w.fx, w.fy, w.fz};
+  if (!border_is_object) {
+    uint64_t best = std::numeric_limits<uint64_t>::max();
+    for (int a = 0; a < 3; ++a) best = std::min(best, f[a] * static_cast<uint64_t>((d[a] + 1) / 2));
+    return best;
+  }
+  uint64_t sum = 0;
+  for (int a = 0; a < 3; ++a) sum += f[a] * static_cast<uint64_t>(std::max<int64_t>(0, d[a] - 1));
+  return sum;
+}
+
+// Accumulator type: 32 bits for uint16 output (INF + weight cannot overflow), 64 bits for uint32.
+template <class T> using Acc = std::conditional_t<sizeof(T) == 2, uint32_t, uint64_t>;
+
+// Forward raster scan of one row: r[x] = min over the forward mask (z-1 plane, row y-1, x-1).
+// py: row (y-1, z); zm, z0, zp: rows (y-1, y, y+1) of plane z-1; missing rows point to a row of B.
+template <class T>
+void forward_row(const uint8_t* m, T* r, const T* py, const T* zm, const T* z0, const T* zp, int64_t nx,
+                 const Weights64& w64, Acc<T> B, Acc<T>* tmp) {
+  using A = Acc<T>;
+  const A fx = static_cast<A>(w64.fx), fy = static_cast<A>(w64.fy), fz = static_cast<A>(w64.fz);
+  const A exy = static_cast<A>(w64.exy), exz = static_cast<A>(w64.exz), eyz = static_cast<A>(w64.eyz);
+  const A vv = static_cast<A>(w64.v);
+  const A INF = std::numeric_limits<T>::max();
+  auto at = [&](const T* row, int64_t x) -> A { return (x < 0 || x >= nx) ? B : static_cast<A>(row[x]); };
+  auto edge_voxel = [&](int64_t x) {
+    A c = std::min({at(py, x - 1) + exy, at(py, x) + fy, at(py, x + 1) + exy, at(zm, x - 1) + vv,
+                    at(zm, x) + eyz, at(zm, x + 1) + vv, at(z0, x - 1) + exz, at(z0, x) + fz,
+                    at(z0, x + 1) + exz, at(zp, x - 1) + vv, at(zp, x) + eyz, at(zp, x + 1) + vv});
+    tmp[x] = m[x] ? std::min(c, INF) : 0;
+  };
+  edge_voxel(0);
+  for (int64_t x = 1; x < nx - 1; ++x) {
+    A c0 = std::min(static_cast<A>(py[x - 1]) + exy, static_cast<A>(py[x + 1]) + exy);
+    A c1 = std::min(static_cast<A>(py[x]) + fy, static_cast<A>(z0[x]) + fz);
+    A c2 = std::min(static_cast<A>(zm[x - 1]) + vv, static_cast<A>(zm[x + 1]) + vv);
+    A c3 = std::min(static_cast<A>(zp[x - 1]) + vv, static_cast<A>(zp[x + 1]) + vv);
+    A c4 = std::min(static_cast<A>(zm[x]) + eyz, static_cast<A>(zp[x]) + eyz);
+    A c5 = std::min(static_cast<A>(z0[x - 1]) + exz, static_cast<A>(z0[x + 1]) + exz);
+    A c = std::min(std::min(std::min(c0, c1), std::min(c2, c3)), std::min(std::min(c4, c5), INF));
+    tmp[x] = m[x] ? c : A(0);
+  }
+  if (nx > 1) edge_voxel(nx - 1);
+  A prev = B;
+  for (int64_t x = 0; x < nx; ++x) {
+    A v = std::min(tmp[x], prev + fx);
+    r[x] = static_cast<T>(v);
+    prev = v;
+  }
+}
+
+// Backward raster scan of one row: r[x] = min(r[x], backward mask (z+1 plane, row y+1, x+1)).
+template <class T>
+void backward_row(T* r, const T* py, const T* zm, const T* z0, const T* zp, int64_t nx, const Weights64& w64,
+                  Acc<T> B, Acc<T>* tmp) {
+  using A = Acc<T>;
+  const A fx = static_cast<A>(w64.fx), fy = static_cast<A>(w64.fy), fz = static_cast<A>(w64.fz);
+  const A exy = static_cast<A>(w64.exy), exz = static_cast<A>(w64.exz), eyz = static_cast<A>(w64.eyz);
+  const A vv = static_cast<A>(w64.v);
+  auto at = [&](const T* row, int64_t x) -> A { return (x < 0 || x >= nx) ? B : static_cast<A>(row[x]); };
+  auto edge_voxel = [&](int64_t x) {
+    A c = std::min({at(py, x - 1) + exy, at(py, x) + fy, at(py, x + 1) + exy, at(zm, x - 1) + vv,
+                    at(zm, x) + eyz, at(zm, x + 1) + vv, at(z0, x - 1) + exz, at(z0, x) + fz,
+                    at(z0, x + 1) + exz, at(zp, x - 1) + vv, at(zp, x) + eyz, at(zp, x + 1) + vv});
+    tmp[x] = std::min(c, static_cast<A>(r[x]));
+  };
+  edge_voxel(0);
+  for (int64_t x = 1; x < nx - 1; ++x) {
+    A c0 = std::min(static_cast<A>(py[x - 1]) + exy, static_cast<A>(py[x + 1]) + exy);
+    A c1 = std::min(static_cast<A>(py[x]) + fy, static_cast<A>(z0[x]) + fz);
+    A c2 = std::min(static_cast<A>(zm[x - 1]) + vv, static_cast<A>(zm[x + 1]) + vv);
+    A c3 = std::min(static_cast<A>(zp[x - 1]) + vv, static_cast<A>(zp[x + 1]) + vv);
+    A c4 = std::min(static_cast<A>(zm[x]) + eyz, static_cast<A>(zp[x]) + eyz);
+    A c5 = std::min(static_cast<A>(z0[x - 1]) + exz, static_cast<A>(z0[x + 1]) + exz);
+    A c = std::min(std::min(std::min(c0, c1), std::min(c2, c3)), std::min(c4, c5));
+    tmp[x] = std::min(c, static_cast<A>(r[x]));
+  }
+  if (nx > 1) edge_voxel(nx - 1);
+  A prev = B;
+  for (int64_t x = nx - 1; x >= 0; --x) {
+    A v = std::min(tmp[x], prev + fx);
+    r[x] = static_cast<T>(v);
+    prev = v;
+  }
+}
+
+#if defined(__SSE4_1__)
+// uint16 rows with SSE4.1: saturating adds (65535 stays "unreached") and unsigned minima, 8 voxels per
+// step; the x-1 (x+1) dependency is a log-step prefix minimum plus the carry from the previous vector.
+struct SimdWeights {
+  __m128i fy, fz, exy, exz, eyz, v, inf;
+  __m128i fx1, fx2, fx4, ramp_fwd, ramp_bwd;  // ramp_fwd: (1..8)*fx; ramp_bwd: (8..1)*fx
+  uint32_t fx;
+};
+SimdWeights simd_weights(const Weights64& w) {
+  auto s = [](uint64_t x) { return _mm_set1_epi16(static_cast<short>(static_cast<uint16_t>(std::min<uint64_t>(x, 65535)))); };
+  auto k = [&](uint64_t i) { return static_cast<short>(static_cast<uint16_t>(std::min<uint64_t>(i * w.fx, 65535))); };
+  SimdWeights r;
+  r.fy = s(w.fy);
+  r.fz = s(w.fz);
+  r.exy = s(w.exy);
+  r.exz = s(w.exz);
+  r.eyz = s(w.eyz);
+  r.v = s(w.v);
+  r.inf = _mm_set1_epi16(-1);
+  r.fx1 = s(w.fx);
+  r.fx2 = s(2 * w.fx);
+  r.fx4 = s(4 * w.fx);
+  r.ramp_fwd = _mm_setr_epi16(k(1), k(2), k(3), k(4), k(5), k(6), k(7), k(8));
+  r.ramp_bwd = _mm_setr_epi16(k(8), k(7), k(6), k(5), k(4), k(3), k(2), k(1));
+  r.fx = static_cast<uint32_t>(w.fx);
+  return r;
+}
+
+inline __m128i ld(const uint16_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); }
+
+// Minimum over the 12 plane/row neighbours of voxels x..x+7 (1 <= x, x + 8 <= nx - 1).
+inline __m128i neighbours12(const uint16_t* py, const uint16_t* zm, const uint16_t* z0, const uint16_t* zp, int64_t x,
+                            const SimdWeights& s) {
+  const __m128i vtx = _mm_adds_epu16(
+      _mm_min_epu16(_mm_min_epu16(ld(zm + x - 1), ld(zm + x + 1)), _mm_min_epu16(ld(zp + x - 1), ld(zp + x + 1))), s.v);
+  const __m128i eyz = _mm_adds_epu16(_mm_min_epu16(ld(zm + x), ld(zp + x)), s.eyz);
+  const __m128i exz = _mm_adds_epu16(_mm_min_epu16(ld(z0 + x - 1), ld(z0 + x + 1)), s.exz);
+  const __m128i fz = _mm_adds_epu16(ld(z0 + x), s.fz);
+  const __m128i exy = _mm_adds_epu16(_mm_min_epu16(ld(py + x - 1), ld(py + x + 1)), s.exy);
+  const __m128i fy = _mm_adds_epu16(ld(py + x), s.fy);
+  return _mm_min_epu16(_mm_min_epu16(_mm_min_epu16(vtx, eyz), _mm_min_epu16(exz, fz)), _mm_min_epu16(exy, fy));
+}
+
+void forward_row_u16(const uint8_t* m, uint16_t* r, const uint16_t* py, const uint16_t* zm, const uint16_t* z0,
+                     const uint16_t* zp, int64_t nx, const Weights64& w64, const SimdWeights& s, uint32_t B,
+                     uint16_t* tmp) {
+  const uint32_t fy = static_cast<uint32_t>(w64.fy), fz = static_cast<uint32_t>(w64.fz);
+  const uint32_t exy = static_cast<uint32_t>(w64.exy), exz = static_cast<uint32_t>(w64.exz);
+  const uint32_t eyz = static_cast<uint32_t>(w64.eyz), vv = static_cast<uint32_t>(w64.v);
+  auto at = [&](const uint16_t* row, int64_t x) -> uint32_t { return (x < 0 || x >= nx) ? B : row[x]; };
+  auto scalar = [&](int64_t x) {
+    uint32_t c = std::min({at(py, x - 1) + exy, at(py, x) + fy, at(py, x + 1) + exy, at(zm, x - 1) + vv,
+                           at(zm, x) + eyz, at(zm, x + 1) + vv, at(z0, x - 1) + exz, at(z0, x) + fz,
+                           at(z0, x + 1) + exz, at(zp, x - 1) + vv, at(zp, x) + eyz, at(zp, x + 1) + vv});
+    tmp[x] = m[x] ? static_cast<uint16_t>(std::min<uint32_t>(c, 65535)) : 0;
+  };
+  scalar(0);
+  int64_t x = 1;
+  const __m128i zero = _mm_setzero_si128();
+  for (; x + 8 <= nx - 1; x += 8) {
+    uint64_t m8;
+    std::memcpy(&m8, m + x, 8);
+    if (m8 == 0) {  // eight background voxels: nothing to propagate
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), zero);
+      continue;
+    }
+    const __m128i c = neighbours12(py, zm, z0, zp, x, s);
+    const __m128i mk = _mm_cvtepu8_epi16(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(m + x)));
+    const __m128i bg = _mm_cmpeq_epi16(mk, zero);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), _mm_andnot_si128(bg, c));
+  }
+  for (; x < nx; ++x) scalar(x);
+  // prefix: r[x] = min(tmp[x], r[x-1] + fx)
+  uint32_t prev = B;
+  __m128i carry = _mm_set1_epi16(static_cast<short>(static_cast<uint16_t>(std::min<uint32_t>(B, 65535))));
+  x = 0;
+  for (; x + 8 <= nx; x += 8) {
+    __m128i v = ld(tmp + x);
+    if (_mm_testz_si128(v, v)) {  // all background: zeros, and the carry is 0
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+      carry = v;
+      continue;
+    }
+    v = _mm_min_epu16(v, _mm_adds_epu16(_mm_alignr_epi8(v, s.inf, 14), s.fx1));
+    v = _mm_min_epu16(v, _mm_adds_epu16(_mm_alignr_epi8(v, s.inf, 12), s.fx2));
+    v = _mm_min_epu16(v, _mm_adds_epu16(_mm_alignr_epi8(v, s.inf, 8), s.fx4));
+    v = _mm_min_epu16(v, _mm_adds_epu16(carry, s.ramp_fwd));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+    const __m128i hi = _mm_shufflehi_epi16(v, 0xFF);  // broadcast lane 7 without leaving the vector unit
+    carry = _mm_unpackhi_epi64(hi, hi);
+  }
+  if (x > 0) prev = r[x - 1];
+  for (; x < nx; ++x) {
+    const uint32_t v = std::min<uint32_t>(tmp[x], prev + s.fx);
+    r[x] = static_cast<uint16_t>(v);
+    prev = v;
+  }
+}
+
+void backward_row_u16(uint16_t* r, const uint16_t* py, const uint16_t* zm, const uint16_t* z0, const uint16_t* zp,
+                      int64_t nx, const Weights64& w64, const SimdWeights& s, uint32_t B, uint16_t* tmp) {
+  const uint32_t fy = static_cast<uint32_t>(w64.fy), fz = static_cast<uint32_t>(w64.fz);
+  const uint32_t exy = static_cast<uint32_t>(w64.exy), exz = static_cast<uint32_t>(w64.exz);
+  const uint32_t eyz = static_cast<uint32_t>(w64.eyz), vv = static_cast<uint32_t>(w64.v);
+  auto at = [&](const uint16_t* row, int64_t x) -> uint32_t { return (x < 0 || x >= nx) ? B : row[x]; };
+  auto scalar = [&](int64_t x) {
+    uint32_t c = std::min({at(py, x - 1) + exy, at(py, x) + fy, at(py, x + 1) + exy, at(zm, x - 1) + vv,
+                           at(zm, x) + eyz, at(zm, x + 1) + vv, at(z0, x - 1) + exz, at(z0, x) + fz,
+                           at(z0, x + 1) + exz, at(zp, x - 1) + vv, at(zp, x) + eyz, at(zp, x + 1) + vv});
+    tmp[x] = static_cast<uint16_t>(std::min<uint32_t>(c, r[x]));
+  };
+  scalar(0);
+  int64_t x = 1;
+  for (; x + 8 <= nx - 1; x += 8) {
+    const __m128i cur = ld(r + x);
+    if (_mm_testz_si128(cur, cur)) {  // eight background voxels (0 after the forward scan) stay 0
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), cur);
+      continue;
+    }
+    const __m128i c = neighbours12(py, zm, z0, zp, x, s);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), _mm_min_epu16(c, cur));
+  }
+  for (; x < nx; ++x) scalar(x);
+  // suffix: r[x] = min(tmp[x], r[x+1] + fx), right to left
+  uint32_t prev = B;
+  const int64_t full = nx / 8 * 8;
+  for (x = nx - 1; x >= full; --x) {
+    const uint32_t v = std::min<uint32_t>(tmp[x], prev + s.fx);
+    r[x] = static_cast<uint16_t>(v);
+    prev = v;
+  }
+  __m128i carry = _mm_set1_epi16(static_cast<short>(static_cast<uint16_t>(std::min<uint32_t>(prev, 65535))));
+  for (x = full - 8; x >= 0; x -= 8) {
+    __m128i v = ld(tmp + x);
+    if (_mm_testz_si128(v, v)) {
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+      carry = v;
+      continue;
+    }
+    v = _mm_min_epu16(v, _mm_adds_epu16(_mm_alignr_epi8(s.inf, v, 2), s.fx1));
+    v = _mm_min_epu16(v, _mm_adds_epu16(_mm_alignr_epi8(s.inf, v, 4), s.fx2));
+    v = _mm_min_epu16(v, _mm_adds_epu16(_mm_alignr_epi8(s.inf, v, 8), s.fx4));
+    v = _mm_min_epu16(v, _mm_adds_epu16(carry, s.ramp_bwd));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+    const __m128i lo = _mm_shufflelo_epi16(v, 0x00);  // broadcast lane 0
+    carry = _mm_unpacklo_epi64(lo, lo);
+  }
+}
+#endif
+
+template <class T>
+Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOptions& o) {
+  using A = Acc<T>;
+  const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
+  Volume<T> out = new_output<T>(mask.grid());
+  if (out.size() == 0) return out;
+  const T INF = std::numeric_limits<T>::max();
+  const A B = o.border_is_object ? A(INF) : A(0);
+  std::vector<T> const_row(static_cast<size_t>(nx), static_cast<T>(B));
+  std::vector<A> tmp(static_cast<size_t>(nx));
+#if defined(__SSE4_1__)
+  std::vector<uint16_t> tmp16(static_cast<size_t>(nx));
+  const SimdWeights sw = simd_weights(w);
+#endif
+  const T* cr = const_row.data();
+  const int64_t plane = nx * ny;
+  const uint8_t* m = mask.data();
+  T* d = out.data();
+  auto row = [&](int64_t y, int64_t z) -> const T* {
+    return (y < 0 || y >= ny || z < 0 || z >= nz) ? cr : d + y * nx + z * plane;
+  };
+  const int64_t check_every = std::max<int64_t>(1, (int64_t{4} << 20) / std::max<int64_t>(1, plane));
+  for (int64_t z = 0; z < nz; ++z) {
+    if (z % check_every == 0) o.interrupter.check(0.5 * static_cast<double>(z) / static_cast<double>(nz));
+    for (int64_t y = 0; y < ny; ++y)
+#if defined(__SSE4_1__)
+      if constexpr (std::is_same_v<T, uint16_t>)
+        forward_row_u16(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
+                        row(y, z - 1), row(y + 1, z - 1), nx, w, sw, B, tmp16.data());
+      else
+#endif
+      forward_row<T>(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
+                     row(y, z - 1), row(y + 1, z - 1), nx, w, B, tmp.data());
+  }
+  for (int64_t z = nz - 1; z >= 0; --z) {
+    if (z % check_every == 0)
+      o.interrupter.check(0.5 + 0.5 * static_cast<double>(nz - 1 - z) / static_cast<double>(nz));
+    for (int64_t y = ny - 1; y >= 0; --y)
+#if defined(__SSE4_1__)
+      if constexpr (std::is_same_v<T, uint16_t>)
+        backward_row_u16(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
+                         nx, w, sw, B, tmp16.data());
+      else
+#endif
+      backward_row<T>(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
+                      nx, w, B, tmp.data());
+  }
+  o.interrupter.check(1.0);
+  return out;
+}
+
+// Chamfer b(p): both raster scans, each voxel taking value and nearest point from the first
+// neighbour (in mask order) giving a strictly smaller value.
+template <class T, class Index>
+void chamfer_nearest_impl(const VolumeU8& mask, const Weights64& w, const ChamferOptions& o, Volume<T>& dist,
+                          Volume<Index>& near) {
+  using A = uint64_t;
+  const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz(), plane = nx * ny;
+  const A INF = std::numeric_limits<T>::max();
+  const Index OUT = std::numeric_limits<Index>::max();
+  const bool outside_bg = !o.border_is_object;
+  struct Off {
+    int dx, dy, dz;
+    A w;
+  };
+  // Forward mask in scan order: plane z-1 (rows y-1..y+1, x-1..x+1), row y-1 (x-1..x+1), then x-1.
+  std::vector<Off> fwd;
+  auto weight = [&](int dx, int dy, int dz) -> A {
+    const int k = (dx != 0) + (dy != 0) + (dz != 0);
+    if (k == 3) return w.v;
+    if (k == 1) return dx ? w.fx : (dy ? w.fy : w.fz);
+    if (dz == 0) return w.exy;
+    if (dy == 0) return w.exz;
+    return w.eyz;
+  };
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) fwd.push_back({dx, dy, -1, weight(dx, dy, -1)});
+  for (int dx = -1; dx <= 1; ++dx) fwd.push_back({dx, -1, 0, weight(dx, -1, 0)});
+  fwd.push_back({-1, 0, 0, w.fx});
+  std::vector<Off> bwd;
+  for (const Off& f : fwd) bwd.push_back({-f.dx, -f.dy, -f.dz, f.w});
+  std::vector<int64_t> fwd_delta, bwd_delta;
+  for (const Off& f : fwd) fwd_delta.push_back(f.dx + f.dy * nx + f.dz * plane);
+  for (const Off& f : bwd) bwd_delta.push_back(f.dx + f.dy * nx + f.dz * plane);
+
+  const uint8_t* m = mask.data();
+  T* d = dist.data();
+  Index* b = near.data();
+  const int64_t check_every = std::max<int64_t>(1, (int64_t{2} << 20) / std::max<int64_t>(1, plane));
+  auto scan = [&](const std::vector<Off>& offs, const std::vector<int64_t>& delta, int64_t x, int64_t y, int64_t z,
+                  int64_t i, bool interior) {
+    A best = d[i];
+    Index bi = b[i];
+    for (size_t k = 0; k < offs.size(); ++k) {
+      A cand;
+      Index cb;
+      if (interior) {
+        cand = static_cast<A>(d[i + delta[k]]);
+        cb = b[i + delta[k]];
+      } else {
+        const int64_t xx = x + offs[k].dx, yy = y + offs[k].dy, zz = z + offs[k].dz;
+        if (xx < 0 || yy < 0 || zz < 0 || xx >= nx || yy >= ny || zz >= nz) {
+          if (!outside_bg) continue;
+          cand = 0;
+          cb = OUT;
+        } else {
+          cand = static_cast<A>(d[i + delta[k]]);
+          cb = b[i + delta[k]];
+        }
+      }
+      if (cand >= INF) continue;
+      cand += offs[k].w;
+      if (cand < best) {
+        best = cand;
+        bi = cb;
+      }
+    }
+    d[i] = static_cast<T>(best);
+    b[i] = bi;
+  };
+  for (int64_t z = 0; z < nz; ++z) {
+    if (z % check_every == 0) o.interrupter.check(0.5 * static_cast<double>(z) / static_cast<double>(nz));
+    for (int64_t y = 0; y < ny; ++y) {
+      const bool yz_in = y > 0 && y < ny - 1 && z > 0 && z < nz - 1;
+      for (int64_t x = 0; x < nx; ++x) {
+        const int64_t i = x + y * nx + z * plane;
+        if (!m[i]) {
+          d[i] = 0;
+          b[i] = static_cast<Index>(i);
+          continue;
+        }
+        d[i] = static_cast<T>(INF);
+        b[i] = OUT;
+        scan(fwd, fwd_delta, x, y, z, i, yz_in && x > 0 && x < nx - 1);
+      }
+    }
+  }
+  for (int64_t z = nz - 1; z >= 0; --z) {
+    if (z % check_every == 0)
+      o.interrupter.check(0.5 + 0.5 * static_cast<double>(nz - 1 - z) / static_cast<double>(nz));
+    for (int64_t y = ny - 1; y >= 0; --y) {
+      const bool yz_in = y > 0 && y < ny - 1 && z > 0 && z < nz - 1;
+      for (int64_t x = nx - 1; x >= 0; --x) {
+        const int64_t i = x + y * nx + z * plane;
+        if (!m[i]) continue;
+        scan(bwd, bwd_delta, x, y, z, i, yz_in && x > 0 && x < nx - 1);
+      }
+    }
+  }
+  o.interrupter.check(1.0);
+}
+
+// ========================================================================================== Euclidean
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Per-thread scratch for the 1D lower envelope of n parabolas.
+struct Envelope {
+  std::vector<int64_t> v;   // site positions (-1 and n: virtual sites outside the array)
+  std::vector<double> z;    // left boundary of each site's interval
+  std::vector<double> fv;   // site values
+  explicit Envelope(int64_t n) : v(static_cast<size_t>(n + 2)), z(static_cast<size_t>(n + 3)), fv(static_cast<size_t>(n + 2)) {}
+};
+
+// One run [a, e) of a line f[0, n) (element q at f[q * stride]) with f > 0 on the run: out[x - a] = min over sites s of
+// (w (x - s)^2 + f[s]) for x in the run. Because f is 0 at a - 1 and e (or those are outside the line),
+// no site beyond them can win, so the sites are: a - 1 (value 0; or the virtual site -1 if a == 0 and
+// `outside`), the finite positions of the run, and e (value 0; or the virtual site n if e == n and
+// `outside`). Ties go to the lower site position. site_out[x - a] receives the chosen site position
+// (-1 or n for virtual sites). Returns false if there is no site at all (out untouched).
+bool envelope_run(const float* f, int64_t stride, int64_t a, int64_t e, int64_t n, double w, bool outside,
+                  Envelope& env, float* out, int64_t* site_out) {
+  int64_t k = -1;
+  int64_t* v = env.v.data();
+  double* z = env.z.data();
+  double* fv = env.fv.data();
+  auto add = [&](int64_t q, double fq) {
+    const double qd = static_cast<double>(q);
+    const double cq = fq + w * qd * qd;
+    double s = -std::numeric_limits<double>::infinity();
+    while (k >= 0) {
+      const double vk = static_cast<double>(v[k]);
+      s = (cq - (fv[k] + w * vk * vk)) / (2.0 * w * (qd - vk));
+      if (s > z[k]) break;
+      --k;
+      s = -std::numeric_limits<double>::infinity();
+    }
+    ++k;
+    v[k] = q;
+    fv[k] = fq;
+    z[k] = s;
+  };
+  if (a > 0 || outside) add(a - 1, 0.0);
+  for (int64_t q = a; q < e; ++q)
+    if (f[q * stride] != kInf) add(q, static_cast<double>(f[q * stride]));
+  if (e < n || outside) add(e, 0.0);
+  if (k < 0) return false;
+  z[k + 1] = std::numeric_limits<double>::infinity();
+  int64_t j = 0;
+  for (int64_t x = a; x < e; ++x) {
+    const double xd = static_cast<double>(x);
+    while (z[j + 1] < xd) ++j;
+    const double dx = xd - static_cast<double>(v[j]);
+    out[x - a] = static_cast<float>(w * dx * dx + fv[j]);
+    site_out[x - a] = v[j];
+  }
+  return true;
+}
+
+struct NoIndex {};
+
+// Squared distance (isotropic: voxel units; anisotropic: physical units) from every voxel to the
+// nearest site, plus optionally the site's index. is_site(i) decides sites inside the array;
+// `outside_site` whether the ring outside the array consists of sites.
+template <class Index, class IsSite>
+void squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotropic, int threads,
+                 const Interrupter& interrupter, float* sq, Index* feat) {
+  constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
+  using Idx = std::conditional_t<with_feat, Index, uint32_t>;
+  const Idx OUT = std::numeric_limits<Idx>::max();
+  const int64_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2], plane = nx * ny;
+  if (nx * ny * nz == 0) return;
+  const double wx = isotropic ? 1.0 : grid.spacing[0] * grid.spacing[0];
+  const double wy = isotropic ? 1.0 : grid.spacing[1] * grid.spacing[1];
+  const double wz = isotropic ? 1.0 : grid.spacing[2] * grid.spacing[2];
+
+  // ---- pass x: contiguous rows, two scans.
+  interrupter.check(0.0);
+  parallel_for(0, nz, threads, [&](int64_t z0, int64_t z1) {
+    std::vector<int64_t> left(static_cast<size_t>(nx));
+    std::vector<int32_t> dist_left(static_cast<size_t>(nx));
+    for (int64_t z = z0; z < z1; ++z) {
+      interrupter.check();
+      for (int64_t y = 0; y < ny; ++y) {
+        const int64_t base = y * nx + z * plane;
+        float* r = sq + base;
+        if constexpr (!with_feat) {
+          // distances only: two branch-free scans with 32-bit run lengths (kFar = no site on that side)
+          constexpr int32_t kFar = int32_t{1} << 30;
+          int32_t* dl = dist_left.data();
+          int32_t d = outside_site ? 0 : kFar;
+          for (int64_t x = 0; x < nx; ++x) {
+            d = is_site(base + x) ? 0 : d + 1;
+            dl[x] = d;
+          }
+          d = outside_site ? 0 : kFar;
+          for (int64_t x = nx - 1; x >= 0; --x) {
+            d = is_site(base + x) ? 0 : d + 1;
+            dl[x] = std::min(d, dl[x]);
+          }
+          // ascending, vectorisable store (fresh output pages are written front to back)
+          const float wxf = static_cast<float>(wx);
+          for (int64_t x = 0; x < nx; ++x) {
+            const float fe = static_cast<float>(dl[x]);
+            r[x] = dl[x] >= kFar / 2 ? kInf : wxf * fe * fe;
+          }
+          continue;
+        }
+        int64_t last = outside_site ? -1 : std::numeric_limits<int64_t>::min();
+        bool any = outside_site;
+        for (int64_t x = 0; x < nx; ++x) {
+          if (is_site(base + x)) {
+            last = x;
+            any = true;
+          }
+          left[static_cast<size_t>(x)] = last;
+        }
+        if (!any) {
+          std::fill(r, r + nx, kInf);
+          if constexpr (with_feat) std::fill(feat + base, feat + base + nx, OUT);
+          continue;
+        }
+        int64_t next = outside_site ? nx : std::numeric_limits<int64_t>::max();
+        for (int64_t x = nx - 1; x >= 0; --x) {
+          const int64_t l = left[static_cast<size_t>(x)];
+          if (l == x) {
+            next = x;
+            r[x] = 0.0f;
+            if constexpr (with_feat) feat[base + x] = static_cast<Idx>(base + x);
+            continue;
+          }
+          const bool has_l = l != std::numeric_limits<int64_t>::min();
+          const bool has_r = next != std::numeric_limits<int64_t>::max();
+          const int64_t dl = has_l ? x - l : std::numeric_limits<int64_t>::max();
+          const int64_t dr = has_r ? next - x : std::numeric_limits<int64_t>::max();
+          const bool use_l = dl <= dr;
+          const double dd = static_cast<double>(use_l ? dl : dr);
+          r[x] = static_cast<float>(wx * dd * dd);
+          if constexpr (with_feat) {
+            const int64_t s = use_l ? l : next;
+            feat[base + x] = (s < 0 || s >= nx) ? OUT : static_cast<Idx>(base + s);
+          }
+        }
+      }
+    }
+  });
+  interrupter.check(1.0 / 3.0);
+
+  // ---- passes y and z: blocks of kB adjacent columns gathered into contiguous line buffers.
+  constexpr int64_t kB = 16;
+  auto column_pass = [&](int64_t n_outer, int64_t n_line, int64_t outer_stride, int64_t line_stride, double w) {
+    parallel_for(0, n_outer, threads, [&](int64_t o0, int64_t o1) {
+      // block of kB adjacent columns, stored line-major: blk[t * kB + b] (one 64-byte row per t)
+      std::vector<float> blk(static_cast<size_t>(kB * n_line)), fout(static_cast<size_t>(n_line));
+      std::vector<uint32_t> nonzero(static_cast<size_t>(n_line));
+      std::vector<int64_t> site(static_cast<size_t>(n_line));
+      std::vector<Idx> iout(with_feat ? static_cast<size_t>(n_line) : 0);
+      Envelope env(n_line);
+      for (int64_t o = o0; o < o1; ++o) {
+        interrupter.check();
+        for (int64_t x0 = 0; x0 < nx; x0 += kB) {
+          const int64_t nb = std::min(kB, nx - x0);
+          const int64_t base = o * outer_stride + x0;
+          uint32_t any = 0;
+          for (int64_t t = 0; t < n_line; ++t) {
+            const float* src = sq + base + t * line_stride;
+            float* dst = blk.data() + t * kB;
+            uint32_t bits = 0;
+            for (int64_t b = 0; b < nb; ++b) {
+              dst[b] = src[b];
+              bits |= static_cast<uint32_t>(src[b] != 0.0f) << b;
+            }
+            nonzero[static_cast<size_t>(t)] = bits;
+            any |= bits;
+          }
+          if (!any) continue;  // every voxel is a site: nothing changes
+          bool changed = false;
+          for (int64_t b = 0; b < nb; ++b) {
+            if (!((any >> b) & 1u)) continue;
+            float* f = blk.data() + b;
+            const int64_t col = base + b;
+            for (int64_t a = 0; a < n_line;) {
+              if (!((nonzero[static_cast<size_t>(a)] >> b) & 1u)) {
+                ++a;
+                continue;
+              }
+              int64_t e = a + 1;
+              while (e < n_line && ((nonzero[static_cast<size_t>(e)] >> b) & 1u)) ++e;
+              if (envelope_run(f, kB, a, e, n_line, w, outside_site, env, fout.data(), site.data())) {
+                if constexpr (with_feat) {
+                  for (int64_t x = a; x < e; ++x) {
+                    const int64_t sx = site[static_cast<size_t>(x - a)];
+                    iout[static_cast<size_t>(x - a)] =
+                        (sx < 0 || sx >= n_line) ? OUT
+                        : (f[sx * kB] == 0.0f)   ? static_cast<Idx>(col + sx * line_stride)
+                                                 : feat[col + sx * line_stride];
+                  }
+                  for (int64_t x = a; x < e; ++x) feat[col + x * line_stride] = iout[static_cast<size_t>(x - a)];
+                }
+                for (int64_t x = a; x < e; ++x) f[x * kB] = fout[static_cast<size_t>(x - a)];
+                changed = true;
+              }
+              a = e;
+            }
+          }
+          if (!changed) continue;
+          for (int64_t t = 0; t < n_line; ++t)
+            std::memcpy(sq + base + t * line_stride, blk.data() + t * kB, static_cast<size_t>(nb) * sizeof(float));
+        }
+      }
+    });
+  };
+  if (ny > 1 || outside_site) column_pass(nz, ny, plane, nx, wy);
+  interrupter.check(2.0 / 3.0);
+  if (nz > 1 || outside_site) column_pass(ny, nz, nx, plane, wz);
+  interrupter.check(1.0);
+}
+
+bool is_isotropic(const Grid& g) { return g.spacing[0] == g.spacing[1] && g.spacing[1] == g.spacing[2]; }
+
+// Converts squared distances in place to the requested output (physical units, optionally rooted).
+void finish_distances(VolumeF32& v, bool isotropic, bool squared, int threads) {
+  const float s2 = isotropic ? static_cast<float>(v.spacing()[0] * v.spacing()[0]) : 1.0f;
+  const float s1 = isotropic ? static_cast<float>(v.spacing()[0]) : 1.0f;
+  float* d = v.data();
+  parallel_for(0, v.size(), threads, [&](int64_t a, int64_t b) {
+    if (squared) {
+      if (s2 != 1.0f)
+        for (int64_t i = a; i < b; ++i) d[i] *= s2;
+    } else if (isotropic) {
+      for (int64_t i = a; i < b; ++i) d[i] = std::sqrt(d[i]) * s1;  // sqrt of an exact integer, then scale
+    } else {
+      for (int64_t i = a; i < b; ++i) d[i] = std::sqrt(d[i]);
+    }
+  }, int64_t{1} << 20);
+}
+
+}  // namespace
+
+// ============================================================================================ public
+
+ChamferWeights chamfer_weights_from_spacing(const Vec3& spacing, double scale) {
+  for (int a = 0; a < 3; ++a)
+    if (!(spacing[a] > 0)) throw InputError("spacing: chamfer weights need spacing > 0 on every axis");
+  if (!(scale >= 1.0)) throw InputError("spacing_scale: expected >= 1");
+  const double smin = std::min({spacing[0], spacing[1], spacing[2]});
+  auto wt = [&](double dx, double dy, double dz) {
+    const double len = std::sqrt(dx * dx * spacing[0] * spacing[0] + dy * dy * spacing[1] * spacing[1] +
+                                 dz * dz * spacing[2] * spacing[2]);
+    const double r = std::round(scale * len / smin);
+    if (r > 1e9) throw InputError("spacing: anisotropy too large for integer chamfer weights");
+    return static_cast<uint32_t>(std::max(1.0, r));
+  };
+  ChamferWeights w;
+  w.face_x = wt(1, 0, 0);
+  w.face_y = wt(0, 1, 0);
+  w.face_z = wt(0, 0, 1);
+  w.edge_xy = wt(1, 1, 0);
+  w.edge_xz = wt(1, 0, 1);
+  w.edge_yz = wt(0, 1, 1);
+  w.vertex = wt(1, 1, 1);
+  return w;
+}
+
+uint64_t chamfer_upper_bound(const Grid& grid, const ChamferOptions& options) {
+  return upper_bound(grid, effective_weights(grid, options), options.border_is_object);
+}
+
+int chamfer_output_bits(const Grid& grid, const ChamferOptions& options) {
+  const uint64_t b = chamfer_upper_bound(grid, options);
+  if (b < std::numeric_limits<uint16_t>::max()) return 16;
+  if (b < std::numeric_limits<uint32_t>::max() - 1) return 32;
+  throw InputError("weights: chamfer distances on this grid could exceed uint32; use smaller weights");
+}
+
+template <class T>
+Volume<T> chamfer_as(const VolumeU8& mask, const ChamferOptions& options) {
+  const Weights64 w = effective_weights(mask.grid(), options);
+  const uint64_t bound = upper_bound(mask.grid(), w, options.border_is_object);
+  if (bound >= std::numeric_limits<T>::max())
+    throw InputError(std::string("chamfer: distances up to ") + std::to_string(bound) + " do not fit into " +
+                     VoxelTraits<T>::name);
+  return chamfer_impl<T>(mask, w, options);
+}
+template Volume<uint16_t> chamfer_as<uint16_t>(const VolumeU8&, const ChamferOptions&);
+template Volume<uint32_t> chamfer_as<uint32_t>(const VolumeU8&, const ChamferOptions&);
+
+DataPtr chamfer(const VolumeU8& mask, const ChamferOptions& options) {
+  if (chamfer_output_bits(mask.grid(), options) == 16)
+    return std::make_shared<VolumeU16>(chamfer_as<uint16_t>(mask, options));
+  return std::make_shared<VolumeU32>(chamfer_as<uint32_t>(mask, options));
+}
+
+namespace {
+bool small_grid(const Grid& g) {
+  return static_cast<uint64_t>(g.voxel_count()) < uint64_t{std::numeric_limits<uint32_t>::max()};
+}
+template <class T>
+ChamferNearest chamfer_nearest_t(const VolumeU8& mask, const Weights64& w, const ChamferOptions& o) {
+  ChamferNearest r;
+  auto dist = std::make_shared<Volume<T>>(new_output<T>(mask.grid()));
+  if (small_grid(mask.grid())) {
+    auto near = std::make_shared<VolumeU32>(new_output<uint32_t>(mask.grid()));
+    chamfer_nearest_impl<T, uint32_t>(mask, w, o, *dist, *near);
+    r.nearest = near;
+  } else {
+    auto near = std::make_shared<VolumeU64>(new_output<uint64_t>(mask.grid()));
+    chamfer_nearest_impl<T, uint64_t>(mask, w, o, *dist, *near);
+    r.nearest = near;
+  }
+  r.distance = dist;
+  return r;
+}
+}  // namespace
+
+ChamferNearest chamfer_nearest(const VolumeU8& mask, const ChamferOptions& options) {
+  const Weights64 w = effective_weights(mask.grid(), options);
+  if (chamfer_output_bits(mask.grid(), options) == 16) return chamfer_nearest_t<uint16_t>(mask, w, options);
+  return chamfer_nearest_t<uint32_t>(mask, w, options);
+}
+
+VolumeF32 euclidean(const VolumeU8& mask, const EuclideanOptions& options) {
+  VolumeF32 out = new_output<float>(mask.grid());
+  const uint8_t* m = mask.data();
+  const bool iso = is_isotropic(mask.grid());
+  squared_edt<NoIndex>(mask.grid(), [m](int64_t i) { return m[i] == 0; }, !options.border_is_object, iso,
+                       options.threads, options.interrupter, out.data(), nullptr);
+  finish_distances(out, iso, options.squared, options.threads);
+  return out;
+}
+
+template <class Index>
+Volume<Index> feature_transform_as(const VolumeU8& mask, const DistanceOptions& options) {
+  if (sizeof(Index) == 4 && !small_grid(mask.grid()))
+    throw InputError("mask: grid has too many voxels for uint32 feature indices; use uint64");
+  Volume<Index> feat = new_output<Index>(mask.grid());
+  VolumeF32 sq = new_output<float>(mask.grid());
+  const uint8_t* m = mask.data();
+  squared_edt<Index>(mask.grid(), [m](int64_t i) { return m[i] == 0; }, !options.border_is_object,
+                     is_isotropic(mask.grid()), options.threads, options.interrupter, sq.data(), feat.data());
+  return feat;
+}
+template Volume<uint32_t> feature_transform_as<uint32_t>(const VolumeU8&, const DistanceOptions&);
+template Volume<uint64_t> feature_transform_as<uint64_t>(const VolumeU8&, const DistanceOptions&);
+
+DataPtr feature_transform(const VolumeU8& mask, const DistanceOptions& options) {
+  if (small_grid(mask.grid())) return std::make_shared<VolumeU32>(feature_transform_as<uint32_t>(mask, options));
+  return std::make_shared<VolumeU64>(feature_transform_as<uint64_t>(mask, options));
+}
+
+VolumeF32 seeded(const VolumeU8& seeds, const SeededOptions& options) {
+  VolumeF32 out = new_output<float>(seeds.grid());
+  const uint8_t* s = seeds.data();
+  const bool iso = is_isotropic(seeds.grid());
+  squared_edt<NoIndex>(seeds.grid(), [s](int64_t i) { return s[i] != 0; }, false, iso, options.threads,
+                       options.interrupter, out.data(), nullptr);
+  finish_distances(out, iso, options.squared, options.threads);
+  return out;
+}
+
+VolumeU8 binary_mask(const DataObject& data, const std::string& port) {
+  return visit_volume(data, port, [&](const auto& v) -> VolumeU8 {
+    using T = typename std::decay_t<decltype(v)>::value_type;
+    if constexpr (std::is_floating_point_v<T>) {
+      throw InputError(port + ": expected an integer mask (voxel > 0 is object), got a " + VoxelTraits<T>::name +
+                       " volume; threshold it first");
+    } else {
+      VolumeU8 out = VolumeU8::uninitialized(v.grid());
+      const T* src = v.data();
+      uint8_t* dst = out.data();
+      for (int64_t i = 0, n = v.size(); i < n; ++i) dst[i] = src[i] > 0 ? 1 : 0;
+      return out;
+    }
+  });
+}
+
+}  // namespace skel::distance

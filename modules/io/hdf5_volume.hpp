@@ -1,0 +1,62 @@
+#pragma once
+// HDF5 volumes: datasets of shape [z][y][x] with attributes `spacing` and `origin` as (x, y, z),
+// chunked and compressed on write, any integer or float type on read, sub-boxes by hyperslab for
+// block-wise algorithms. Every HDF5 problem becomes an InputError naming the file and dataset.
+// Debian's HDF5 is not thread-safe: all calls are serialised by one process-wide mutex.
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "skel/data.hpp"
+#include "skel/volume.hpp"
+
+namespace skel::io {
+
+struct VolumeInfo {
+  Dims dims{0, 0, 0};          // (x, y, z)
+  std::string dtype;           // uint8, uint16, uint32, uint64, int8, int16, int32, int64, float32, float64
+  std::array<int64_t, 3> chunks{0, 0, 0};  // (x, y, z), 0 when contiguous
+  std::vector<std::string> filters;        // e.g. "deflate", "shuffle"
+  Vec3 spacing{1, 1, 1}, origin{0, 0, 0};
+  bool has_spacing = false, has_origin = false;
+};
+
+// Chunking: automatic chunks are whole x-rows grouped into about 1 MiB (for typical volumes whole
+// z-slabs, e.g. 512x512x4 for a 512³ uint8 volume): a full read touches each chunk once, sequential
+// z-slab access is cheap, and 1 MiB chunks read far faster than HDF5's small default chunks.
+// Compression: deflate at `compression` (0 = none); multi-byte types also get the shuffle filter.
+struct WriteOptions {
+  int compression = 1;           // deflate level 0..9 (0 = none)
+  std::array<int64_t, 3> chunks{0, 0, 0};  // (x, y, z); 0 = automatic (whole rows, ~1 MiB chunks)
+};
+
+// Chunk shape (x, y, z) that write_volume / create_volume_dataset use for these dims and voxel size.
+std::array<int64_t, 3> automatic_chunks(Dims dims, int64_t bytes_per_voxel);
+
+// Reads any supported dataset as its own voxel type (int8/int16 become int32, int64 becomes
+// float64 unless it fits... see read_volume_as for conversion). Throws InputError.
+DataPtr read_volume(const std::filesystem::path& file, const std::string& dataset = "/volume");
+// Reads a box [begin, begin + size) of the dataset (x, y, z) as Volume<T> (converted by HDF5).
+template <class T>
+Volume<T> read_box(const std::filesystem::path& file, const std::string& dataset, Dims begin, Dims size);
+VolumeInfo read_volume_info(const std::filesystem::path& file, const std::string& dataset = "/volume");
+// Writes `volume` (any Volume<T>) to `file` as `dataset`. The file is written to a temporary sibling
+// and renamed into place (an existing file is replaced; nothing partial is ever left under `file`).
+void write_volume(const std::filesystem::path& file, const DataObject& volume, const std::string& dataset = "/volume",
+                  const WriteOptions& options = {});
+// Block-wise (out-of-core) writing: create_volume_dataset creates `file` (replacing it) with an
+// empty dataset of `dtype` (uint8, uint16, uint32, uint64, int32, float32, float64) and `grid`
+// (dims, spacing, origin attributes); write_box then writes a block whose voxel (0,0,0) goes to
+// dataset position `begin` (x, y, z). Unwritten voxels read as 0. These write in place (not
+// atomically): write to a temporary path and rename it when all blocks are written.
+void create_volume_dataset(const std::filesystem::path& file, const std::string& dataset, const std::string& dtype,
+                           const Grid& grid, const WriteOptions& options = {});
+template <class T>
+void write_box(const std::filesystem::path& file, const std::string& dataset, const Volume<T>& block, Dims begin);
+
+// One line per dataset of the file (name, shape (x, y, z), dtype, chunks, filters, spacing, origin).
+std::string describe_file(const std::filesystem::path& file);
+
+}  // namespace skel::io

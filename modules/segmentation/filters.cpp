@@ -1,0 +1,270 @@
+// Image filters of the pre-processing chain (thesis §6.1): separable Gaussian, median, illumination
+// correction along z.
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "segmentation/segmentation.hpp"
+#include "skel/error.hpp"
+#include "skel/parallel.hpp"
+
+namespace skel::segmentation {
+namespace {
+
+// Half kernel k[0..r] of a normalised sampled Gaussian with sigma s voxels.
+std::vector<float> half_kernel(double s, double truncate) {
+  const int r = std::max(1, static_cast<int>(std::ceil(truncate * s)));
+  std::vector<double> k(static_cast<size_t>(r + 1));
+  double sum = 0;
+  for (int i = 0; i <= r; ++i) {
+    k[static_cast<size_t>(i)] = std::exp(-0.5 * i * i / (s * s));
+    sum += (i == 0 ? 1.0 : 2.0) * k[static_cast<size_t>(i)];
+  }
+  std::vector<float> out(k.size());
+  for (size_t i = 0; i < k.size(); ++i) out[i] = static_cast<float>(k[i] / sum);
+  return out;
+}
+
+inline int64_t clamp_index(int64_t i, int64_t n) { return i < 0 ? 0 : (i >= n ? n - 1 : i); }
+
+// dst[x] = k0*rows(0)[x] + sum_j k_j*(rows(-j)[x] + rows(+j)[x]), rows(j) = pointer to the row at offset j.
+template <class RowAt>
+void combine_rows(float* dst, int64_t nx, const std::vector<float>& k, RowAt&& row_at) {
+  const float* c = row_at(0);
+  const float k0 = k[0];
+  for (int64_t x = 0; x < nx; ++x) dst[x] = k0 * c[x];
+  for (size_t j = 1; j < k.size(); ++j) {
+    const float* a = row_at(-static_cast<int64_t>(j));
+    const float* b = row_at(static_cast<int64_t>(j));
+    const float kj = k[j];
+    for (int64_t x = 0; x < nx; ++x) dst[x] += kj * (a[x] + b[x]);
+  }
+}
+
+template <class T>
+inline void sort2(T& a, T& b) {
+  const T lo = b < a ? b : a;
+  const T hi = b < a ? a : b;
+  a = lo;
+  b = hi;
+}
+
+// Median of 27 values per lane by forgetful selection: keep 15 candidates, drop the minimum and the
+// maximum (neither can be the median), add the next value, repeat; the middle of the last 3 is it.
+template <class T, int L>
+void median27(const T* const src[27], T* dst, int lanes) {
+  T buf[15][L] = {};
+  for (int i = 0; i < 15; ++i)
+    for (int l = 0; l < lanes; ++l) buf[i][l] = src[i][l];
+  int s = 15, next = 15;
+  while (true) {
+    for (int i = 1; i < s; ++i)
+      for (int l = 0; l < L; ++l) sort2(buf[0][l], buf[i][l]);
+    for (int i = 1; i < s - 1; ++i)
+      for (int l = 0; l < L; ++l) sort2(buf[i][l], buf[s - 1][l]);
+    if (s == 3) break;
+    for (int l = 0; l < lanes; ++l) buf[0][l] = src[next][l];
+    ++next;
+    --s;
+  }
+  for (int l = 0; l < lanes; ++l) dst[l] = buf[1][l];
+}
+
+}  // namespace
+
+VolumeF32 gaussian(const DataObject& image, const GaussianOptions& o) {
+  for (int a = 0; a < 3; ++a)
+    if (!(o.sigma[a] >= 0) || !std::isfinite(o.sigma[a]))
+      throw InputError("param 'sigma': expected finite values >= 0, got " + std::to_string(o.sigma[a]) + " on axis " + "xyz"[a]);
+  if (!(o.truncate > 0)) throw InputError("param 'truncate': expected > 0");
+  VolumeF32 out = visit_volume(image, "image", [&](const auto& v) {
+    VolumeF32 f = VolumeF32::uninitialized(v.grid());
+    parallel_for(0, v.size(), o.threads, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) f[i] = static_cast<float>(v[i]);
+    }, 1 << 16);
+    return f;
+  });
+  const int64_t nx = out.nx(), ny = out.ny(), nz = out.nz();
+  if (out.size() == 0) return out;
+  std::vector<float> k[3];
+  for (int a = 0; a < 3; ++a) {
+    const double s = o.sigma[a] / out.spacing()[a];
+    if (s > 0 && out.dims()[a] > 1) k[a] = half_kernel(s, o.truncate);
+  }
+  float* d = out.data();
+  // x: each row padded with its border values.
+  if (!k[0].empty()) {
+    const auto r = static_cast<int64_t>(k[0].size()) - 1;
+    parallel_for(0, ny * nz, o.threads, [&](int64_t b, int64_t e) {
+      std::vector<float> buf(static_cast<size_t>(nx + 2 * r));
+      for (int64_t row = b; row < e; ++row) {
+        float* p = d + row * nx;
+        std::fill_n(buf.begin(), r, p[0]);
+        std::copy(p, p + nx, buf.begin() + r);
+        std::fill_n(buf.begin() + r + nx, r, p[nx - 1]);
+        const float* c = buf.data() + r;
+        combine_rows(p, nx, k[0], [&](int64_t j) { return c + j; });
+        if ((row & 1023) == 1023) o.interrupter.check();
+      }
+    }, 64);
+  }
+  o.interrupter.check(0.33);
+  // y: per slice, rows combined from a copy of the slice (whole rows: vectorised over x).
+  if (!k[1].empty()) {
+    parallel_for(0, nz, o.threads, [&](int64_t b, int64_t e) {
+      std::vector<float> slice(static_cast<size_t>(nx * ny));
+      for (int64_t z = b; z < e; ++z) {
+        float* p = d + z * nx * ny;
+        std::copy(p, p + nx * ny, slice.begin());
+        for (int64_t y = 0; y < ny; ++y)
+          combine_rows(p + y * nx, nx, k[1], [&](int64_t j) { return slice.data() + clamp_index(y + j, ny) * nx; });
+        o.interrupter.check();
+      }
+    }, 1);
+  }
+  o.interrupter.check(0.66);
+  // z: per y, the nz rows of that y copied into a buffer and combined.
+  if (!k[2].empty()) {
+    parallel_for(0, ny, o.threads, [&](int64_t b, int64_t e) {
+      std::vector<float> col(static_cast<size_t>(nx * nz));
+      for (int64_t y = b; y < e; ++y) {
+        for (int64_t z = 0; z < nz; ++z) std::copy_n(d + (y + ny * z) * nx, nx, col.begin() + z * nx);
+        for (int64_t z = 0; z < nz; ++z)
+          combine_rows(d + (y + ny * z) * nx, nx, k[2], [&](int64_t j) { return col.data() + clamp_index(z + j, nz) * nx; });
+        o.interrupter.check();
+      }
+    }, 1);
+  }
+  o.interrupter.check(1.0);
+  return out;
+}
+
+template <class T>
+Volume<T> median_as(const Volume<T>& v, const MedianOptions& o) {
+  if (o.radius < 0) throw InputError("param 'radius': expected >= 0, got " + std::to_string(o.radius));
+  if (o.radius == 0 || v.size() == 0) return v;
+  const int64_t nx = v.nx(), ny = v.ny(), nz = v.nz();
+  Volume<T> out = Volume<T>::uninitialized(v.grid());
+  if (o.radius == 1) {
+    constexpr int L = 64;
+    parallel_for(0, ny * nz, o.threads, [&](int64_t b, int64_t e) {
+      std::vector<T> rows(static_cast<size_t>(9 * (nx + 2)));
+      for (int64_t row = b; row < e; ++row) {
+        const int64_t y = row % ny, z = row / ny;
+        for (int dz = -1, q = 0; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy, ++q) {
+            const T* s = v.data() + (clamp_index(y + dy, ny) + ny * clamp_index(z + dz, nz)) * nx;
+            T* t = rows.data() + q * (nx + 2);
+            t[0] = s[0];
+            std::copy(s, s + nx, t + 1);
+            t[nx + 1] = s[nx - 1];
+          }
+        T* dst = out.data() + row * nx;
+        for (int64_t x0 = 0; x0 < nx; x0 += L) {
+          const T* src[27];
+          for (int q = 0; q < 9; ++q)
+            for (int dx = 0; dx < 3; ++dx) src[3 * q + dx] = rows.data() + q * (nx + 2) + x0 + dx;
+          median27<T, L>(src, dst + x0, static_cast<int>(std::min<int64_t>(L, nx - x0)));
+        }
+        if ((row & 255) == 255) o.interrupter.check();
+      }
+    }, 16);
+  } else {
+    const int r = o.radius;
+    const int64_t w = 2 * r + 1;
+    parallel_for(0, ny * nz, o.threads, [&](int64_t b, int64_t e) {
+      std::vector<T> vals(static_cast<size_t>(w * w * w));
+      for (int64_t row = b; row < e; ++row) {
+        const int64_t y = row % ny, z = row / ny;
+        for (int64_t x = 0; x < nx; ++x) {
+          size_t n = 0;
+          for (int64_t dz = -r; dz <= r; ++dz)
+            for (int64_t dy = -r; dy <= r; ++dy) {
+              const T* s = v.data() + (clamp_index(y + dy, ny) + ny * clamp_index(z + dz, nz)) * nx;
+              for (int64_t dx = -r; dx <= r; ++dx) vals[n++] = s[clamp_index(x + dx, nx)];
+            }
+          std::nth_element(vals.begin(), vals.begin() + static_cast<int64_t>(n / 2), vals.end());
+          out.data()[row * nx + x] = vals[n / 2];
+        }
+        if ((row & 15) == 15) o.interrupter.check();
+      }
+    }, 1);
+  }
+  o.interrupter.check(1.0);
+  return out;
+}
+
+template Volume<uint8_t> median_as(const Volume<uint8_t>&, const MedianOptions&);
+template Volume<uint16_t> median_as(const Volume<uint16_t>&, const MedianOptions&);
+template Volume<uint32_t> median_as(const Volume<uint32_t>&, const MedianOptions&);
+template Volume<uint64_t> median_as(const Volume<uint64_t>&, const MedianOptions&);
+template Volume<int32_t> median_as(const Volume<int32_t>&, const MedianOptions&);
+template Volume<float> median_as(const Volume<float>&, const MedianOptions&);
+template Volume<double> median_as(const Volume<double>&, const MedianOptions&);
+
+DataPtr median(const DataObject& image, const MedianOptions& o) {
+  return visit_volume(image, "image", [&](const auto& v) -> DataPtr {
+    using V = std::decay_t<decltype(v)>;
+    return std::make_shared<V>(median_as(v, o));
+  });
+}
+
+IlluminationResult illumination_z(const DataObject& image, const IlluminationOptions& o) {
+  IlluminationResult res;
+  res.image = visit_volume(image, "image", [&](const auto& v) {
+    const int64_t nz = v.nz(), plane = v.nx() * v.ny();
+    if (o.fit) {
+      if (!(o.percentile > 0 && o.percentile <= 1))
+        throw InputError("param 'percentile': expected a fraction in (0, 1], got " + std::to_string(o.percentile));
+      res.slice_statistic.assign(static_cast<size_t>(nz), 0.0);
+      if (plane > 0) {
+        const int64_t top = std::max<int64_t>(1, static_cast<int64_t>(std::ceil(o.percentile * static_cast<double>(plane))));
+        parallel_for(0, nz, o.threads, [&](int64_t b, int64_t e) {
+          std::vector<double> vals(static_cast<size_t>(plane));
+          for (int64_t z = b; z < e; ++z) {
+            for (int64_t i = 0; i < plane; ++i) vals[static_cast<size_t>(i)] = static_cast<double>(v[z * plane + i]);
+            std::nth_element(vals.begin(), vals.begin() + (plane - top), vals.end());
+            double sum = 0;
+            for (int64_t i = plane - top; i < plane; ++i) sum += vals[static_cast<size_t>(i)];
+            res.slice_statistic[static_cast<size_t>(z)] = sum / static_cast<double>(top);
+          }
+        }, 1);
+      }
+      // Least-squares line through (z, m(z)).
+      double sz = 0, sm = 0, szz = 0, szm = 0;
+      for (int64_t z = 0; z < nz; ++z) {
+        const double m = res.slice_statistic[static_cast<size_t>(z)], zz = static_cast<double>(z);
+        sz += zz; sm += m; szz += zz * zz; szm += zz * m;
+      }
+      const double n = static_cast<double>(nz);
+      const double den = n * szz - sz * sz;
+      res.fit_slope = nz > 1 && den != 0 ? (n * szm - sz * sm) / den : 0.0;
+      res.fit_intercept = nz > 0 ? (sm - res.fit_slope * sz) / n : 0.0;
+      res.factor.resize(static_cast<size_t>(nz));
+      for (int64_t z = 0; z < nz; ++z) {
+        const double lz = res.fit_intercept + res.fit_slope * static_cast<double>(z);
+        if (!(lz > 0))
+          throw InputError("image: the fitted brightness line " + std::to_string(res.fit_intercept) + " + " +
+                           std::to_string(res.fit_slope) + "·z is not positive at slice " + std::to_string(z) +
+                           "; give slope/intercept instead (fit: false)");
+        res.factor[static_cast<size_t>(z)] = res.fit_intercept / lz;
+      }
+    } else {
+      res.factor.resize(static_cast<size_t>(nz));
+      for (int64_t z = 0; z < nz; ++z) res.factor[static_cast<size_t>(z)] = o.intercept + o.slope * static_cast<double>(z);
+    }
+    o.interrupter.check(0.5);
+    VolumeF32 out = VolumeF32::uninitialized(v.grid());
+    parallel_for(0, nz, o.threads, [&](int64_t b, int64_t e) {
+      for (int64_t z = b; z < e; ++z) {
+        const double f = res.factor[static_cast<size_t>(z)];
+        for (int64_t i = z * plane; i < (z + 1) * plane; ++i) out[i] = static_cast<float>(static_cast<double>(v[i]) * f);
+      }
+    }, 1);
+    return out;
+  });
+  o.interrupter.check(1.0);
+  return res;
+}
+
+}  // namespace skel::segmentation

@@ -1,0 +1,139 @@
+#include "segmentation/segmentation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <vector>
+
+#include "skel/error.hpp"
+#include "skel/parallel.hpp"
+
+namespace skel::segmentation {
+
+VolumeU8 as_mask(const DataObject& data, const std::string& port) {
+  return visit_volume(data, port, [&](const auto& v) -> VolumeU8 {
+    using T = typename std::decay_t<decltype(v)>::value_type;
+    if constexpr (std::is_floating_point_v<T>) {
+      throw InputError("input '" + port + "': expected a binary mask (integer volume, voxel > 0 = object), got " +
+                       v.type_id() + "; threshold it first (segmentation.threshold)");
+    } else {
+      VolumeU8 m = VolumeU8::uninitialized(v.grid());
+      for (int64_t i = 0; i < v.size(); ++i) m[i] = v[i] > 0 ? 1 : 0;
+      return m;
+    }
+  });
+}
+
+double otsu_threshold(const DataObject& image, int threads) {
+  return visit_volume(image, "image", [&](const auto& v) -> double {
+    using T = typename std::decay_t<decltype(v)>::value_type;
+    if (v.size() == 0) throw InputError("input 'image' is empty");
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int64_t i = 0; i < v.size(); ++i) {
+      const double x = static_cast<double>(v[i]);
+      if (std::isnan(x)) continue;
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+    if (!(hi > lo)) return lo;
+    const bool byte = std::is_same_v<T, uint8_t>;
+    const int bins = 256;
+    const double scale = byte ? 1.0 : (bins - 1) / (hi - lo);
+    const double base = byte ? 0.0 : lo;
+    std::vector<std::vector<int64_t>> part(static_cast<size_t>(std::max(1, effective_threads(threads))) * 4,
+                                           std::vector<int64_t>(bins, 0));
+    parallel_chunks(0, v.size(), static_cast<int64_t>(part.size()), threads, [&](int64_t c, int64_t b, int64_t e) {
+      auto& h = part[static_cast<size_t>(c)];
+      for (int64_t i = b; i < e; ++i) {
+        const double x = static_cast<double>(v[i]);
+        if (std::isnan(x)) continue;
+        ++h[static_cast<size_t>(std::clamp<int64_t>(static_cast<int64_t>((x - base) * scale), 0, bins - 1))];
+      }
+    });
+    std::vector<int64_t> h(bins, 0);
+    for (const auto& p : part)
+      for (int b = 0; b < bins; ++b) h[b] += p[b];
+    const double total = static_cast<double>(std::accumulate(h.begin(), h.end(), int64_t{0}));
+    double sum_all = 0;
+    for (int b = 0; b < bins; ++b) sum_all += b * static_cast<double>(h[b]);
+    double w0 = 0, sum0 = 0, best = -1;
+    int best_b = 0, best_last = 0;  // the plateau of maximal variance (empty bins between the modes)
+    for (int b = 0; b < bins - 1; ++b) {
+      w0 += static_cast<double>(h[b]);
+      sum0 += b * static_cast<double>(h[b]);
+      const double w1 = total - w0;
+      if (w0 == 0 || w1 == 0) continue;
+      const double m0 = sum0 / w0, m1 = (sum_all - sum0) / w1;
+      const double between = w0 * w1 * (m0 - m1) * (m0 - m1);
+      if (between > best * (1 + 1e-12)) {
+        best = between;
+        best_b = best_last = b;
+      } else if (between >= best * (1 - 1e-12)) {
+        best_last = b;
+      }
+    }
+    // Voxels of bins <= the chosen bin are background, the rest object (value > threshold, as in
+    // scikit-image); when several bins tie (an empty gap between the modes) the middle of the gap is
+    // taken. uint8: the bin is the grey value itself; otherwise the largest value below the next bin.
+    const int chosen = (best_b + best_last) / 2;
+    if (byte) return static_cast<double>(chosen);
+    return std::nextafter(base + (chosen + 1) / scale, -std::numeric_limits<double>::infinity());
+  });
+}
+
+VolumeU8 threshold(const DataObject& image, double low, double high, int threads) {
+  if (low > high) throw InputError("threshold: low (" + std::to_string(low) + ") is above high (" + std::to_string(high) + ")");
+  return visit_volume(image, "image", [&](const auto& v) {
+    VolumeU8 m = VolumeU8::uninitialized(v.grid());
+    parallel_for(0, v.size(), threads, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) {
+        const double x = static_cast<double>(v[i]);
+        m[i] = x >= low && x <= high ? 1 : 0;
+      }
+    }, 1 << 16);
+    return m;
+  });
+}
+
+VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled) {
+  const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
+  // 2 = background reached from the border (6-connected).
+  VolumeU8 out(mask.grid(), 0);
+  std::vector<int64_t> stack;
+  auto seed = [&](int64_t x, int64_t y, int64_t z) {
+    const int64_t i = mask.index(x, y, z);
+    if (!mask[i] && !out[i]) {
+      out[i] = 2;
+      stack.push_back(i);
+    }
+  };
+  for (int64_t z = 0; z < nz; ++z)
+    for (int64_t y = 0; y < ny; ++y)
+      for (int64_t x = 0; x < nx; ++x)
+        if (x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1) seed(x, y, z);
+  while (!stack.empty()) {
+    const int64_t i = stack.back();
+    stack.pop_back();
+    const int64_t x = i % nx, y = (i / nx) % ny, z = i / (nx * ny);
+    if (x > 0) seed(x - 1, y, z);
+    if (x + 1 < nx) seed(x + 1, y, z);
+    if (y > 0) seed(x, y - 1, z);
+    if (y + 1 < ny) seed(x, y + 1, z);
+    if (z > 0) seed(x, y, z - 1);
+    if (z + 1 < nz) seed(x, y, z + 1);
+  }
+  int64_t f = 0;
+  for (int64_t i = 0; i < mask.size(); ++i) {
+    if (out[i] == 2) {
+      out[i] = 0;
+    } else {
+      if (!mask[i]) ++f;
+      out[i] = 1;
+    }
+  }
+  if (filled) *filled = f;
+  return out;
+}
+
+}  // namespace skel::segmentation

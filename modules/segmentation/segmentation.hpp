@@ -1,0 +1,99 @@
+#pragma once
+// Pre-processing and segmentation (thesis §6.1–6.2): threshold (manual or Otsu), separable Gaussian
+// smoothing, median filter, illumination correction along z, connected components, cavity filling,
+// binary morphology with a ball. Masks are uint8 0/1; any integer volume counts as a mask with
+// "voxel > 0 is object"; float volumes where a mask is expected are an InputError naming the port.
+// Every function returns identical results for any thread count.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "skel/data.hpp"
+#include "skel/interrupter.hpp"
+#include "skel/table.hpp"
+#include "skel/volume.hpp"
+
+namespace skel::segmentation {
+
+// Otsu's threshold of any volume (256-bin histogram between min and max; exact bins for uint8).
+double otsu_threshold(const DataObject& image, int threads = 0);
+
+// low <= value <= high -> 1.
+VolumeU8 threshold(const DataObject& image, double low, double high, int threads = 0);
+
+struct GaussianOptions {
+  Vec3 sigma{1, 1, 1};  // physical units per axis; 0 on an axis skips it
+  double truncate = 3.5;  // kernel radius in sigmas
+  int threads = 0;
+  Interrupter interrupter;
+};
+VolumeF32 gaussian(const DataObject& image, const GaussianOptions& options = {});
+
+struct ComponentOptions {
+  int connectivity = 26;   // 6, 18, 26
+  int64_t min_size = 0;    // smaller components are removed (voxels)
+  bool keep_largest = false;
+  int threads = 0;
+  Interrupter interrupter;
+};
+struct ComponentsResult {
+  VolumeU32 labels;  // 0 background; 1 = largest kept component, 2 = next, ... (ties: first voxel in raster order)
+  VolumeU8 mask;     // kept components
+  Table table;       // label, voxels, volume, bbox, centroid
+  int64_t count = 0; // kept components
+};
+ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
+
+// Background components not 6-connected to the volume border become object (thesis §6.2).
+VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr);
+
+// Median over the (2·radius+1)³ cube around each voxel; voxels outside the volume take the value of
+// the nearest border voxel (replicated border, SciPy mode "nearest"). Output has the input's type.
+// radius 1: a vectorised forgetful-selection network over x-rows; radius > 1: nth_element per voxel.
+struct MedianOptions {
+  int radius = 1;  // voxels, >= 0 (0 = copy)
+  int threads = 0;
+  Interrupter interrupter;
+};
+DataPtr median(const DataObject& image, const MedianOptions& options = {});
+template <class T> Volume<T> median_as(const Volume<T>& image, const MedianOptions& options = {});
+
+// Depth-attenuation correction of confocal stacks (thesis §6.1): every z-slice is multiplied by a
+// factor f(z). Given mode: f(z) = intercept + slope·z (z = slice index). Fitted mode: per slice the
+// mean of the brightest `percentile` fraction of voxels m(z) is computed, a line L(z) = a + b·z is
+// fitted to m(z) by least squares, and f(z) = L(0) / L(z) flattens the fitted profile (slices whose
+// fitted value is <= 0 are an InputError). Output float32.
+struct IlluminationOptions {
+  bool fit = true;
+  double slope = 0.0, intercept = 1.0;  // given mode
+  double percentile = 0.01;             // fitted mode: brightest fraction of each slice, (0, 1]
+  int threads = 0;
+  Interrupter interrupter;
+};
+struct IlluminationResult {
+  VolumeF32 image;
+  std::vector<double> slice_statistic;  // m(z) (fitted mode; empty otherwise)
+  std::vector<double> factor;           // f(z)
+  double fit_intercept = 0, fit_slope = 0;  // L(z) (fitted mode)
+};
+IlluminationResult illumination_z(const DataObject& image, const IlluminationOptions& options = {});
+
+// Binary morphology with the exact digital ball {(dx,dy,dz): dx²+dy²+dz² <= radius²} (voxel units).
+// Dilation: object where the squared Euclidean distance to the nearest object voxel is <= radius²;
+// erosion: object where the squared distance to the nearest background voxel is > radius², voxels
+// outside the volume counting as background for erosion (and contributing nothing to dilation);
+// open = erode then dilate; close = dilate then erode. Computed by exact separable squared distance
+// transforms (integer lower envelopes), O(voxels) for any radius.
+enum class MorphologyOp { erode, dilate, open, close };
+struct MorphologyOptions {
+  MorphologyOp op = MorphologyOp::dilate;
+  double radius = 1.0;  // voxels, >= 0
+  int threads = 0;
+  Interrupter interrupter;
+};
+VolumeU8 morphology(const VolumeU8& mask, const MorphologyOptions& options = {});
+
+// A 0/1 mask from an integer volume (voxel > 0); throws InputError naming `port` for float volumes.
+VolumeU8 as_mask(const DataObject& data, const std::string& port);
+
+}  // namespace skel::segmentation
