@@ -1,0 +1,607 @@
+#include "geodesic/geodesic.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <vector>
+
+#include "skel/error.hpp"
+#include "skel/parallel.hpp"
+
+namespace skel::geodesic {
+
+namespace {
+
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+
+// A bitmap over the padded domain with O(1) rank (number of set bits before a position).
+// 2 bits per voxel: the bits and a 64-bit prefix count per word.
+struct RankBits {
+  std::vector<uint64_t> words;
+  std::vector<uint64_t> prefix;
+  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6)] >> (pos & 63)) & 1u; }
+  [[nodiscard]] uint64_t rank(int64_t pos) const {
+    const size_t w = static_cast<size_t>(pos >> 6);
+    const uint64_t below = (pos & 63) ? (words[w] & ((uint64_t{1} << (pos & 63)) - 1)) : 0;
+    return prefix[w] + static_cast<uint64_t>(std::popcount(below));
+  }
+  uint64_t build_rank() {
+    prefix.resize(words.size() + 1);
+    uint64_t s = 0;
+    for (size_t i = 0; i < words.size(); ++i) {
+      prefix[i] = s;
+      s += static_cast<uint64_t>(std::popcount(words[i]));
+    }
+    prefix[words.size()] = s;
+    return s;
+  }
+  [[nodiscard]] uint64_t bytes() const { return (words.size() + prefix.size()) * 8; }
+};
+
+struct Coord {
+  uint16_t x, y, z;
+};
+
+// The padded domain: mask voxel (x, y, z) lives at bit position (x+2) + BX*((y+2) + BY*(z+2)).
+// Rows start at word boundaries; two empty voxels on every side (the first belongs to the domain as
+// background "outside the array", the second is a guard that is never set).
+struct Domain {
+  int64_t nx, ny, nz, BX, BY, BZ, plane;
+  explicit Domain(const Dims& d) : nx(d[0]), ny(d[1]), nz(d[2]) {
+    BX = ((nx + 4 + 63) / 64) * 64;
+    BY = ny + 4;
+    BZ = nz + 4;
+    plane = BX * BY;
+  }
+  [[nodiscard]] int64_t pos(int64_t x, int64_t y, int64_t z) const { return x + BX * (y + BY * z); }
+  [[nodiscard]] int64_t bits() const { return BX * BY * BZ; }
+  [[nodiscard]] int64_t row_words() const { return BX / 64; }
+};
+
+struct Prepared {
+  Domain dom;
+  RankBits obj, layer;
+  std::vector<Coord> lcoord;  // L-id -> padded coordinates
+  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point
+  std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
+  int64_t k = 0, nl = 0;
+  explicit Prepared(const Dims& d) : dom(d) {}
+  [[nodiscard]] int64_t lpos(uint32_t l) const { return dom.pos(lcoord[l].x, lcoord[l].y, lcoord[l].z); }
+  // L-id of the nearest background point of the voxel at `pos` (object or layer voxel).
+  [[nodiscard]] uint32_t base_of(int64_t pos) const {
+    if (obj.test(pos)) return b[obj.rank(pos)];
+    return static_cast<uint32_t>(layer.rank(pos));
+  }
+};
+
+std::vector<int64_t> offsets26(const Domain& d) {
+  std::vector<int64_t> o;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (dx || dy || dz) o.push_back(dx + d.BX * (dy + d.BY * dz));
+  return o;
+}
+
+// Builds the bitmaps, L coordinates, the nearest-point transform and L's components.
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr) {
+  const Domain& D = P.dom;
+  if (D.nx > 65000 || D.ny > 65000 || D.nz > 65000)
+    throw InputError("geodesic: volumes up to 65000 voxels per axis are supported");
+  const size_t nwords = static_cast<size_t>(D.bits() / 64);
+  const int64_t rw = D.row_words();
+  P.obj.words.assign(nwords, 0);
+  // Object bits, parallel over z (rows are word-aligned, so slices never share a word).
+  parallel_for(0, D.nz, threads, [&](int64_t z0, int64_t z1) {
+    for (int64_t z = z0; z < z1; ++z)
+      for (int64_t y = 0; y < D.ny; ++y) {
+        const uint8_t* row = mask.data() + mask.index(0, y, z);
+        const int64_t base = D.pos(2, y + 2, z + 2);
+        for (int64_t x = 0; x < D.nx; ++x)
+          if (row[x]) P.obj.words[static_cast<size_t>((base + x) >> 6)] |= uint64_t{1} << ((base + x) & 63);
+      }
+  });
+  intr.check(0.02);
+  // L = dilate26(O) minus O: x-dilation per row, then OR of the 3x3 neighbouring rows.
+  {
+    std::vector<uint64_t> xd(nwords, 0);
+    parallel_for(0, D.BY * D.BZ, threads, [&](int64_t r0, int64_t r1) {
+      for (int64_t r = r0; r < r1; ++r) {
+        const uint64_t* o = &P.obj.words[static_cast<size_t>(r * rw)];
+        uint64_t* w = &xd[static_cast<size_t>(r * rw)];
+        for (int64_t i = 0; i < rw; ++i) {
+          const uint64_t prev = i > 0 ? o[i - 1] : 0, next = i + 1 < rw ? o[i + 1] : 0;
+          w[i] = o[i] | (o[i] << 1) | (prev >> 63) | (o[i] >> 1) | (next << 63);
+        }
+      }
+    });
+    P.layer.words.assign(nwords, 0);
+    parallel_for(1, D.BZ - 1, threads, [&](int64_t z0, int64_t z1) {
+      for (int64_t z = z0; z < z1; ++z)
+        for (int64_t y = 1; y < D.BY - 1; ++y) {
+          uint64_t* out = &P.layer.words[static_cast<size_t>((y + D.BY * z) * rw)];
+          const uint64_t* o = &P.obj.words[static_cast<size_t>((y + D.BY * z) * rw)];
+          for (int dz = -1; dz <= 1; ++dz)
+            for (int dy = -1; dy <= 1; ++dy) {
+              const uint64_t* src = &xd[static_cast<size_t>(((y + dy) + D.BY * (z + dz)) * rw)];
+              for (int64_t i = 0; i < rw; ++i) out[i] |= src[i];
+            }
+          for (int64_t i = 0; i < rw; ++i) out[i] &= ~o[i];
+        }
+    });
+  }
+  P.k = static_cast<int64_t>(P.obj.build_rank());
+  P.nl = static_cast<int64_t>(P.layer.build_rank());
+  if (P.nl >= static_cast<int64_t>(kNone) || P.k >= static_cast<int64_t>(kNone))
+    throw InputError("geodesic: more than 4·10^9 object or boundary voxels are not supported");
+  intr.check(0.05);
+  // L coordinates.
+  P.lcoord.resize(static_cast<size_t>(P.nl));
+  parallel_for(0, static_cast<int64_t>(nwords), threads, [&](int64_t w0, int64_t w1) {
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t bits = P.layer.words[static_cast<size_t>(w)];
+      uint64_t id = P.layer.prefix[static_cast<size_t>(w)];
+      while (bits) {
+        const int64_t pos = w * 64 + std::countr_zero(bits);
+        bits &= bits - 1;
+        const int64_t z = pos / D.plane, rem = pos % D.plane;
+        P.lcoord[id++] = Coord{static_cast<uint16_t>(rem % D.BX), static_cast<uint16_t>(rem / D.BX),
+                               static_cast<uint16_t>(z)};
+      }
+    }
+  }, 4096);
+  intr.check(0.08);
+
+  // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
+  // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
+  // that is closest in physical distance (ties: lower L-id). Values depend only on earlier rings, so
+  // the result is independent of thread count.
+  const Vec3 sp = mask.spacing();
+  const auto off = offsets26(D);
+  P.b.assign(static_cast<size_t>(P.k), kNone);
+  std::vector<uint8_t> reached(static_cast<size_t>(P.k), 0);  // ring number + 1, saturating at 255
+  std::vector<int64_t> frontier;  // positions of the previous ring (object voxels); ring 0 = L
+  // Ring 1: object voxels adjacent to L = object voxels with any background 26-neighbour.
+  std::vector<int64_t> next;
+  {
+    std::vector<std::vector<int64_t>> parts(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
+    parallel_chunks(0, static_cast<int64_t>(nwords), static_cast<int64_t>(parts.size()), threads,
+                    [&](int64_t c, int64_t w0, int64_t w1) {
+                      auto& out = parts[static_cast<size_t>(c)];
+                      for (int64_t w = w0; w < w1; ++w) {
+                        uint64_t bits = P.obj.words[static_cast<size_t>(w)];
+                        while (bits) {
+                          const int64_t pos = w * 64 + std::countr_zero(bits);
+                          bits &= bits - 1;
+                          for (int64_t o : off)
+                            if (P.layer.test(pos + o)) {
+                              out.push_back(pos);
+                              break;
+                            }
+                        }
+                      }
+                    });
+    for (auto& p : parts) next.insert(next.end(), p.begin(), p.end());
+  }
+  auto dist2 = [&](int64_t pos, uint32_t l) {
+    const int64_t z = pos / D.plane, rem = pos % D.plane;
+    const double dx = (static_cast<double>(rem % D.BX) - P.lcoord[l].x) * sp[0];
+    const double dy = (static_cast<double>(rem / D.BX) - P.lcoord[l].y) * sp[1];
+    const double dz = (static_cast<double>(z) - P.lcoord[l].z) * sp[2];
+    return dx * dx + dy * dy + dz * dz;
+  };
+  int ring = 1;
+  int64_t assigned = 0;
+  std::vector<uint32_t> newb;
+  while (!next.empty()) {
+    for (int64_t pos : next) reached[P.obj.rank(pos)] = static_cast<uint8_t>(std::min(ring, 254));
+    newb.assign(next.size(), kNone);
+    parallel_for(0, static_cast<int64_t>(next.size()), threads, [&](int64_t i0, int64_t i1) {
+      for (int64_t i = i0; i < i1; ++i) {
+        const int64_t pos = next[static_cast<size_t>(i)];
+        uint32_t best = kNone;
+        double bd = std::numeric_limits<double>::infinity();
+        for (int64_t o : off) {
+          const int64_t q = pos + o;
+          uint32_t cand = kNone;
+          if (P.layer.test(q)) {
+            cand = static_cast<uint32_t>(P.layer.rank(q));
+          } else if (P.obj.test(q)) {
+            const uint64_t qi = P.obj.rank(q);
+            if (P.b[qi] != kNone) cand = P.b[qi];  // earlier ring (this ring's values are not committed yet)
+          }
+          if (cand == kNone) continue;
+          const double d = dist2(pos, cand);
+          if (d < bd || (d == bd && cand < best)) {
+            bd = d;
+            best = cand;
+          }
+        }
+        newb[static_cast<size_t>(i)] = best;
+      }
+    }, 1024);
+    for (size_t i = 0; i < next.size(); ++i) P.b[P.obj.rank(next[i])] = newb[i];
+    assigned += static_cast<int64_t>(next.size());
+    frontier.swap(next);
+    next.clear();
+    // Next ring: unreached object neighbours of this ring (deduplicated by the reached marks).
+    for (int64_t pos : frontier)
+      for (int64_t o : off) {
+        const int64_t q = pos + o;
+        if (!P.obj.test(q)) continue;
+        const uint64_t qi = P.obj.rank(q);
+        if (reached[qi]) continue;
+        reached[qi] = 255;
+        next.push_back(q);
+      }
+    std::sort(next.begin(), next.end());
+    ++ring;
+    intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
+  }
+
+  // 6-connected components of L (union-find with path halving over forward neighbours).
+  P.lcomp.resize(static_cast<size_t>(P.nl));
+  for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = static_cast<uint32_t>(i);
+  auto find = [&](uint32_t a) {
+    while (P.lcomp[a] != a) {
+      P.lcomp[a] = P.lcomp[P.lcomp[a]];
+      a = P.lcomp[a];
+    }
+    return a;
+  };
+  for (int64_t i = 0; i < P.nl; ++i) {
+    const int64_t pos = P.lpos(static_cast<uint32_t>(i));
+    for (int64_t o : {int64_t{1}, D.BX, D.plane}) {
+      if (!P.layer.test(pos + o)) continue;
+      uint32_t a = find(static_cast<uint32_t>(i)), c = find(static_cast<uint32_t>(P.layer.rank(pos + o)));
+      if (a != c) P.lcomp[std::max(a, c)] = std::min(a, c);
+    }
+  }
+  for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = find(static_cast<uint32_t>(i));
+  intr.check(0.22);
+}
+
+// A distance array over L with range encoding (thesis fig. 2.37): a search stores base + d, so values
+// below the current base read as "unvisited" and the array is initialised only once, or again when
+// the 32-bit range overflows.
+struct RangeArray {
+  std::vector<uint32_t> d;
+  uint32_t base = 1, used = 0;  // `used`: largest distance stored by the last search
+  explicit RangeArray(size_t n) : d(n, 0) {}
+  uint32_t start(uint64_t max_distance) {
+    uint64_t nb = static_cast<uint64_t>(base) + used + 1;
+    if (nb + max_distance + 2 >= kNone) {
+      std::fill(d.begin(), d.end(), 0);
+      nb = 1;
+    }
+    base = static_cast<uint32_t>(nb);
+    used = 0;
+    return base;
+  }
+  [[nodiscard]] bool visited(uint32_t v) const { return d[v] >= base; }
+  [[nodiscard]] uint32_t at(uint32_t v) const { return d[v] - base; }
+};
+
+// Scratch of one worker: a distance array for its own searches, one for pivot searches, a queue.
+struct Scratch {
+  RangeArray own, pivot;
+  std::vector<uint32_t> queue;
+  std::vector<uint8_t> is_target;  // set only during a search, for its targets
+  explicit Scratch(size_t nl) : own(nl), pivot(nl), is_target(nl, 0) {}
+};
+
+// The considered neighbours of object voxel `pos` and their base points.
+template <class F>
+void for_each_target(const Prepared& P, int64_t pos, F&& f) {
+  const int64_t offs[3] = {1, P.dom.BX, P.dom.plane};
+  for (int64_t o : offs) {
+    // Lower neighbour: always (object or layer).
+    f(P.base_of(pos - o));
+    // Upper neighbour: only if background (then it is in L).
+    if (!P.obj.test(pos + o)) f(static_cast<uint32_t>(P.layer.rank(pos + o)));
+  }
+}
+
+Result empty_result(const VolumeU8& mask) {
+  Result res;
+  res.importance = VolumeF32(mask.grid(), 0.0f);
+  res.surface_skeleton = VolumeU8(mask.grid(), 0);
+  return res;
+}
+
+}  // namespace
+
+Result boundary_distance(const VolumeU8& mask, const Options& opt) {
+  mask.grid().validate();
+  if (opt.threshold < 1) throw InputError("geodesic: threshold must be >= 1");
+  if (opt.threshold > 1000000) throw InputError("geodesic: threshold must be <= 10^6");
+  const bool full = opt.mode == Mode::Full;
+  const uint32_t t = static_cast<uint32_t>(opt.threshold);
+  Result res = empty_result(mask);
+  if (mask.size() == 0) return res;
+
+  Prepared P(mask.dims());
+  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0));
+  res.stats.object_voxels = P.k;
+  res.stats.layer_voxels = P.nl;
+  if (P.k == 0) return res;
+  const Domain& D = P.dom;
+
+  // Buckets: object voxels grouped by base point b(p) (counting sort; positions in raster order).
+  std::vector<uint32_t> start(static_cast<size_t>(P.nl) + 1, 0);
+  for (uint32_t l : P.b) ++start[l + 1];
+  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
+  std::vector<int64_t> members(static_cast<size_t>(P.k));
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    const size_t nwords = P.obj.words.size();
+    for (size_t w = 0; w < nwords; ++w) {
+      uint64_t bits = P.obj.words[w];
+      uint64_t id = P.obj.prefix[w];
+      while (bits) {
+        const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
+        bits &= bits - 1;
+        members[fill[P.b[id++]]++] = pos;
+      }
+    }
+  }
+  opt.interrupter.check(0.25);
+
+  const float inf = std::numeric_limits<float>::infinity();
+  // Importance per object id (written once per voxel: each voxel is in exactly one bucket).
+  std::vector<float> imp(static_cast<size_t>(P.k), 0.0f);
+  // Bases are claimed once: by their own search or by a neighbouring pivot.
+  std::vector<std::atomic<uint8_t>> claimed(static_cast<size_t>(P.nl));
+  for (auto& c : claimed) c.store(0, std::memory_order_relaxed);
+
+  const int nthreads = effective_threads(opt.threads);
+  std::mutex scratch_mutex;
+  std::vector<std::unique_ptr<Scratch>> pool;
+  std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
+  const uint32_t pivot_margin = full ? 0 : std::max<uint32_t>(2, t / 4);
+
+  auto acquire = [&]() {
+    std::lock_guard lock(scratch_mutex);
+    if (!pool.empty()) {
+      auto s = std::move(pool.back());
+      pool.pop_back();
+      return s;
+    }
+    return std::make_unique<Scratch>(static_cast<size_t>(P.nl));
+  };
+  auto release = [&](std::unique_ptr<Scratch> s) {
+    std::lock_guard lock(scratch_mutex);
+    pool.push_back(std::move(s));
+  };
+
+  // Breadth-first search over L from `src` up to distance `limit`, stopping early once every target
+  // in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns the number of
+  // visited voxels. S.queue holds the visited voxels in order of distance afterwards.
+  auto bfs = [&](Scratch& S, RangeArray& R, uint32_t src, uint32_t limit, const std::vector<uint32_t>& want,
+                 std::vector<uint32_t>& wd) -> int64_t {
+    const uint32_t base = R.start(limit);
+    S.queue.clear();
+    S.queue.push_back(src);
+    R.d[src] = base;
+    int64_t left = static_cast<int64_t>(want.size());
+    const bool stop_early = left > 0;
+    wd.assign(want.size(), kNone);
+    for (uint32_t w : want) S.is_target[w] = 1;
+    auto check_target = [&](uint32_t v, uint32_t d) {
+      if (!S.is_target[v]) return;
+      for (size_t i = 0; i < want.size(); ++i)
+        if (want[i] == v && wd[i] == kNone) {
+          wd[i] = d;
+          --left;
+        }
+    };
+    check_target(src, 0);
+    int64_t visited = 0;
+    uint32_t dmax = 0;
+    for (size_t head = 0; head < S.queue.size(); ++head) {
+      if (stop_early && left == 0) break;
+      const uint32_t v = S.queue[head];
+      const uint32_t dv = R.d[v] - base;
+      ++visited;
+      if (dv >= limit) continue;
+      const int64_t pos = P.lpos(v);
+      const int64_t nb[6] = {pos - 1, pos + 1, pos - D.BX, pos + D.BX, pos - D.plane, pos + D.plane};
+      for (int64_t q : nb) {
+        if (!P.layer.test(q)) continue;
+        const uint32_t u = static_cast<uint32_t>(P.layer.rank(q));
+        if (R.d[u] >= base) continue;
+        R.d[u] = base + dv + 1;
+        dmax = dv + 1;
+        S.queue.push_back(u);
+        if (stop_early) check_target(u, dv + 1);
+      }
+    }
+    R.used = dmax;
+    for (uint32_t w : want) S.is_target[w] = 0;
+    return visited;
+  };
+
+  // Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
+  // to t + margin that settles the far targets of all bases within `margin` of `a` (triangle
+  // inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
+  auto process_base = [&](Scratch& S, uint32_t a) {
+    std::vector<uint32_t> targets, tdist;
+    auto gather = [&](uint32_t base_id) {
+      targets.clear();
+      for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m)
+        for_each_target(P, members[m], [&](uint32_t c) {
+          if (std::find(targets.begin(), targets.end(), c) == targets.end()) targets.push_back(c);
+        });
+    };
+    auto finish = [&](uint32_t base_id) {  // importance of the bucket's voxels from tdist
+      for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+        float v = 0.0f;
+        for_each_target(P, members[m], [&](uint32_t c) {
+          const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
+          const uint32_t d = tdist[i];
+          float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
+          if (!full) g = std::min(g, static_cast<float>(t));
+          v = std::max(v, g);
+        });
+        imp[P.obj.rank(members[m])] = v;
+      }
+    };
+    // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
+    // component of L (the others have no path: infinite). Returns true if targets were left when
+    // the search reached the threshold.
+    std::vector<uint32_t> want, wd;
+    std::vector<size_t> want_index;
+    auto own_search = [&](uint32_t base_id) -> bool {
+      want.clear();
+      want_index.clear();
+      for (size_t i = 0; i < targets.size(); ++i)
+        if (tdist[i] == kNone && P.lcomp[targets[i]] == P.lcomp[base_id]) {
+          want.push_back(targets[i]);
+          want_index.push_back(i);
+        }
+      if (want.empty()) return false;
+      const uint32_t limit = full ? static_cast<uint32_t>(std::min<int64_t>(P.nl, kNone / 2)) : t;
+      n_visited += bfs(S, S.own, base_id, limit, want, wd);
+      ++n_search;
+      bool open = false;
+      for (size_t j = 0; j < want.size(); ++j) {
+        if (wd[j] != kNone) tdist[want_index[j]] = wd[j];
+        else open = true;
+      }
+      return open;
+    };
+
+    gather(a);
+    tdist.assign(targets.size(), kNone);
+    const bool long_search = own_search(a);
+    if (long_search) ++n_long;
+    finish(a);
+    done_bases++;
+    if (!long_search || full || pivot_margin == 0) return;
+
+    // Pivot: search from `a` up to t + margin, then settle the bases within `margin`.
+    const uint32_t plimit = t + pivot_margin;
+    const std::vector<uint32_t> no_targets;
+    std::vector<uint32_t> no_dist;
+    n_visited += bfs(S, S.pivot, a, plimit, no_targets, no_dist);
+    ++n_search;
+    ++n_pivots;
+    std::vector<uint32_t> near;  // bases with work within `margin` of a (the queue is in distance order)
+    for (uint32_t v : S.queue) {
+      if (S.pivot.at(v) > pivot_margin) break;
+      if (v != a && start[v + 1] > start[v]) near.push_back(v);
+    }
+    for (uint32_t a2 : near) {
+      uint8_t expected = 0;
+      if (!claimed[a2].compare_exchange_strong(expected, 1)) continue;
+      gather(a2);
+      tdist.assign(targets.size(), kNone);
+      const uint32_t da2 = S.pivot.at(a2);
+      for (size_t i = 0; i < targets.size(); ++i) {
+        const uint32_t c = targets[i];
+        // g(a, c) > t + margin (unreached) or >= t + g(a, a2): then g(a2, c) >= t.
+        if (!S.pivot.visited(c) || S.pivot.at(c) >= t + da2) {
+          tdist[i] = t;
+          ++n_saturated;
+        }
+      }
+      if (own_search(a2)) ++n_long;
+      finish(a2);
+      done_bases++;
+    }
+  };
+
+  // Work list: bases with a non-empty bucket, in L order. Chunks are processed in parallel; each base
+  // is claimed exactly once, and every value is exact (searches) or a proven saturation, so the
+  // result does not depend on the thread count or on who claimed a base.
+  std::vector<uint32_t> work;
+  for (int64_t l = 0; l < P.nl; ++l)
+    if (start[static_cast<size_t>(l) + 1] > start[static_cast<size_t>(l)]) work.push_back(static_cast<uint32_t>(l));
+  n_bases = static_cast<int64_t>(work.size());
+  const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(static_cast<int64_t>(work.size()), nthreads * 64));
+  const Interrupter search_progress = opt.interrupter.sub(0.25, 0.97);
+  parallel_chunks(0, static_cast<int64_t>(work.size()), chunks, nthreads, [&](int64_t, int64_t w0, int64_t w1) {
+    auto S = acquire();
+    for (int64_t w = w0; w < w1; ++w) {
+      const uint32_t a = work[static_cast<size_t>(w)];
+      uint8_t expected = 0;
+      if (!claimed[a].compare_exchange_strong(expected, 1)) continue;
+      process_base(*S, a);
+      if ((w & 255) == 0)
+        search_progress.check(static_cast<double>(done_bases.load()) / static_cast<double>(std::max<int64_t>(1, n_bases.load())));
+    }
+    release(std::move(S));
+  });
+
+  // Scatter into the output volumes.
+  parallel_for(0, D.nz, opt.threads, [&](int64_t z0, int64_t z1) {
+    for (int64_t z = z0; z < z1; ++z)
+      for (int64_t y = 0; y < D.ny; ++y)
+        for (int64_t x = 0; x < D.nx; ++x) {
+          const int64_t pos = D.pos(x + 2, y + 2, z + 2);
+          if (!P.obj.test(pos)) continue;
+          const float v = imp[P.obj.rank(pos)];
+          const int64_t i = mask.index(x, y, z);
+          res.importance[i] = v;
+          res.surface_skeleton[i] = v >= static_cast<float>(t) ? 1 : 0;
+        }
+  });
+  res.stats.base_points = n_bases.load();
+  res.stats.searches = n_search.load();
+  res.stats.pivots = n_pivots.load();
+  res.stats.long_searches = n_long.load();
+  res.stats.saturated_by_pivot = n_saturated.load();
+  res.stats.visited = n_visited.load();
+  res.stats.bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 +
+                    P.lcomp.size() * 4 + start.size() * 4 + members.size() * 8 + imp.size() * 4 +
+                    claimed.size() + static_cast<uint64_t>(std::max<size_t>(pool.size(), 1)) * static_cast<uint64_t>(P.nl) * 8;
+  // (The ring propagation's temporary `reached` array, 1 byte per object voxel, is freed before.)
+  opt.interrupter.check(1.0);
+  return res;
+}
+
+Result boundary_distance_reference(const VolumeU8& mask, const Options& opt) {
+  const bool full = opt.mode == Mode::Full;
+  const uint32_t t = static_cast<uint32_t>(opt.threshold);
+  Result res = empty_result(mask);
+  if (mask.size() == 0) return res;
+  Prepared P(mask.dims());
+  prepare(mask, P, 1, {});
+  const Domain& D = P.dom;
+  std::vector<int64_t> dist(static_cast<size_t>(P.nl));
+  for (int64_t z = 0; z < D.nz; ++z)
+    for (int64_t y = 0; y < D.ny; ++y)
+      for (int64_t x = 0; x < D.nx; ++x) {
+        const int64_t pos = D.pos(x + 2, y + 2, z + 2);
+        if (!P.obj.test(pos)) continue;
+        const uint32_t a = P.b[P.obj.rank(pos)];
+        // Plain BFS over all of L from a.
+        std::fill(dist.begin(), dist.end(), -1);
+        std::vector<uint32_t> q{a};
+        dist[a] = 0;
+        for (size_t h = 0; h < q.size(); ++h) {
+          const int64_t p = P.lpos(q[h]);
+          for (int64_t n : {p - 1, p + 1, p - D.BX, p + D.BX, p - D.plane, p + D.plane}) {
+            if (!P.layer.test(n)) continue;
+            const uint32_t u = static_cast<uint32_t>(P.layer.rank(n));
+            if (dist[u] >= 0) continue;
+            dist[u] = dist[q[h]] + 1;
+            q.push_back(u);
+          }
+        }
+        float v = 0;
+        for_each_target(P, pos, [&](uint32_t c) {
+          float g = dist[c] < 0 ? std::numeric_limits<float>::infinity() : static_cast<float>(dist[c]);
+          if (!full) g = std::min(g, static_cast<float>(t));
+          v = std::max(v, g);
+        });
+        res.importance(x, y, z) = v;
+        res.surface_skeleton(x, y, z) = v >= static_cast<float>(t) ? 1 : 0;
+      }
+  return res;
+}
+
+}  // namespace skel::geodesic

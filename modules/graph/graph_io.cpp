@@ -1,0 +1,1159 @@
+#include "graph/graph_io.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <deque>
+#include <fstream>
+#include <map>
+#include <functional>
+#include <regex>
+#include <set>
+#include <sstream>
+
+#include "skel/error.hpp"
+#include "skel/fs.hpp"
+
+namespace skel {
+
+namespace {
+
+// ---------------------------------------------------------------- text helpers
+void put_f(std::string& s, float v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.9g", static_cast<double>(v));
+  s += b;
+}
+void put_d(std::string& s, double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  s += b;
+}
+void put_i(std::string& s, int64_t v) { s += std::to_string(v); }
+
+std::string clean_name(const std::string& n) {
+  std::string o = n;
+  for (char& c : o)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.')) c = '_';
+  return o.empty() ? "_" : o;
+}
+
+std::string xml_escape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '&': o += "&amp;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+std::string xml_unescape(const std::string& s) {
+  if (s.find('&') == std::string::npos) return s;
+  std::string o;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (s[i] != '&') {
+      o += s[i];
+      continue;
+    }
+    const size_t e = s.find(';', i);
+    const std::string ent = e == std::string::npos ? "" : s.substr(i + 1, e - i - 1);
+    if (ent == "lt") o += '<';
+    else if (ent == "gt") o += '>';
+    else if (ent == "amp") o += '&';
+    else if (ent == "quot") o += '"';
+    else if (ent == "apos") o += '\'';
+    else {
+      o += s[i];
+      continue;
+    }
+    i = e;
+  }
+  return o;
+}
+
+// Whitespace-separated numbers of text[begin, end).
+class NumberReader {
+public:
+  NumberReader(const std::string& text, size_t begin, size_t end, std::string where)
+      : p_(text.data() + begin), end_(text.data() + end), where_(std::move(where)) {}
+  double next() {
+    skip();
+    if (p_ >= end_) throw InputError(where_ + ": fewer values than expected");
+    double v = 0.0;
+    auto [ptr, ec] = std::from_chars(p_, end_, v);
+    if (ec != std::errc()) {
+      // from_chars rejects "nan"/"inf" spellings of some writers and leading '+'.
+      char* e = nullptr;
+      std::string tok(p_, std::find_if(p_, end_, [](char c) { return std::isspace(static_cast<unsigned char>(c)); }));
+      v = std::strtod(tok.c_str(), &e);
+      if (e == tok.c_str()) throw InputError(where_ + ": expected a number, got '" + tok.substr(0, 20) + "'");
+      p_ += tok.size();
+      return v;
+    }
+    p_ = ptr;
+    return v;
+  }
+  int64_t next_int() {
+    const double v = next();
+    if (v != std::floor(v)) throw InputError(where_ + ": expected an integer, got " + std::to_string(v));
+    return static_cast<int64_t>(v);
+  }
+  bool at_end() {
+    skip();
+    return p_ >= end_;
+  }
+
+private:
+  void skip() {
+    while (p_ < end_ && (std::isspace(static_cast<unsigned char>(*p_)) || *p_ == ',')) ++p_;
+  }
+  const char* p_;
+  const char* end_;
+  std::string where_;
+};
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : s) {
+    if (c == sep) {
+      out.push_back(cur);
+      cur.clear();
+    } else if (c != '\r') {
+      cur += c;
+    }
+  }
+  out.push_back(cur);
+  return out;
+}
+
+double to_num(const std::string& s, const std::string& where) {
+  char* e = nullptr;
+  const double v = std::strtod(s.c_str(), &e);
+  if (e == s.c_str()) throw InputError(where + ": expected a number, got '" + s + "'");
+  return v;
+}
+
+// Sets polyline end points to their nodes' positions (files store them separately).
+void snap_ends(SpatialGraph& g) {
+  for (auto& e : g.edges) {
+    e.points.front() = g.positions[e.node0];
+    e.points.back() = g.positions[e.node1];
+  }
+}
+
+void check_node_id(int64_t id, int64_t n, const std::string& where) {
+  if (id < 0 || id >= n)
+    throw InputError(where + ": node id " + std::to_string(id) + " out of range (" + std::to_string(n) + " nodes)");
+}
+
+// ---------------------------------------------------------------- minimal XML DOM
+struct Xml {
+  std::string name;
+  std::vector<std::pair<std::string, std::string>> attrs;
+  std::string text;
+  std::vector<Xml> children;
+  [[nodiscard]] const std::string* attr(const std::string& k) const {
+    for (const auto& [a, v] : attrs)
+      if (a == k) return &v;
+    return nullptr;
+  }
+  [[nodiscard]] std::string attr_or(const std::string& k, const std::string& d) const {
+    const auto* v = attr(k);
+    return v ? *v : d;
+  }
+  [[nodiscard]] const Xml* child(const std::string& n) const {
+    for (const auto& c : children)
+      if (c.name == n) return &c;
+    return nullptr;
+  }
+};
+
+Xml parse_xml(const std::string& s, const std::string& source) {
+  Xml root;
+  std::vector<Xml*> stack{&root};
+  size_t i = 0;
+  const size_t n = s.size();
+  while (i < n) {
+    const size_t lt = s.find('<', i);
+    if (lt == std::string::npos) break;
+    if (lt > i) stack.back()->text.append(s, i, lt - i);
+    if (s.compare(lt, 4, "<!--") == 0) {
+      const size_t e = s.find("-->", lt);
+      if (e == std::string::npos) throw InputError(source + ": unterminated XML comment");
+      i = e + 3;
+      continue;
+    }
+    if (s.compare(lt, 2, "<?") == 0 || s.compare(lt, 2, "<!") == 0) {
+      const size_t e = s.find('>', lt);
+      if (e == std::string::npos) throw InputError(source + ": unterminated XML declaration");
+      i = e + 1;
+      continue;
+    }
+    const size_t gt = s.find('>', lt);
+    if (gt == std::string::npos) throw InputError(source + ": unterminated XML tag");
+    if (s[lt + 1] == '/') {
+      const std::string name = s.substr(lt + 2, gt - lt - 2);
+      if (stack.size() < 2 || stack.back()->name != name.substr(0, name.find_last_not_of(" \t\r\n") + 1))
+        throw InputError(source + ": unexpected closing tag </" + name + ">");
+      stack.back()->text = xml_unescape(stack.back()->text);
+      stack.pop_back();
+      i = gt + 1;
+      continue;
+    }
+    const bool self_close = s[gt - 1] == '/';
+    const std::string body = s.substr(lt + 1, gt - lt - 1 - (self_close ? 1 : 0));
+    Xml el;
+    size_t k = 0;
+    while (k < body.size() && !std::isspace(static_cast<unsigned char>(body[k]))) ++k;
+    el.name = body.substr(0, k);
+    while (k < body.size()) {
+      while (k < body.size() && std::isspace(static_cast<unsigned char>(body[k]))) ++k;
+      if (k >= body.size()) break;
+      const size_t eq = body.find('=', k);
+      if (eq == std::string::npos) break;
+      std::string key = body.substr(k, eq - k);
+      key.erase(key.find_last_not_of(" \t\r\n") + 1);
+      size_t q = eq + 1;
+      while (q < body.size() && std::isspace(static_cast<unsigned char>(body[q]))) ++q;
+      if (q >= body.size() || (body[q] != '"' && body[q] != '\''))
+        throw InputError(source + ": malformed attribute in <" + el.name + ">");
+      const size_t qe = body.find(body[q], q + 1);
+      if (qe == std::string::npos) throw InputError(source + ": unterminated attribute in <" + el.name + ">");
+      el.attrs.emplace_back(key, xml_unescape(body.substr(q + 1, qe - q - 1)));
+      k = qe + 1;
+    }
+    stack.back()->children.push_back(std::move(el));
+    if (!self_close) stack.push_back(&stack.back()->children.back());
+    i = gt + 1;
+  }
+  if (stack.size() != 1) throw InputError(source + ": unclosed XML element <" + stack.back()->name + ">");
+  return root;
+}
+
+// ---------------------------------------------------------------- Amira
+std::string amira_write(const SpatialGraph& g) {
+  struct Block {
+    std::string loc, type, name;
+    int comps;
+    std::function<void(std::string&)> data;
+  };
+  std::vector<Block> blocks;
+  const int64_t nn = g.node_count(), ne = g.edge_count(), np = g.point_count();
+  blocks.push_back({"VERTEX", "float", "VertexCoordinates", 3, [&](std::string& s) {
+                      for (const auto& p : g.positions) {
+                        put_f(s, float(p[0])); s += ' '; put_f(s, float(p[1])); s += ' '; put_f(s, float(p[2])); s += '\n';
+                      }
+                    }});
+  blocks.push_back({"EDGE", "int", "EdgeConnectivity", 2, [&](std::string& s) {
+                      for (const auto& e : g.edges) { put_i(s, e.node0); s += ' '; put_i(s, e.node1); s += '\n'; }
+                    }});
+  blocks.push_back({"EDGE", "int", "NumEdgePoints", 1, [&](std::string& s) {
+                      for (const auto& e : g.edges) { put_i(s, static_cast<int64_t>(e.points.size())); s += '\n'; }
+                    }});
+  blocks.push_back({"POINT", "float", "EdgePointCoordinates", 3, [&](std::string& s) {
+                      for (const auto& e : g.edges)
+                        for (const auto& p : e.points) {
+                          put_f(s, float(p[0])); s += ' '; put_f(s, float(p[1])); s += ' '; put_f(s, float(p[2])); s += '\n';
+                        }
+                    }});
+  for (const auto& [name, v] : g.point_attributes) {
+    const auto* vals = &v;
+    blocks.push_back({"POINT", "float", name == "radius" ? "thickness" : clean_name(name), 1, [vals](std::string& s) {
+                        for (const auto& e : *vals)
+                          for (float x : e) { put_f(s, x); s += '\n'; }
+                      }});
+  }
+  auto add_scalar = [&](const char* loc, const char* type, const std::string& name, auto* vals) {
+    blocks.push_back({loc, type, clean_name(name), 1, [vals](std::string& s) {
+                        for (auto x : *vals) {
+                          if constexpr (std::is_same_v<std::decay_t<decltype(x)>, float>) put_f(s, x);
+                          else put_i(s, x);
+                          s += '\n';
+                        }
+                      }});
+  };
+  for (const auto& [name, v] : g.node_attributes) add_scalar("VERTEX", "float", name, &v);
+  for (const auto& [name, v] : g.node_labels) add_scalar("VERTEX", "int", name, &v);
+  for (const auto& [name, v] : g.edge_attributes) add_scalar("EDGE", "float", name, &v);
+  for (const auto& [name, v] : g.edge_labels) add_scalar("EDGE", "int", name, &v);
+
+  std::string s = "# AmiraMesh 3D ASCII 2.0\n\n\n";
+  s += "define VERTEX " + std::to_string(nn) + "\n";
+  s += "define EDGE " + std::to_string(ne) + "\n";
+  s += "define POINT " + std::to_string(np) + "\n\n";
+  s += "Parameters {\n    ContentType \"HxSpatialGraph\"\n}\n\n";
+  for (size_t k = 0; k < blocks.size(); ++k) {
+    const auto& b = blocks[k];
+    s += b.loc + " { " + b.type + (b.comps > 1 ? "[" + std::to_string(b.comps) + "]" : "") + " " + b.name +
+         " } @" + std::to_string(k + 1) + "\n";
+  }
+  s += "\n# Data section follows\n";
+  for (size_t k = 0; k < blocks.size(); ++k) {
+    s += "@" + std::to_string(k + 1) + "\n";
+    blocks[k].data(s);
+    s += "\n";
+  }
+  return s;
+}
+
+SpatialGraph amira_read(const std::string& text, const std::string& src) {
+  if (text.rfind("# AmiraMesh", 0) != 0 && text.rfind("# HyperSurface", 0) != 0)
+    throw InputError(src + ": not an AmiraMesh file (first line must start with '# AmiraMesh')");
+  const std::string first = text.substr(0, text.find('\n'));
+  if (first.find("ASCII") == std::string::npos)
+    throw InputError(src + ": only ASCII AmiraMesh is supported, header says '" + first + "'");
+  std::map<std::string, int64_t> counts;
+  struct Decl {
+    std::string loc, type, name;
+    int comps = 1;
+  };
+  std::map<int, Decl> decls;
+  static const std::regex def_re(R"(^\s*define\s+(\w+)\s+(\d+)\s*$)");
+  static const std::regex decl_re(R"(^\s*(\w+)\s*\{\s*(\w+)\s*(\[\s*(\d+)\s*\])?\s+(\w+)\s*\}\s*@(\d+))");
+  static const std::regex at_re(R"(^@(\d+)\s*$)");
+  // Header: up to the first line that is only "@k".
+  size_t pos = 0, data_start = std::string::npos;
+  int line_no = 0;
+  while (pos < text.size()) {
+    size_t e = text.find('\n', pos);
+    if (e == std::string::npos) e = text.size();
+    std::string line = text.substr(pos, e - pos);
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    ++line_no;
+    std::smatch m;
+    if (std::regex_match(line, m, at_re)) {
+      data_start = pos;
+      break;
+    }
+    if (std::regex_match(line, m, def_re)) counts[m[1]] = std::stoll(m[2]);
+    else if (std::regex_search(line, m, decl_re))
+      decls[std::stoi(m[6])] = Decl{m[1], m[2], m[5], m[4].matched ? std::stoi(m[4]) : 1};
+    pos = e + 1;
+  }
+  if (data_start == std::string::npos) throw InputError(src + ": no data section (no line '@1')");
+  // Data blocks.
+  std::map<int, std::pair<size_t, size_t>> ranges;
+  {
+    size_t p = data_start;
+    int current = -1;
+    size_t begin = 0;
+    while (p < text.size()) {
+      size_t e = text.find('\n', p);
+      if (e == std::string::npos) e = text.size();
+      if (text[p] == '@') {
+        std::string line = text.substr(p, e - p);
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        std::smatch m;
+        if (std::regex_match(line, m, at_re)) {
+          if (current >= 0) ranges[current] = {begin, p};
+          current = std::stoi(m[1]);
+          begin = e;
+        }
+      }
+      p = e + 1;
+    }
+    if (current >= 0) ranges[current] = {begin, text.size()};
+  }
+  auto count_of = [&](const std::string& loc) {
+    auto it = counts.find(loc);
+    if (it == counts.end()) throw InputError(src + ": missing 'define " + loc + " n'");
+    return it->second;
+  };
+  auto find_decl = [&](const std::string& loc, const std::string& name) -> int {
+    for (const auto& [k, d] : decls)
+      if (d.loc == loc && d.name == name) return k;
+    throw InputError(src + ": missing '" + loc + " { ... " + name + " }' (is this an HxSpatialGraph?)");
+  };
+  auto reader = [&](int k) {
+    auto it = ranges.find(k);
+    if (it == ranges.end()) throw InputError(src + ": data block @" + std::to_string(k) + " is missing");
+    return NumberReader(text, it->second.first, it->second.second, src + ": block @" + std::to_string(k));
+  };
+  const int64_t nn = count_of("VERTEX"), ne = count_of("EDGE"), np = count_of("POINT");
+  SpatialGraph g;
+  g.positions.resize(nn);
+  {
+    auto r = reader(find_decl("VERTEX", "VertexCoordinates"));
+    for (auto& p : g.positions)
+      for (int a = 0; a < 3; ++a) p[a] = static_cast<float>(r.next());
+  }
+  g.edges.resize(ne);
+  {
+    auto r = reader(find_decl("EDGE", "EdgeConnectivity"));
+    for (auto& e : g.edges) {
+      e.node0 = r.next_int();
+      e.node1 = r.next_int();
+      check_node_id(e.node0, nn, src + ": EdgeConnectivity");
+      check_node_id(e.node1, nn, src + ": EdgeConnectivity");
+    }
+  }
+  std::vector<int64_t> npts(ne);
+  {
+    auto r = reader(find_decl("EDGE", "NumEdgePoints"));
+    int64_t sum = 0;
+    for (auto& c : npts) {
+      c = r.next_int();
+      if (c < 2) throw InputError(src + ": NumEdgePoints: an edge has " + std::to_string(c) + " points, expected >= 2");
+      sum += c;
+    }
+    if (sum != np)
+      throw InputError(src + ": NumEdgePoints sum to " + std::to_string(sum) + " but 'define POINT' says " + std::to_string(np));
+  }
+  {
+    auto r = reader(find_decl("POINT", "EdgePointCoordinates"));
+    for (int64_t e = 0; e < ne; ++e) {
+      g.edges[e].points.resize(npts[e]);
+      for (auto& p : g.edges[e].points)
+        for (int a = 0; a < 3; ++a) p[a] = static_cast<float>(r.next());
+    }
+  }
+  snap_ends(g);
+  static const std::set<std::string> structural = {"VertexCoordinates", "EdgeConnectivity", "NumEdgePoints",
+                                                   "EdgePointCoordinates"};
+  for (const auto& [k, d] : decls) {
+    if (structural.count(d.name) || d.comps != 1) continue;
+    auto r = reader(k);
+    const bool is_int = d.type == "int" || d.type == "byte" || d.type == "short";
+    if (d.loc == "POINT") {
+      auto& v = g.point_attributes[d.name == "thickness" ? "radius" : d.name];
+      v.resize(ne);
+      for (int64_t e = 0; e < ne; ++e) {
+        v[e].resize(npts[e]);
+        for (auto& x : v[e]) x = static_cast<float>(r.next());
+      }
+    } else if (d.loc == "VERTEX" || d.loc == "EDGE") {
+      const int64_t cnt = d.loc == "VERTEX" ? nn : ne;
+      if (is_int) {
+        auto& v = (d.loc == "VERTEX" ? g.node_labels : g.edge_labels)[d.name];
+        v.resize(cnt);
+        for (auto& x : v) x = static_cast<int32_t>(r.next_int());
+      } else {
+        auto& v = (d.loc == "VERTEX" ? g.node_attributes : g.edge_attributes)[d.name];
+        v.resize(cnt);
+        for (auto& x : v) x = static_cast<float>(r.next());
+      }
+    }
+  }
+  return g;
+}
+
+// ---------------------------------------------------------------- VTK XML PolyData
+template <class V>
+void vtp_array(std::string& s, const char* type, const std::string& name, int comps, const V& values) {
+  s += "        <DataArray type=\"";
+  s += type;
+  s += "\" Name=\"" + xml_escape(name) + "\"";
+  if (comps > 1) s += " NumberOfComponents=\"" + std::to_string(comps) + "\"";
+  s += " format=\"ascii\">\n";
+  size_t col = 0;
+  for (const auto& x : values) {
+    if constexpr (std::is_same_v<std::decay_t<decltype(x)>, float>) put_f(s, x);
+    else if constexpr (std::is_same_v<std::decay_t<decltype(x)>, double>) put_d(s, x);
+    else put_i(s, static_cast<int64_t>(x));
+    s += (++col % 9 == 0) ? '\n' : ' ';
+  }
+  s += "\n        </DataArray>\n";
+}
+
+std::string vtp_write(const SpatialGraph& g) {
+  const int64_t nn = g.node_count(), ne = g.edge_count();
+  const int64_t np = nn + g.point_count();
+  std::string s = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+                  "header_type=\"UInt64\">\n  <PolyData>\n";
+  s += "    <Piece NumberOfPoints=\"" + std::to_string(np) + "\" NumberOfVerts=\"" + std::to_string(nn) +
+       "\" NumberOfLines=\"" + std::to_string(ne) + "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
+  s += "      <PointData>\n";
+  for (const auto& [name, v] : g.point_attributes) {
+    std::vector<float> a(nn, 0.0f);
+    for (const auto& e : v) a.insert(a.end(), e.begin(), e.end());
+    vtp_array(s, "Float32", name, 1, a);
+  }
+  for (const auto& [name, v] : g.node_attributes) {
+    std::vector<float> a(v.begin(), v.end());
+    a.resize(np, 0.0f);
+    vtp_array(s, "Float32", "node." + name, 1, a);
+  }
+  for (const auto& [name, v] : g.node_labels) {
+    std::vector<int32_t> a(v.begin(), v.end());
+    a.resize(np, 0);
+    vtp_array(s, "Int32", "node." + name, 1, a);
+  }
+  s += "      </PointData>\n      <CellData>\n";
+  // Cell data covers verts (nodes) then lines (edges).
+  {
+    std::vector<int64_t> n0(nn, -1), n1(nn, -1);
+    for (const auto& e : g.edges) {
+      n0.push_back(e.node0);
+      n1.push_back(e.node1);
+    }
+    vtp_array(s, "Int64", "node0", 1, n0);
+    vtp_array(s, "Int64", "node1", 1, n1);
+  }
+  for (const auto& [name, v] : g.edge_attributes) {
+    std::vector<float> a(nn, 0.0f);
+    a.insert(a.end(), v.begin(), v.end());
+    vtp_array(s, "Float32", name, 1, a);
+  }
+  for (const auto& [name, v] : g.edge_labels) {
+    std::vector<int32_t> a(nn, 0);
+    a.insert(a.end(), v.begin(), v.end());
+    vtp_array(s, "Int32", name, 1, a);
+  }
+  s += "      </CellData>\n      <Points>\n";
+  {
+    std::vector<double> xyz;
+    xyz.reserve(static_cast<size_t>(3 * np));
+    for (const auto& p : g.positions) xyz.insert(xyz.end(), p.begin(), p.end());
+    for (const auto& e : g.edges)
+      for (const auto& p : e.points) xyz.insert(xyz.end(), p.begin(), p.end());
+    vtp_array(s, "Float64", "Points", 3, xyz);
+  }
+  s += "      </Points>\n      <Verts>\n";
+  {
+    std::vector<int64_t> conn(nn), offs(nn);
+    for (int64_t i = 0; i < nn; ++i) {
+      conn[i] = i;
+      offs[i] = i + 1;
+    }
+    vtp_array(s, "Int64", "connectivity", 1, conn);
+    vtp_array(s, "Int64", "offsets", 1, offs);
+  }
+  s += "      </Verts>\n      <Lines>\n";
+  {
+    std::vector<int64_t> conn, offs;
+    int64_t next = nn;
+    for (const auto& e : g.edges) {
+      for (size_t i = 0; i < e.points.size(); ++i) conn.push_back(next++);
+      offs.push_back(static_cast<int64_t>(conn.size()));
+    }
+    vtp_array(s, "Int64", "connectivity", 1, conn);
+    vtp_array(s, "Int64", "offsets", 1, offs);
+  }
+  s += "      </Lines>\n    </Piece>\n  </PolyData>\n</VTKFile>\n";
+  return s;
+}
+
+std::vector<double> xml_numbers(const Xml& a, const std::string& src) {
+  if (a.attr_or("format", "ascii") != "ascii")
+    throw InputError(src + ": DataArray '" + a.attr_or("Name", "") + "' is " + a.attr_or("format", "") +
+                     "; only ASCII .vtp is supported");
+  std::vector<double> v;
+  NumberReader r(a.text, 0, a.text.size(), src + ": DataArray '" + a.attr_or("Name", "") + "'");
+  while (!r.at_end()) v.push_back(r.next());
+  return v;
+}
+
+SpatialGraph vtp_read(const std::string& text, const std::string& src) {
+  const Xml doc = parse_xml(text, src);
+  const Xml* vtk = doc.child("VTKFile");
+  if (!vtk || vtk->attr_or("type", "") != "PolyData") throw InputError(src + ": not a VTK XML PolyData file");
+  const Xml* pd = vtk->child("PolyData");
+  const Xml* piece = pd ? pd->child("Piece") : nullptr;
+  if (!piece) throw InputError(src + ": no <Piece>");
+  auto section_array = [&](const char* sec, const std::string& name) -> const Xml* {
+    const Xml* s = piece->child(sec);
+    if (!s) return nullptr;
+    for (const auto& c : s->children)
+      if (c.name == "DataArray" && c.attr_or("Name", "") == name) return &c;
+    return nullptr;
+  };
+  const Xml* pts_sec = piece->child("Points");
+  if (!pts_sec || pts_sec->children.empty()) throw InputError(src + ": no <Points>");
+  const auto xyz = xml_numbers(pts_sec->children.front(), src);
+  const int64_t np = static_cast<int64_t>(xyz.size() / 3);
+  auto cells = [&](const char* sec) {
+    std::pair<std::vector<double>, std::vector<double>> co;
+    if (const Xml* c = section_array(sec, "connectivity")) co.first = xml_numbers(*c, src);
+    if (const Xml* o = section_array(sec, "offsets")) co.second = xml_numbers(*o, src);
+    return co;
+  };
+  const auto verts = cells("Verts");
+  const auto lines = cells("Lines");
+  SpatialGraph g;
+  const int64_t nn = static_cast<int64_t>(verts.second.size());
+  std::vector<int64_t> node_point(nn);
+  for (int64_t i = 0; i < nn; ++i) {
+    const int64_t b = i == 0 ? 0 : static_cast<int64_t>(verts.second[i - 1]);
+    const int64_t pid = static_cast<int64_t>(verts.first.at(b));
+    if (pid < 0 || pid >= np) throw InputError(src + ": vertex cell refers to point " + std::to_string(pid));
+    node_point[i] = pid;
+    g.add_node({xyz[3 * pid], xyz[3 * pid + 1], xyz[3 * pid + 2]});
+  }
+  const int64_t ne = static_cast<int64_t>(lines.second.size());
+  const Xml* n0a = section_array("CellData", "node0");
+  const Xml* n1a = section_array("CellData", "node1");
+  std::vector<double> n0, n1;
+  if (n0a && n1a) {
+    n0 = xml_numbers(*n0a, src);
+    n1 = xml_numbers(*n1a, src);
+  }
+  // Without node0/node1 arrays (files from other tools), nodes are matched by point id.
+  std::map<int64_t, int64_t> node_of_point;
+  for (int64_t i = 0; i < nn; ++i) node_of_point.emplace(node_point[i], i);
+  std::vector<std::pair<int64_t, int64_t>> line_range(ne);
+  for (int64_t e = 0; e < ne; ++e) {
+    const int64_t b = e == 0 ? 0 : static_cast<int64_t>(lines.second[e - 1]);
+    const int64_t en = static_cast<int64_t>(lines.second[e]);
+    if (en - b < 2 || en > static_cast<int64_t>(lines.first.size()))
+      throw InputError(src + ": line cell " + std::to_string(e) + " has fewer than 2 points or bad offsets");
+    line_range[e] = {b, en};
+    std::vector<Vec3> pts;
+    for (int64_t k = b; k < en; ++k) {
+      const int64_t pid = static_cast<int64_t>(lines.first[k]);
+      if (pid < 0 || pid >= np) throw InputError(src + ": line cell refers to point " + std::to_string(pid));
+      pts.push_back({xyz[3 * pid], xyz[3 * pid + 1], xyz[3 * pid + 2]});
+    }
+    int64_t a = -1, z = -1;
+    if (!n0.empty()) {
+      a = static_cast<int64_t>(n0.at(nn + e));
+      z = static_cast<int64_t>(n1.at(nn + e));
+    } else {
+      auto fa = node_of_point.find(static_cast<int64_t>(lines.first[b]));
+      auto fz = node_of_point.find(static_cast<int64_t>(lines.first[en - 1]));
+      a = fa != node_of_point.end() ? fa->second : g.add_node(pts.front());
+      z = fz != node_of_point.end() ? fz->second : g.add_node(pts.back());
+    }
+    check_node_id(a, g.node_count(), src + ": node0");
+    check_node_id(z, g.node_count(), src + ": node1");
+    g.edges.push_back(GraphEdge{a, z, std::move(pts)});
+  }
+  snap_ends(g);
+  if (const Xml* sec = piece->child("PointData"))
+    for (const auto& c : sec->children) {
+      if (c.name != "DataArray" || c.attr_or("NumberOfComponents", "1") != "1") continue;
+      const std::string name = c.attr_or("Name", "");
+      const auto v = xml_numbers(c, src);
+      if (static_cast<int64_t>(v.size()) != np) throw InputError(src + ": point data '" + name + "' has the wrong length");
+      const bool is_int = c.attr_or("type", "").find("Int") != std::string::npos;
+      if (name.rfind("node.", 0) == 0) {
+        const std::string n = name.substr(5);
+        if (is_int) {
+          auto& a = g.node_labels[n];
+          for (int64_t i = 0; i < nn; ++i) a.push_back(static_cast<int32_t>(v[node_point[i]]));
+        } else {
+          auto& a = g.node_attributes[n];
+          for (int64_t i = 0; i < nn; ++i) a.push_back(static_cast<float>(v[node_point[i]]));
+        }
+      } else {
+        auto& a = g.point_attributes[name];
+        a.resize(ne);
+        for (int64_t e = 0; e < ne; ++e)
+          for (int64_t k = line_range[e].first; k < line_range[e].second; ++k)
+            a[e].push_back(static_cast<float>(v[static_cast<int64_t>(lines.first[k])]));
+      }
+    }
+  if (const Xml* sec = piece->child("CellData"))
+    for (const auto& c : sec->children) {
+      const std::string name = c.attr_or("Name", "");
+      if (c.name != "DataArray" || name == "node0" || name == "node1" || c.attr_or("NumberOfComponents", "1") != "1")
+        continue;
+      const auto v = xml_numbers(c, src);
+      if (static_cast<int64_t>(v.size()) != nn + ne) throw InputError(src + ": cell data '" + name + "' has the wrong length");
+      if (c.attr_or("type", "").find("Int") != std::string::npos) {
+        auto& a = g.edge_labels[name];
+        for (int64_t e = 0; e < ne; ++e) a.push_back(static_cast<int32_t>(v[nn + e]));
+      } else {
+        auto& a = g.edge_attributes[name];
+        for (int64_t e = 0; e < ne; ++e) a.push_back(static_cast<float>(v[nn + e]));
+      }
+    }
+  // Attributes must cover every node, also those added for unmatched line ends.
+  for (auto& [n, a] : g.node_attributes) a.resize(g.positions.size(), 0.0f);
+  for (auto& [n, a] : g.node_labels) a.resize(g.positions.size(), 0);
+  return g;
+}
+
+// ---------------------------------------------------------------- SWC
+std::string swc_write(const SpatialGraph& g) {
+  if (g.cyclomatic_number() != 0)
+    throw InputError("SWC stores trees: the graph has " + std::to_string(g.cyclomatic_number()) +
+                     " independent loop(s); use .am, .vtp, .graphml or .csv");
+  const auto adj = g.adjacency();
+  const auto* pr = g.point_attributes.count("radius") ? &g.point_attributes.at("radius") : nullptr;
+  const auto* nr = g.node_attributes.count("radius") ? &g.node_attributes.at("radius") : nullptr;
+  const auto* nt = g.node_labels.count("swc_type") ? &g.node_labels.at("swc_type") : nullptr;
+  const auto* et = g.edge_labels.count("swc_type") ? &g.edge_labels.at("swc_type") : nullptr;
+  std::string s = "# SWC written by skelflow: id type x y z radius parent\n";
+  std::vector<int64_t> sample(g.positions.size(), -1);
+  int64_t next = 1;
+  auto line = [&](int64_t id, int64_t type, const Vec3& p, double r, int64_t parent) {
+    put_i(s, id); s += ' '; put_i(s, type); s += ' ';
+    put_d(s, p[0]); s += ' '; put_d(s, p[1]); s += ' '; put_d(s, p[2]); s += ' ';
+    put_d(s, r); s += ' '; put_i(s, parent); s += '\n';
+  };
+  auto node_radius = [&](int64_t n, int64_t via_edge, bool at_end) -> double {
+    if (nr) return (*nr)[n];
+    if (pr && via_edge >= 0) return at_end ? (*pr)[via_edge].back() : (*pr)[via_edge].front();
+    return 0.0;
+  };
+  for (int64_t root = 0; root < g.node_count(); ++root) {
+    if (sample[root] >= 0) continue;
+    const int64_t first_edge = adj.degree(root) > 0 ? adj.edge_ids[adj.offsets[root]] : -1;
+    sample[root] = next++;
+    line(sample[root], nt ? (*nt)[root] : 0, g.positions[root],
+         node_radius(root, first_edge, first_edge >= 0 && g.edges[first_edge].node1 == root), -1);
+    std::deque<int64_t> q{root};
+    while (!q.empty()) {
+      const int64_t u = q.front();
+      q.pop_front();
+      for (int64_t a = adj.offsets[u]; a < adj.offsets[u + 1]; ++a) {
+        const int64_t e = adj.edge_ids[a];
+        const auto& ed = g.edges[e];
+        const bool fwd = ed.node0 == u;
+        const int64_t v = fwd ? ed.node1 : ed.node0;
+        if (sample[v] >= 0) continue;
+        const int64_t n = static_cast<int64_t>(ed.points.size());
+        int64_t parent = sample[u];
+        for (int64_t k = 1; k + 1 < n; ++k) {
+          const int64_t i = fwd ? k : n - 1 - k;
+          line(next, et ? (*et)[e] : 0, ed.points[i], pr ? (*pr)[e][i] : 0.0, parent);
+          parent = next++;
+        }
+        sample[v] = next++;
+        line(sample[v], nt ? (*nt)[v] : 0, g.positions[v], node_radius(v, e, fwd), parent);
+        q.push_back(v);
+      }
+    }
+  }
+  return s;
+}
+
+SpatialGraph swc_read(const std::string& text, const std::string& src) {
+  struct Sample {
+    int64_t id, type, parent;
+    Vec3 p;
+    double r;
+  };
+  std::vector<Sample> smp;
+  std::map<int64_t, int64_t> index;
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const size_t h = line.find('#');
+    if (h != std::string::npos) line.resize(h);
+    NumberReader r(line, 0, line.size(), src + ":" + std::to_string(line_no));
+    if (r.at_end()) continue;
+    Sample s{};
+    s.id = r.next_int();
+    s.type = r.next_int();
+    for (int a = 0; a < 3; ++a) s.p[a] = r.next();
+    s.r = r.next();
+    s.parent = r.next_int();
+    if (!index.emplace(s.id, static_cast<int64_t>(smp.size())).second)
+      throw InputError(src + ":" + std::to_string(line_no) + ": duplicate sample id " + std::to_string(s.id));
+    smp.push_back(s);
+  }
+  const int64_t n = static_cast<int64_t>(smp.size());
+  std::vector<int64_t> parent(n, -1), children(n, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    if (smp[i].parent < 0) continue;
+    auto it = index.find(smp[i].parent);
+    if (it == index.end())
+      throw InputError(src + ": sample " + std::to_string(smp[i].id) + " has unknown parent " + std::to_string(smp[i].parent));
+    parent[i] = it->second;
+    ++children[it->second];
+  }
+  SpatialGraph g;
+  std::vector<int64_t> node(n, -1);
+  g.ensure_node_attribute("radius");
+  for (int64_t i = 0; i < n; ++i)
+    if (parent[i] < 0 || children[i] != 1) {
+      node[i] = g.add_node(smp[i].p);
+      g.node_attributes["radius"][node[i]] = static_cast<float>(smp[i].r);
+      g.ensure_node_label("swc_type")[node[i]] = static_cast<int32_t>(smp[i].type);
+    }
+  std::vector<std::vector<float>> rad;
+  std::vector<int32_t> etype;
+  for (int64_t i = 0; i < n; ++i) {
+    if (node[i] < 0 || parent[i] < 0) continue;
+    // Walk up from node sample i to the next node sample.
+    std::vector<Vec3> pts{smp[i].p};
+    std::vector<float> rr{static_cast<float>(smp[i].r)};
+    int64_t cur = parent[i];
+    int32_t type = static_cast<int32_t>(smp[i].type);
+    int64_t guard = 0;
+    while (node[cur] < 0) {
+      pts.push_back(smp[cur].p);
+      rr.push_back(static_cast<float>(smp[cur].r));
+      type = static_cast<int32_t>(smp[cur].type);
+      cur = parent[cur];
+      if (++guard > n) throw InputError(src + ": parent links form a cycle");
+    }
+    pts.push_back(smp[cur].p);
+    rr.push_back(static_cast<float>(smp[cur].r));
+    std::reverse(pts.begin(), pts.end());
+    std::reverse(rr.begin(), rr.end());
+    g.edges.push_back(GraphEdge{node[cur], node[i], std::move(pts)});
+    rad.push_back(std::move(rr));
+    etype.push_back(type);
+  }
+  g.point_attributes["radius"] = std::move(rad);
+  g.edge_labels["swc_type"] = std::move(etype);
+  return g;
+}
+
+// ---------------------------------------------------------------- GraphML
+std::string graphml_write(const SpatialGraph& g) {
+  std::string s = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+                  "<graphml xmlns=\"http://graphml.graphdrawing.org/xmlns\">\n";
+  int key = 0;
+  std::map<std::string, std::string> nkey, ekey;  // name -> key id
+  auto add_key = [&](const char* for_, const std::string& name, const char* type, std::map<std::string, std::string>& m) {
+    const std::string id = "d" + std::to_string(key++);
+    m[name] = id;
+    s += "  <key id=\"" + id + "\" for=\"" + for_ + "\" attr.name=\"" + xml_escape(name) + "\" attr.type=\"" + type + "\"/>\n";
+  };
+  add_key("node", "x", "double", nkey);
+  add_key("node", "y", "double", nkey);
+  add_key("node", "z", "double", nkey);
+  for (const auto& [n, v] : g.node_attributes) add_key("node", n, "float", nkey);
+  for (const auto& [n, v] : g.node_labels) add_key("node", n, "int", nkey);
+  add_key("edge", "points", "string", ekey);
+  for (const auto& [n, v] : g.edge_attributes) add_key("edge", n, "float", ekey);
+  for (const auto& [n, v] : g.edge_labels) add_key("edge", n, "int", ekey);
+  for (const auto& [n, v] : g.point_attributes) add_key("edge", "point." + n, "string", ekey);
+  s += "  <graph id=\"G\" edgedefault=\"undirected\">\n";
+  for (int64_t i = 0; i < g.node_count(); ++i) {
+    s += "    <node id=\"n" + std::to_string(i) + "\">";
+    for (int a = 0; a < 3; ++a) {
+      s += "<data key=\"" + nkey[a == 0 ? "x" : a == 1 ? "y" : "z"] + "\">";
+      put_d(s, g.positions[i][a]);
+      s += "</data>";
+    }
+    for (const auto& [n, v] : g.node_attributes) {
+      s += "<data key=\"" + nkey[n] + "\">";
+      put_f(s, v[i]);
+      s += "</data>";
+    }
+    for (const auto& [n, v] : g.node_labels) s += "<data key=\"" + nkey[n] + "\">" + std::to_string(v[i]) + "</data>";
+    s += "</node>\n";
+  }
+  for (int64_t e = 0; e < g.edge_count(); ++e) {
+    const auto& ed = g.edges[e];
+    s += "    <edge id=\"e" + std::to_string(e) + "\" source=\"n" + std::to_string(ed.node0) + "\" target=\"n" +
+         std::to_string(ed.node1) + "\"><data key=\"" + ekey["points"] + "\">";
+    for (size_t i = 0; i < ed.points.size(); ++i) {
+      if (i) s += ';';
+      put_d(s, ed.points[i][0]); s += ' '; put_d(s, ed.points[i][1]); s += ' '; put_d(s, ed.points[i][2]);
+    }
+    s += "</data>";
+    for (const auto& [n, v] : g.edge_attributes) {
+      s += "<data key=\"" + ekey[n] + "\">";
+      put_f(s, v[e]);
+      s += "</data>";
+    }
+    for (const auto& [n, v] : g.edge_labels) s += "<data key=\"" + ekey[n] + "\">" + std::to_string(v[e]) + "</data>";
+    for (const auto& [n, v] : g.point_attributes) {
+      s += "<data key=\"" + ekey["point." + n] + "\">";
+      for (size_t i = 0; i < v[e].size(); ++i) {
+        if (i) s += ' ';
+        put_f(s, v[e][i]);
+      }
+      s += "</data>";
+    }
+    s += "</edge>\n";
+  }
+  s += "  </graph>\n</graphml>\n";
+  return s;
+}
+
+SpatialGraph graphml_read(const std::string& text, const std::string& src) {
+  const Xml doc = parse_xml(text, src);
+  const Xml* gm = doc.child("graphml");
+  if (!gm) throw InputError(src + ": no <graphml> element");
+  struct Key {
+    std::string for_, name, type;
+  };
+  std::map<std::string, Key> keys;
+  for (const auto& c : gm->children)
+    if (c.name == "key") keys[c.attr_or("id", "")] = {c.attr_or("for", ""), c.attr_or("attr.name", ""), c.attr_or("attr.type", "")};
+  const Xml* graph = gm->child("graph");
+  if (!graph) throw InputError(src + ": no <graph> element");
+  SpatialGraph g;
+  std::map<std::string, int64_t> ids;
+  std::map<std::string, std::vector<float>> nf;
+  std::map<std::string, std::vector<int32_t>> nl;
+  for (const auto& c : graph->children) {
+    if (c.name != "node") continue;
+    Vec3 p{0, 0, 0};
+    const int64_t i = g.node_count();
+    for (const auto& d : c.children) {
+      if (d.name != "data") continue;
+      const Key& k = keys[d.attr_or("key", "")];
+      const std::string where = src + ": node " + c.attr_or("id", "") + " '" + k.name + "'";
+      if (k.name == "x" || k.name == "y" || k.name == "z") p[k.name[0] - 'x'] = to_num(d.text, where);
+      else if (k.type == "int" || k.type == "long") nl[k.name].resize(i + 1), nl[k.name][i] = static_cast<int32_t>(to_num(d.text, where));
+      else if (k.type == "float" || k.type == "double") nf[k.name].resize(i + 1), nf[k.name][i] = static_cast<float>(to_num(d.text, where));
+    }
+    ids[c.attr_or("id", "")] = g.add_node(p);
+  }
+  for (auto& [n, v] : nf) v.resize(g.positions.size(), 0.0f), g.node_attributes[n] = std::move(v);
+  for (auto& [n, v] : nl) v.resize(g.positions.size(), 0), g.node_labels[n] = std::move(v);
+  for (const auto& c : graph->children) {
+    if (c.name != "edge") continue;
+    auto a = ids.find(c.attr_or("source", "")), b = ids.find(c.attr_or("target", ""));
+    if (a == ids.end() || b == ids.end())
+      throw InputError(src + ": edge " + c.attr_or("id", "") + " refers to an unknown node");
+    std::vector<Vec3> pts;
+    std::map<std::string, float> ef;
+    std::map<std::string, int32_t> el;
+    std::map<std::string, std::vector<float>> pa;
+    for (const auto& d : c.children) {
+      if (d.name != "data") continue;
+      const Key& k = keys[d.attr_or("key", "")];
+      const std::string where = src + ": edge " + c.attr_or("id", "") + " '" + k.name + "'";
+      if (k.name == "points") {
+        std::string t = d.text;
+        std::replace(t.begin(), t.end(), ';', ' ');
+        NumberReader rr(t, 0, t.size(), where);
+        while (!rr.at_end()) {
+          Vec3 p{};
+          for (int q = 0; q < 3; ++q) p[q] = rr.next();
+          pts.push_back(p);
+        }
+      } else if (k.name.rfind("point.", 0) == 0) {
+        NumberReader r(d.text, 0, d.text.size(), where);
+        auto& v = pa[k.name.substr(6)];
+        while (!r.at_end()) v.push_back(static_cast<float>(r.next()));
+      } else if (k.type == "int" || k.type == "long") {
+        el[k.name] = static_cast<int32_t>(to_num(d.text, where));
+      } else if (k.type == "float" || k.type == "double") {
+        ef[k.name] = static_cast<float>(to_num(d.text, where));
+      }
+    }
+    const int64_t e = g.add_edge(a->second, b->second, std::move(pts));
+    for (const auto& [n, v] : ef) g.ensure_edge_attribute(n)[e] = v;
+    for (const auto& [n, v] : el) g.ensure_edge_label(n)[e] = v;
+    for (auto& [n, v] : pa) {
+      auto& dst = g.ensure_point_attribute(n);
+      if (v.size() != g.edges[e].points.size())
+        throw InputError(src + ": edge " + c.attr_or("id", "") + " point." + n + " has " + std::to_string(v.size()) +
+                         " values for " + std::to_string(g.edges[e].points.size()) + " points");
+      dst[e] = std::move(v);
+    }
+  }
+  for (const auto& [n, v] : g.edge_attributes) g.ensure_edge_attribute(n);
+  for (const auto& [n, v] : g.edge_labels) g.ensure_edge_label(n);
+  for (const auto& [n, v] : g.point_attributes) g.ensure_point_attribute(n);
+  snap_ends(g);
+  return g;
+}
+
+// ---------------------------------------------------------------- CSV
+std::string csv_name(const std::string& n) {
+  std::string o = n;
+  for (char& c : o)
+    if (c == ',' || c == '"' || c == '\n' || c == '\r') c = '_';
+  return o;
+}
+
+std::string csv_edges_write(const SpatialGraph& g) {
+  std::string s = "edge,node0,node1,point,x,y,z";
+  for (const auto& [n, v] : g.point_attributes) s += ",point:" + csv_name(n);
+  for (const auto& [n, v] : g.edge_attributes) s += ",edge:" + csv_name(n);
+  for (const auto& [n, v] : g.edge_labels) s += ",edge_label:" + csv_name(n);
+  s += '\n';
+  for (int64_t e = 0; e < g.edge_count(); ++e) {
+    const auto& ed = g.edges[e];
+    for (size_t i = 0; i < ed.points.size(); ++i) {
+      put_i(s, e); s += ','; put_i(s, ed.node0); s += ','; put_i(s, ed.node1); s += ','; put_i(s, static_cast<int64_t>(i));
+      for (int a = 0; a < 3; ++a) { s += ','; put_d(s, ed.points[i][a]); }
+      for (const auto& [n, v] : g.point_attributes) { s += ','; put_f(s, v[e][i]); }
+      for (const auto& [n, v] : g.edge_attributes) { s += ','; put_f(s, v[e]); }
+      for (const auto& [n, v] : g.edge_labels) { s += ','; put_i(s, v[e]); }
+      s += '\n';
+    }
+  }
+  return s;
+}
+
+std::string csv_nodes_write(const SpatialGraph& g) {
+  std::string s = "node,x,y,z";
+  for (const auto& [n, v] : g.node_attributes) s += ",node:" + csv_name(n);
+  for (const auto& [n, v] : g.node_labels) s += ",node_label:" + csv_name(n);
+  s += '\n';
+  for (int64_t i = 0; i < g.node_count(); ++i) {
+    put_i(s, i);
+    for (int a = 0; a < 3; ++a) { s += ','; put_d(s, g.positions[i][a]); }
+    for (const auto& [n, v] : g.node_attributes) { s += ','; put_f(s, v[i]); }
+    for (const auto& [n, v] : g.node_labels) { s += ','; put_i(s, v[i]); }
+    s += '\n';
+  }
+  return s;
+}
+
+struct CsvTable {
+  std::vector<std::string> header;
+  std::vector<std::vector<double>> rows;
+};
+CsvTable csv_parse(const std::string& text, const std::string& src) {
+  CsvTable t;
+  std::istringstream in(text);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) continue;
+    auto f = split(line, ',');
+    if (t.header.empty()) {
+      t.header = f;
+      continue;
+    }
+    if (f.size() != t.header.size())
+      throw InputError(src + ":" + std::to_string(line_no) + ": " + std::to_string(f.size()) + " fields, header has " +
+                       std::to_string(t.header.size()));
+    std::vector<double> row(f.size());
+    for (size_t k = 0; k < f.size(); ++k) row[k] = to_num(f[k], src + ":" + std::to_string(line_no));
+    t.rows.push_back(std::move(row));
+  }
+  return t;
+}
+
+SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, const std::string& src) {
+  const CsvTable nodes = csv_parse(nodes_text, src + " (nodes)");
+  const CsvTable edges = csv_parse(text, src);
+  auto col = [&](const CsvTable& t, const std::string& n, const std::string& which) -> size_t {
+    auto it = std::find(t.header.begin(), t.header.end(), n);
+    if (it == t.header.end()) throw InputError(src + " (" + which + "): missing column '" + n + "'");
+    return static_cast<size_t>(it - t.header.begin());
+  };
+  SpatialGraph g;
+  const size_t cx = col(nodes, "x", "nodes"), cy = col(nodes, "y", "nodes"), cz = col(nodes, "z", "nodes");
+  for (const auto& r : nodes.rows) g.add_node({r[cx], r[cy], r[cz]});
+  for (size_t k = 0; k < nodes.header.size(); ++k) {
+    const auto& h = nodes.header[k];
+    if (h.rfind("node:", 0) == 0) {
+      auto& v = g.ensure_node_attribute(h.substr(5));
+      for (size_t i = 0; i < nodes.rows.size(); ++i) v[i] = static_cast<float>(nodes.rows[i][k]);
+    } else if (h.rfind("node_label:", 0) == 0) {
+      auto& v = g.ensure_node_label(h.substr(11));
+      for (size_t i = 0; i < nodes.rows.size(); ++i) v[i] = static_cast<int32_t>(nodes.rows[i][k]);
+    }
+  }
+  const size_t ce = col(edges, "edge", "edges"), c0 = col(edges, "node0", "edges"), c1 = col(edges, "node1", "edges");
+  const size_t ex = col(edges, "x", "edges"), ey = col(edges, "y", "edges"), ez = col(edges, "z", "edges");
+  std::vector<std::pair<size_t, size_t>> ranges;  // rows of each edge
+  for (size_t i = 0; i < edges.rows.size();) {
+    size_t j = i;
+    while (j < edges.rows.size() && edges.rows[j][ce] == edges.rows[i][ce]) ++j;
+    const auto& r = edges.rows[i];
+    const int64_t a = static_cast<int64_t>(r[c0]), b = static_cast<int64_t>(r[c1]);
+    check_node_id(a, g.node_count(), src + ": node0");
+    check_node_id(b, g.node_count(), src + ": node1");
+    std::vector<Vec3> pts;
+    for (size_t k = i; k < j; ++k) pts.push_back({edges.rows[k][ex], edges.rows[k][ey], edges.rows[k][ez]});
+    if (pts.size() < 2) throw InputError(src + ": edge " + std::to_string(static_cast<int64_t>(r[ce])) + " has fewer than 2 points");
+    g.edges.push_back(GraphEdge{a, b, std::move(pts)});
+    ranges.emplace_back(i, j);
+    i = j;
+  }
+  for (size_t k = 0; k < edges.header.size(); ++k) {
+    const auto& h = edges.header[k];
+    if (h.rfind("point:", 0) == 0) {
+      auto& v = g.point_attributes[h.substr(6)];
+      v.resize(ranges.size());
+      for (size_t e = 0; e < ranges.size(); ++e)
+        for (size_t r = ranges[e].first; r < ranges[e].second; ++r) v[e].push_back(static_cast<float>(edges.rows[r][k]));
+    } else if (h.rfind("edge:", 0) == 0) {
+      auto& v = g.edge_attributes[h.substr(5)];
+      for (const auto& rg : ranges) v.push_back(static_cast<float>(edges.rows[rg.first][k]));
+    } else if (h.rfind("edge_label:", 0) == 0) {
+      auto& v = g.edge_labels[h.substr(11)];
+      for (const auto& rg : ranges) v.push_back(static_cast<int32_t>(edges.rows[rg.first][k]));
+    }
+  }
+  snap_ends(g);
+  return g;
+}
+
+std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) throw InputError("cannot open '" + p.string() + "' for reading");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+GraphFormat graph_format_from_path(const std::filesystem::path& path, const std::string& what) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".am") return GraphFormat::amira;
+  if (ext == ".vtp") return GraphFormat::vtp;
+  if (ext == ".swc") return GraphFormat::swc;
+  if (ext == ".graphml") return GraphFormat::graphml;
+  if (ext == ".csv") return GraphFormat::csv;
+  throw InputError(what + ": unknown graph file extension '" + ext + "' of '" + path.string() +
+                   "'; expected .am, .vtp, .swc, .graphml or .csv");
+}
+
+std::string graph_to_text(const SpatialGraph& g, GraphFormat f, std::string* nodes_text) {
+  const auto problems = g.check_invariants();
+  if (!problems.empty()) throw InputError("input 'graph': inconsistent graph: " + problems.front());
+  switch (f) {
+    case GraphFormat::amira: return amira_write(g);
+    case GraphFormat::vtp: return vtp_write(g);
+    case GraphFormat::swc: return swc_write(g);
+    case GraphFormat::graphml: return graphml_write(g);
+    case GraphFormat::csv:
+      if (nodes_text) *nodes_text = csv_nodes_write(g);
+      return csv_edges_write(g);
+  }
+  throw Error("graph_to_text: unknown format");
+}
+
+SpatialGraph graph_from_text(const std::string& text, GraphFormat f, const std::string& nodes_text, const std::string& src) {
+  SpatialGraph g;
+  switch (f) {
+    case GraphFormat::amira: g = amira_read(text, src); break;
+    case GraphFormat::vtp: g = vtp_read(text, src); break;
+    case GraphFormat::swc: g = swc_read(text, src); break;
+    case GraphFormat::graphml: g = graphml_read(text, src); break;
+    case GraphFormat::csv: g = csv_read(text, nodes_text, src); break;
+  }
+  const auto problems = g.check_invariants();
+  if (!problems.empty()) throw InputError(src + ": inconsistent graph: " + problems.front());
+  return g;
+}
+
+void write_graph(const SpatialGraph& g, const std::filesystem::path& path, GraphFormat f,
+                 const std::filesystem::path& nodes_path) {
+  if (f == GraphFormat::csv && nodes_path.empty())
+    throw InputError("parameter 'nodes_path': required for CSV graphs (the nodes table goes there)");
+  std::string nodes;
+  const std::string text = graph_to_text(g, f, &nodes);
+  auto put = [](const std::filesystem::path& p, const std::string& t) {
+    write_atomically(p, [&](const std::filesystem::path& tmp) {
+      std::ofstream out(tmp, std::ios::binary);
+      if (!out) throw InputError("cannot open '" + p.string() + "' for writing");
+      out.write(t.data(), static_cast<std::streamsize>(t.size()));
+      if (!out) throw Error("writing '" + p.string() + "' failed");
+    });
+  };
+  put(path, text);
+  if (f == GraphFormat::csv) put(nodes_path, nodes);
+}
+
+SpatialGraph read_graph(const std::filesystem::path& path, GraphFormat f, const std::filesystem::path& nodes_path) {
+  std::string nodes;
+  if (f == GraphFormat::csv) {
+    std::filesystem::path np = nodes_path;
+    if (np.empty()) np = path.parent_path() / (path.stem().string() + "_nodes.csv");
+    nodes = read_text(np);
+  }
+  return graph_from_text(read_text(path), f, nodes, path.string());
+}
+
+}  // namespace skel

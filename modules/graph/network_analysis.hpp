@@ -1,0 +1,77 @@
+#pragma once
+// Network analysis on a SpatialGraph (thesis §6.1, §6.2): segment / node / summary statistics,
+// vessel trees from root nodes and a minimum diameter, and label propagation from skeleton edges
+// into the object (fig. 6.14 rods/plates decomposition).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "skel/interrupter.hpp"
+#include "skel/spatial_graph.hpp"
+#include "skel/table.hpp"
+#include "skel/volume.hpp"
+
+namespace skel {
+
+struct NetworkStatisticsOptions {
+  std::string radius = "radius";  // point attribute with radii (optional; columns omitted without it)
+  int orientation_bins = 9;       // bins of the angle to `axis`, 0..90°
+  int axis = 2;                   // 0 = x, 1 = y, 2 = z
+  // Reference volume for densities, physical units³; <= 0: the bounding box of graph.source_grid,
+  // or of the graph's points when the grid is unknown.
+  double reference_volume = 0.0;
+};
+struct NetworkStatistics {
+  Table segments, nodes, summary;
+};
+// segments: edge, node0, node1, length, chord, tortuosity (length/chord, NaN for loops), and with
+// radii mean_radius (length-weighted), min_radius, max_radius, volume (frusta), surface (lateral
+// frusta areas). nodes: node, degree, x, y, z (+ radius). summary (one row): nodes, edges,
+// components, total_length, reference_volume, length_density, branch_points (degree >= 3),
+// end_points (degree 1), loops (cyclomatic number), total_volume, total_surface and orientation_k:
+// length of polyline steps whose angle to the axis lies in bin k.
+NetworkStatistics network_statistics(const SpatialGraph& graph, const NetworkStatisticsOptions& options = {});
+
+// Volume of the non-zero voxels of `mask` in physical units³ (reference volume for densities).
+double mask_volume(const VolumeU8& mask);
+
+struct TreeOptions {
+  std::vector<int64_t> roots;        // root node ids
+  std::vector<Vec3> root_points;     // physical positions; the nearest node becomes a root
+  double min_diameter = 0.0;         // edges with 2 × mean radius below this belong to no tree
+  std::string radius = "radius";     // point attribute with radii (needed when min_diameter > 0)
+};
+struct TreeStats {
+  int64_t tree_edges = 0, capillary_edges = 0;
+  std::vector<int64_t> root_nodes;
+};
+// Labels every edge with `tree` (1-based index of the root whose tree it belongs to, 0 = capillary
+// bed) and `branch_order` (1 for edges at the root, +1 after every branching node of degree >= 3;
+// 0 for capillaries). Edges of diameter >= min_diameter reachable from a root through such edges
+// belong to the tree whose root is nearest along the graph (ties: lower root index).
+TreeStats extract_trees(SpatialGraph& graph, const TreeOptions& options);
+
+enum class PropagationMetric {
+  euclidean,  // nearest seed voxel in physical (anisotropic) Euclidean distance (exact feature transform)
+  geodesic,   // nearest seed along the object: breadth-first wave through the 26-neighbourhood
+};
+struct LabelPropagationOptions {
+  std::string label;  // edge label to paint; empty: edge id + 1
+  PropagationMetric metric = PropagationMetric::euclidean;
+  int threads = 0;
+  Interrupter interrupter;
+};
+// Colours every object voxel of `mask` with the label of the nearest edge: edges are drawn into the
+// mask's grid as seeds (their polyline sampled at <= 1/2 voxel; where edges overlap the lower edge id
+// wins). Euclidean: every object voxel takes the label of its nearest seed voxel (exact Euclidean
+// feature transform of modules/distance; ties: smallest (z, y, x) seed); memory 4 bytes/voxel
+// output + 1 + 4..8 (feature indices) + 4 (scratch) bytes/voxel. Geodesic: breadth-first wave
+// through the object (equal arrival: the seed drawn first); voxels not reached stay 0; memory
+// 4 bytes/voxel output + 8 bytes per object voxel in the wave queue. Seeds outside the mask are
+// ignored.
+VolumeU32 propagate_edge_labels(const VolumeU8& mask, const SpatialGraph& graph,
+                                const LabelPropagationOptions& options = {});
+// Same wave from a label volume (non-zero voxels are seeds, e.g. a labelled skeleton).
+VolumeU32 propagate_labels(const VolumeU8& mask, const VolumeU32& seeds, const LabelPropagationOptions& options = {});
+
+}  // namespace skel

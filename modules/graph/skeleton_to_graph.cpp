@@ -1,0 +1,706 @@
+#include "graph/skeleton_to_graph.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <functional>
+#include <numeric>
+#include <set>
+#include <unordered_map>
+
+#include "skel/error.hpp"
+#include "skel/parallel.hpp"
+
+namespace skel {
+
+namespace {
+
+constexpr int kPairs = 28;
+
+struct PairTable {
+  std::array<std::array<int, 2>, kPairs> pairs{};
+  std::array<std::array<int, 8>, 8> index{};
+  PairTable() {
+    int p = 0;
+    for (int a = 0; a < 8; ++a)
+      for (int b = a + 1; b < 8; ++b) {
+        pairs[p] = {a, b};
+        index[a][b] = index[b][a] = p;
+        ++p;
+      }
+  }
+};
+const PairTable& pair_table() {
+  static const PairTable t;
+  return t;
+}
+
+// Rank of a set of GF(2) vectors (edge masks) given as a reduced basis; returns true if `v` was
+// independent and was added.
+bool add_to_basis(std::vector<uint32_t>& basis, uint32_t v) {
+  for (uint32_t b : basis) v = std::min(v, v ^ b);
+  if (v == 0) return false;
+  basis.push_back(v);
+  std::sort(basis.begin(), basis.end(), std::greater<>());
+  return true;
+}
+
+DualCubeEntry build_entry(int config) {
+  const auto& pt = pair_table();
+  DualCubeEntry e;
+  const int nv = std::popcount(static_cast<unsigned>(config));
+  auto fg = [&](int k) { return (config >> k & 1) != 0; };
+  // 1-cells (fig. 3.6).
+  for (int p = 0; p < kPairs; ++p) {
+    const int a = pt.pairs[p][0], b = pt.pairs[p][1];
+    if (!fg(a) || !fg(b)) continue;
+    const int d = a ^ b;
+    const int bits = std::popcount(static_cast<unsigned>(d));
+    bool add = false;
+    if (bits == 1) {
+      add = true;
+    } else if (bits == 2) {
+      const int lo = d & -d, hi = d ^ lo;
+      add = !fg(a ^ lo) && !fg(a ^ hi);
+    } else {
+      add = nv == 2;
+    }
+    if (add) e.edges |= 1u << p;
+  }
+  // Reduced dual cube: corner 0, its three edges and three faces, and the interior. A 1-cell belongs
+  // to it iff it is not contained in a face or edge with some coordinate fixed at 1, i.e. iff the
+  // two corners share no coordinate equal to 1.
+  for (int p = 0; p < kPairs; ++p)
+    if ((e.edges >> p & 1) && (pt.pairs[p][0] & pt.pairs[p][1]) == 0) e.reduced_edges |= 1u << p;
+  // Simple cycles of the 1-skeleton (as edge masks), found by DFS from their smallest vertex.
+  std::set<uint32_t> cycle_set;
+  std::vector<int> path;
+  std::function<void(int, int, uint32_t)> dfs = [&](int start, int v, uint32_t used) {
+    for (int w = 0; w < 8; ++w) {
+      if (w == v || !fg(w)) continue;
+      const int p = pt.index[v][w];
+      if (!(e.edges >> p & 1) || (used >> p & 1)) continue;
+      if (w == start) {
+        if (path.size() >= 3) cycle_set.insert(used | 1u << p);
+        continue;
+      }
+      if (w < start || std::find(path.begin(), path.end(), w) != path.end()) continue;
+      path.push_back(w);
+      dfs(start, w, used | 1u << p);
+      path.pop_back();
+    }
+  };
+  for (int s = 0; s < 8; ++s) {
+    if (!fg(s)) continue;
+    path = {s};
+    dfs(s, s, 0);
+  }
+  std::vector<uint32_t> cycles(cycle_set.begin(), cycle_set.end());
+  std::stable_sort(cycles.begin(), cycles.end(), [](uint32_t a, uint32_t b) {
+    return std::popcount(a) < std::popcount(b);
+  });
+  // Components of the 1-skeleton, for the rank of the cycle space (E - V + C).
+  std::array<int, 8> comp{};
+  for (int k = 0; k < 8; ++k) comp[k] = k;
+  auto root = [&](int k) {
+    while (comp[k] != k) k = comp[k];
+    return k;
+  };
+  for (int p = 0; p < kPairs; ++p)
+    if (e.edges >> p & 1) comp[root(pt.pairs[p][0])] = root(pt.pairs[p][1]);
+  int ncomp = 0;
+  for (int k = 0; k < 8; ++k)
+    if (fg(k) && root(k) == k) ++ncomp;
+  const int ne = std::popcount(e.edges);
+  const int rank_needed = ne - nv + ncomp;
+  // 2-cells: shortest cycles first; all cycles of one length that are independent of the shorter
+  // ones are attached together (symmetry), until the cycle space is spanned.
+  std::vector<uint32_t> basis;
+  size_t i = 0;
+  while (i < cycles.size() && static_cast<int>(basis.size()) < rank_needed) {
+    const int len = std::popcount(cycles[i]);
+    size_t j = i;
+    while (j < cycles.size() && std::popcount(cycles[j]) == len) ++j;
+    const std::vector<uint32_t> shorter = basis;
+    for (size_t c = i; c < j; ++c) {
+      std::vector<uint32_t> test = shorter;
+      if (!add_to_basis(test, cycles[c])) continue;
+      add_to_basis(basis, cycles[c]);
+      DualCubeCell2 cell;
+      cell.edges = cycles[c];
+      for (int p = 0; p < kPairs; ++p)
+        if (cycles[c] >> p & 1) cell.vertices |= static_cast<uint8_t>(1u << pt.pairs[p][0] | 1u << pt.pairs[p][1]);
+      for (int f = 0; f < 6 && cell.face < 0; ++f) {
+        const int axis = f / 2, side = f % 2;
+        bool on = true;
+        for (int k = 0; k < 8; ++k)
+          if ((cell.vertices >> k & 1) && ((k >> axis & 1) != side)) on = false;
+        if (on) cell.face = static_cast<int8_t>(f);
+      }
+      e.cells2.push_back(cell);
+    }
+    i = j;
+  }
+  e.euler = nv - ne + static_cast<int>(e.cells2.size());
+  e.cell3 = e.euler == 2;
+  return e;
+}
+
+// 27-neighbourhood position of offset (dx, dy, dz) in {-1, 0, 1}^3.
+inline int nb_pos(int dx, int dy, int dz) { return (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1); }
+
+struct Accessor {
+  const uint8_t* data;
+  int64_t nx, ny, nz;
+  [[nodiscard]] bool fg(int64_t x, int64_t y, int64_t z) const {
+    return x >= 0 && y >= 0 && z >= 0 && x < nx && y < ny && z < nz && data[x + nx * (y + ny * z)] != 0;
+  }
+  // 27-neighbourhood of (x, y, z) as a mask, bit nb_pos(dx, dy, dz).
+  [[nodiscard]] uint32_t neighbourhood(int64_t x, int64_t y, int64_t z) const {
+    uint32_t m = 0;
+    if (x >= 1 && y >= 1 && z >= 1 && x + 1 < nx && y + 1 < ny && z + 1 < nz) {
+      const uint8_t* p = data + (x - 1) + nx * ((y - 1) + ny * (z - 1));
+      int bit = 0;
+      for (int dz = 0; dz < 3; ++dz)
+        for (int dy = 0; dy < 3; ++dy)
+          for (int dx = 0; dx < 3; ++dx, ++bit)
+            if (p[dx + nx * (dy + ny * dz)]) m |= 1u << bit;
+      return m;
+    }
+    int bit = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx, ++bit)
+          if (fg(x + dx, y + dy, z + dz)) m |= 1u << bit;
+    return m;
+  }
+  // Configuration of the dual cube with lowest corner (x, y, z).
+  [[nodiscard]] int config(int64_t x, int64_t y, int64_t z) const {
+    int c = 0;
+    for (int k = 0; k < 8; ++k)
+      if (fg(x + (k & 1), y + (k >> 1 & 1), z + (k >> 2 & 1))) c |= 1 << k;
+    return c;
+  }
+};
+
+ManifoldType classify_voxel(const Accessor& acc, int64_t x, int64_t y, int64_t z,
+                            const std::vector<DualCubeEntry>& table) {
+  const auto& pt = pair_table();
+  uint32_t nb = 0;
+  std::array<int, 27> count2{};
+  std::array<uint32_t, 16> faces_seen{};
+  int nfaces = 0;
+  bool any2 = false, three = false;
+  const uint32_t hood = acc.neighbourhood(x, y, z);
+  for (int c = 0; c < 8; ++c) {
+    // v is corner k of the cube with lowest corner v - bits(k).
+    const int k = c;
+    const int ox = -(k & 1), oy = -(k >> 1 & 1), oz = -(k >> 2 & 1);
+    int cfg = 0;
+    for (int j = 0; j < 8; ++j)
+      if (hood >> nb_pos(ox + (j & 1), oy + (j >> 1 & 1), oz + (j >> 2 & 1)) & 1) cfg |= 1 << j;
+    const DualCubeEntry& t = table[cfg];
+    auto corner_pos = [&](int j) { return nb_pos(ox + (j & 1), oy + (j >> 1 & 1), oz + (j >> 2 & 1)); };
+    for (int j = 0; j < 8; ++j)
+      if (j != k && (t.edges >> pt.index[k][j] & 1)) nb |= 1u << corner_pos(j);
+    bool in2 = false;
+    for (const auto& cell : t.cells2) {
+      if (!(cell.vertices >> k & 1)) continue;
+      in2 = true;
+      if (cell.face >= 0) {
+        uint32_t key = 0;
+        for (int j = 0; j < 8; ++j)
+          if (cell.vertices >> j & 1) key |= 1u << corner_pos(j);
+        bool seen = false;
+        for (int f = 0; f < nfaces; ++f) seen = seen || faces_seen[f] == key;
+        if (seen) continue;
+        faces_seen[nfaces++] = key;
+      }
+      for (int j = 0; j < 8; ++j)
+        if (j != k && (cell.edges >> pt.index[k][j] & 1)) ++count2[corner_pos(j)];
+    }
+    any2 = any2 || in2;
+    three = three || (t.cell3 && in2);
+  }
+  const int n1 = std::popcount(nb);
+  if (n1 == 0) return ManifoldType::point;
+  int bare = 0, one = 0, two = 0, more = 0;
+  for (int p = 0; p < 27; ++p) {
+    if (!(nb >> p & 1)) continue;
+    if (count2[p] == 0) ++bare;
+    else if (count2[p] == 1) ++one;
+    else if (count2[p] == 2) ++two;
+    else ++more;
+  }
+  if (!any2) {
+    if (n1 == 2) return ManifoldType::line;
+    if (n1 == 1) return ManifoldType::line_end;
+    return ManifoldType::line_junction;
+  }
+  if (!three && bare == 0 && more == 0) {
+    if (one == 0) return ManifoldType::surface;
+    if (one == 2) return ManifoldType::surface_edge;
+  }
+  return bare > 0 ? ManifoldType::line_junction : ManifoldType::junction;
+}
+
+// Sorted linear indices of the object voxels (deterministic for any thread count).
+std::vector<int64_t> object_voxels(const VolumeU8& v, int threads, const Interrupter& intr) {
+  const int64_t nz = v.nz(), slice = v.nx() * v.ny();
+  const int64_t chunks = std::min<int64_t>(std::max<int64_t>(nz, 1), 256);
+  std::vector<std::vector<int64_t>> parts(chunks);
+  parallel_chunks(0, nz, chunks, threads, [&](int64_t c, int64_t z0, int64_t z1) {
+    const uint8_t* d = v.data();
+    for (int64_t i = z0 * slice; i < z1 * slice; ++i)
+      if (d[i]) parts[c].push_back(i);
+    intr.check();
+  });
+  std::vector<int64_t> out;
+  size_t total = 0;
+  for (auto& p : parts) total += p.size();
+  out.reserve(total);
+  for (auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+  return out;
+}
+
+int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+
+}  // namespace
+
+std::array<int, 2> dual_cube_pair(int p) { return pair_table().pairs[p]; }
+
+const std::vector<DualCubeEntry>& dual_cube_table() {
+  static const std::vector<DualCubeEntry> table = [] {
+    std::vector<DualCubeEntry> t;
+    t.reserve(256);
+    for (int c = 0; c < 256; ++c) t.push_back(build_entry(c));
+    return t;
+  }();
+  return table;
+}
+
+VolumeU8 classify_manifold(const VolumeU8& skeleton, int threads, const Interrupter& interrupter) {
+  const auto& table = dual_cube_table();
+  const auto voxels = object_voxels(skeleton, threads, interrupter);
+  VolumeU8 out(skeleton.grid(), 0);
+  const Accessor acc{skeleton.data(), skeleton.nx(), skeleton.ny(), skeleton.nz()};
+  const int64_t n = static_cast<int64_t>(voxels.size());
+  parallel_for(0, n, threads, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t idx = voxels[i];
+      const int64_t x = idx % acc.nx, y = idx / acc.nx % acc.ny, z = idx / (acc.nx * acc.ny);
+      out[idx] = static_cast<uint8_t>(classify_voxel(acc, x, y, z, table));
+    }
+    interrupter.check();
+  }, 4096);
+  return out;
+}
+
+void smooth_edges(SpatialGraph& graph, int passes, int kernel) {
+  if (passes <= 0 || kernel < 3) return;
+  const int half = kernel / 2;
+  const double sigma = std::max(1.0, kernel / 4.0);
+  std::vector<double> w(half + 1);
+  for (int i = 0; i <= half; ++i) w[i] = std::exp(-0.5 * i * i / (sigma * sigma));
+  std::vector<Vec3> tmp;
+  for (auto& edge : graph.edges) {
+    auto& p = edge.points;
+    const int64_t n = static_cast<int64_t>(p.size());
+    if (n < 3) continue;
+    for (int pass = 0; pass < passes; ++pass) {
+      tmp = p;
+      for (int64_t i = 1; i + 1 < n; ++i) {
+        const int64_t h = std::min<int64_t>({half, i, n - 1 - i});
+        Vec3 acc{0, 0, 0};
+        double ws = 0.0;
+        for (int64_t d = -h; d <= h; ++d) {
+          const double wd = w[std::abs(d)];
+          for (int a = 0; a < 3; ++a) acc[a] += wd * tmp[i + d][a];
+          ws += wd;
+        }
+        for (int a = 0; a < 3; ++a) p[i][a] = acc[a] / ws;
+      }
+    }
+  }
+}
+
+SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject* distance,
+                                      const SkeletonToGraphOptions& options) {
+  const Grid& grid = skeleton.grid();
+  if (distance != nullptr) {
+    const Grid& dg = volume_grid(*distance, "distance");
+    if (dg.dims != grid.dims)
+      throw InputError("input 'distance': dims " + std::to_string(dg.dims[0]) + "x" +
+                       std::to_string(dg.dims[1]) + "x" + std::to_string(dg.dims[2]) +
+                       " differ from the skeleton's " + std::to_string(grid.dims[0]) + "x" +
+                       std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]));
+  }
+  if (options.smooth_passes > 0 && options.smooth_kernel < 3)
+    throw InputError("parameter 'smooth_kernel': expected >= 3 points, got " +
+                     std::to_string(options.smooth_kernel));
+  const auto& table = dual_cube_table();
+  const Interrupter& intr = options.interrupter;
+  const int threads = options.threads;
+  const Accessor acc{skeleton.data(), skeleton.nx(), skeleton.ny(), skeleton.nz()};
+  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
+
+  const std::vector<int64_t> vox = object_voxels(skeleton, threads, intr.sub(0.0, 0.2));
+  const int64_t n = static_cast<int64_t>(vox.size());
+  // Id of object voxel `idx` >= vox[i], by a galloping search forward from i: the corners of a dual
+  // cube lie at or after its lowest object corner in x-fastest order, and usually close to it.
+  auto id_from = [&](int64_t i, int64_t idx) {
+    int64_t lo = i, step = 1;
+    while (lo + step < n && vox[lo + step] < idx) {
+      lo += step;
+      step *= 2;
+    }
+    const int64_t hi = std::min(lo + step + 1, n);
+    return static_cast<int64_t>(std::lower_bound(vox.begin() + lo, vox.begin() + hi, idx) - vox.begin());
+  };
+
+  // 1. Manifold type per voxel (fig. 3.9).
+  std::vector<uint8_t> cls(n);
+  parallel_for(0, n, threads, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t idx = vox[i];
+      cls[i] = static_cast<uint8_t>(classify_voxel(acc, idx % nx, idx / nx % acc.ny, idx / nxy, table));
+    }
+    intr.check();
+  }, 4096);
+  intr.check(0.4);
+
+  // 2. 1-cells, each generated once by the reduced dual cube that contains it (fig. 3.12). A cube is
+  //    handled by its lowest object corner.
+  const int64_t chunks = std::clamp<int64_t>(n / 4096, 1, 256);
+  std::vector<std::vector<std::array<int64_t, 2>>> part_edges(chunks);
+  const auto& pt = pair_table();
+  parallel_chunks(0, n, chunks, threads, [&](int64_t c, int64_t b, int64_t e) {
+    auto& out = part_edges[c];
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t idx = vox[i];
+      const int64_t x = idx % nx, y = idx / nx % acc.ny, z = idx / nxy;
+      for (int k = 0; k < 8; ++k) {
+        const int64_t cx = x - (k & 1), cy = y - (k >> 1 & 1), cz = z - (k >> 2 & 1);
+        const int cfg = acc.config(cx, cy, cz);
+        if (std::countr_zero(static_cast<unsigned>(cfg)) != k) continue;
+        uint32_t m = table[cfg].reduced_edges;
+        while (m) {
+          const int p = std::countr_zero(m);
+          m &= m - 1;
+          const int a = pt.pairs[p][0], bb = pt.pairs[p][1];
+          const int64_t ia = (cx + (a & 1)) + nx * ((cy + (a >> 1 & 1)) + acc.ny * (cz + (a >> 2 & 1)));
+          const int64_t ib = (cx + (bb & 1)) + nx * ((cy + (bb >> 1 & 1)) + acc.ny * (cz + (bb >> 2 & 1)));
+          out.push_back({id_from(i, ia), id_from(i, ib)});
+        }
+      }
+    }
+    intr.check();
+  });
+  // CSR adjacency between voxel ids.
+  std::vector<int64_t> off(n + 1, 0);
+  for (const auto& pe : part_edges)
+    for (const auto& ed : pe) {
+      ++off[ed[0] + 1];
+      ++off[ed[1] + 1];
+    }
+  for (int64_t i = 0; i < n; ++i) off[i + 1] += off[i];
+  std::vector<int64_t> adj(off[n]);
+  {
+    std::vector<int64_t> fill(off.begin(), off.end() - 1);
+    for (const auto& pe : part_edges)
+      for (const auto& ed : pe) {
+        adj[fill[ed[0]]++] = ed[1];
+        adj[fill[ed[1]]++] = ed[0];
+      }
+  }
+  part_edges.clear();
+  part_edges.shrink_to_fit();
+  intr.check(0.6);
+
+  // 3. Junction collapse: non-1-manifold voxels connected by 1-cells form one node (§3.1.2).
+  auto is_line = [&](int64_t i) {
+    return cls[i] == static_cast<uint8_t>(ManifoldType::line) ||
+           cls[i] == static_cast<uint8_t>(ManifoldType::line_end);
+  };
+  auto is_node_voxel = [&](int64_t i) { return cls[i] != static_cast<uint8_t>(ManifoldType::line); };
+  std::vector<int64_t> parent(n);
+  std::iota(parent.begin(), parent.end(), int64_t{0});
+  for (int64_t i = 0; i < n; ++i) {
+    if (is_line(i)) continue;
+    for (int64_t a = off[i]; a < off[i + 1]; ++a) {
+      const int64_t j = adj[a];
+      if (is_line(j)) continue;
+      const int64_t ri = find_root(parent, i), rj = find_root(parent, j);
+      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
+    }
+  }
+
+  SkeletonGraphResult result;
+  SpatialGraph& g = result.graph;
+  g.source_grid = grid;
+  const bool with_radius = distance != nullptr;
+  std::vector<double> rad;
+  if (with_radius) {
+    rad.resize(n);
+    visit_volume(*distance, "distance", [&](const auto& d) {
+      for (int64_t i = 0; i < n; ++i) rad[i] = static_cast<double>(d[vox[i]]) * options.radius_scale;
+    });
+  }
+  auto pos = [&](int64_t i) {
+    const int64_t idx = vox[i];
+    return grid.position(static_cast<double>(idx % nx), static_cast<double>(idx / nx % acc.ny),
+                         static_cast<double>(idx / nxy));
+  };
+
+  // Nodes: one per collapsed component (at its centroid) and per 1-boundary voxel, numbered in the
+  // order of their first voxel.
+  std::vector<int64_t> node_of(n, -1);
+  std::vector<Vec3> sum;
+  std::vector<int64_t> members;
+  std::vector<double> node_rad;
+  std::vector<int32_t> node_kind;
+  for (int64_t i = 0; i < n; ++i) {
+    if (!is_node_voxel(i)) continue;
+    const int64_t r = find_root(parent, i);
+    if (node_of[r] < 0) {
+      node_of[r] = static_cast<int64_t>(sum.size());
+      sum.push_back({0, 0, 0});
+      members.push_back(0);
+      node_rad.push_back(0.0);
+      node_kind.push_back(0);
+    }
+    const int64_t nd = node_of[r];
+    node_of[i] = nd;
+    const Vec3 p = pos(i);
+    for (int a = 0; a < 3; ++a) sum[nd][a] += p[a];
+    ++members[nd];
+    if (with_radius) node_rad[nd] = std::max(node_rad[nd], rad[i]);
+    node_kind[nd] = std::max<int32_t>(node_kind[nd], cls[i]);
+  }
+  for (size_t nd = 0; nd < sum.size(); ++nd) {
+    const double m = static_cast<double>(members[nd]);
+    g.add_node({sum[nd][0] / m, sum[nd][1] / m, sum[nd][2] / m});
+  }
+  intr.check(0.7);
+
+  // 4. Chains of 1-manifold voxels become edge polylines (simplification, fig. 3.13).
+  std::vector<uint8_t> visited(n, 0);
+  std::vector<std::vector<float>> point_rad;
+  std::vector<Vec3> pts;
+  std::vector<float> prad;
+  auto emit = [&](int64_t n0, int64_t n1) {
+    g.edges.push_back(GraphEdge{n0, n1, pts});
+    if (with_radius) point_rad.push_back(prad);
+  };
+  for (int64_t i = 0; i < n; ++i) {
+    if (!is_node_voxel(i)) continue;
+    const int64_t ni = node_of[i];
+    for (int64_t a = off[i]; a < off[i + 1]; ++a) {
+      const int64_t j = adj[a];
+      if (is_node_voxel(j)) {
+        if (node_of[j] == ni || ni > node_of[j]) continue;
+        pts = {g.positions[ni], g.positions[node_of[j]]};
+        prad = {static_cast<float>(node_rad[ni]), static_cast<float>(node_rad[node_of[j]])};
+        emit(ni, node_of[j]);
+        continue;
+      }
+      if (visited[j]) continue;
+      pts = {g.positions[ni]};
+      prad = {static_cast<float>(node_rad[ni])};
+      int64_t prev = i, cur = j;
+      while (!is_node_voxel(cur)) {
+        visited[cur] = 1;
+        pts.push_back(pos(cur));
+        if (with_radius) prad.push_back(static_cast<float>(rad[cur]));
+        const int64_t nb0 = adj[off[cur]], nb1 = adj[off[cur] + 1];
+        const int64_t next = nb0 == prev ? nb1 : nb0;
+        prev = cur;
+        cur = next;
+      }
+      pts.push_back(g.positions[node_of[cur]]);
+      prad.push_back(static_cast<float>(node_rad[node_of[cur]]));
+      emit(ni, node_of[cur]);
+    }
+  }
+  // Tunnels inside collapsed components (e.g. a ring of junction voxels around a hole): collapsing
+  // a component to one point would lose them, so each independent cycle of the component's cell
+  // complex that does not bound its 2-cells becomes a loop edge on the component's node, drawn along
+  // the cycle's voxels.
+  {
+    std::vector<std::vector<int64_t>> comp_members(g.positions.size());
+    for (int64_t i = 0; i < n; ++i)
+      if (!is_line(i) && cls[i] != static_cast<uint8_t>(ManifoldType::point)) comp_members[node_of[i]].push_back(i);
+    for (size_t nd = 0; nd < comp_members.size(); ++nd) {
+      const auto& mem = comp_members[nd];
+      if (mem.size() < 4) continue;  // three voxels cannot surround a tunnel
+      std::unordered_map<int64_t, int64_t> local;  // voxel id -> local index
+      for (size_t k = 0; k < mem.size(); ++k) local.emplace(mem[k], static_cast<int64_t>(k));
+      std::vector<std::array<int64_t, 2>> ce;  // internal 1-cells (local ids, a < b)
+      std::unordered_map<int64_t, int64_t> ce_index;
+      for (size_t k = 0; k < mem.size(); ++k)
+        for (int64_t a = off[mem[k]]; a < off[mem[k] + 1]; ++a) {
+          auto it = local.find(adj[a]);
+          if (it == local.end() || it->second <= static_cast<int64_t>(k)) continue;
+          ce_index.emplace(static_cast<int64_t>(k) * static_cast<int64_t>(mem.size()) + it->second,
+                           static_cast<int64_t>(ce.size()));
+          ce.push_back({static_cast<int64_t>(k), it->second});
+        }
+      const int64_t ec = static_cast<int64_t>(ce.size()), vc = static_cast<int64_t>(mem.size());
+      if (ec - vc + 1 <= 0 || ec > 4096) continue;
+      const size_t words = static_cast<size_t>((ec + 63) / 64);
+      // GF(2) basis with pivots (highest set bit), seeded with the boundaries of the 2-cells whose
+      // vertices all lie in the component.
+      std::vector<std::vector<uint64_t>> basis;
+      std::vector<int64_t> pivot;
+      auto top_bit = [&](const std::vector<uint64_t>& v) -> int64_t {
+        for (size_t w = words; w-- > 0;)
+          if (v[w]) return static_cast<int64_t>(w * 64 + 63 - static_cast<size_t>(std::countl_zero(v[w])));
+        return -1;
+      };
+      auto reduce_add = [&](std::vector<uint64_t> v) {
+        for (;;) {
+          const int64_t t = top_bit(v);
+          if (t < 0) return false;
+          auto it = std::find(pivot.begin(), pivot.end(), t);
+          if (it == pivot.end()) {
+            basis.push_back(std::move(v));
+            pivot.push_back(t);
+            return true;
+          }
+          const auto& b = basis[static_cast<size_t>(it - pivot.begin())];
+          for (size_t w = 0; w < words; ++w) v[w] ^= b[w];
+        }
+      };
+      auto edge_bit = [&](int64_t a, int64_t b) -> int64_t {
+        if (a > b) std::swap(a, b);
+        auto it = ce_index.find(a * vc + b);
+        return it == ce_index.end() ? -1 : it->second;
+      };
+      std::set<std::array<int64_t, 3>> cubes;
+      for (int64_t id : mem) {
+        const int64_t idx = vox[id];
+        const int64_t x = idx % nx, y = idx / nx % acc.ny, z = idx / nxy;
+        for (int k = 0; k < 8; ++k) cubes.insert({x - (k & 1), y - (k >> 1 & 1), z - (k >> 2 & 1)});
+      }
+      for (const auto& c : cubes) {
+        const DualCubeEntry& t = table[acc.config(c[0], c[1], c[2])];
+        for (const auto& cell : t.cells2) {
+          std::array<int64_t, 8> corner{};
+          bool inside = true;
+          for (int j = 0; j < 8 && inside; ++j) {
+            if (!(cell.vertices >> j & 1)) continue;
+            const int64_t gi = (c[0] + (j & 1)) + nx * ((c[1] + (j >> 1 & 1)) + acc.ny * (c[2] + (j >> 2 & 1)));
+            auto it = local.find(id_from(0, gi));
+            inside = it != local.end() && vox[it->first] == gi;
+            if (inside) corner[j] = it->second;
+          }
+          if (!inside) continue;
+          std::vector<uint64_t> v(words, 0);
+          for (int p = 0; p < 28; ++p)
+            if (cell.edges >> p & 1) {
+              const int64_t bit = edge_bit(corner[pt.pairs[p][0]], corner[pt.pairs[p][1]]);
+              v[bit / 64] ^= uint64_t{1} << (bit % 64);
+            }
+          reduce_add(std::move(v));
+        }
+      }
+      // Breadth-first spanning tree; each non-tree edge closes a fundamental cycle.
+      std::vector<int64_t> par(vc, -2), depth(vc, 0);
+      std::vector<int64_t> queue{0};
+      par[0] = -1;
+      for (size_t h = 0; h < queue.size(); ++h) {
+        const int64_t u = queue[h];
+        for (int64_t a = off[mem[u]]; a < off[mem[u] + 1]; ++a) {
+          auto it = local.find(adj[a]);
+          if (it == local.end() || par[it->second] != -2) continue;
+          par[it->second] = u;
+          depth[it->second] = depth[u] + 1;
+          queue.push_back(it->second);
+        }
+      }
+      for (int64_t e = 0; e < ec; ++e) {
+        const int64_t a = ce[e][0], b = ce[e][1];
+        if (par[a] == b || par[b] == a) continue;
+        std::vector<uint64_t> v(words, 0);
+        v[e / 64] ^= uint64_t{1} << (e % 64);
+        std::vector<int64_t> up{a}, down{b};
+        int64_t x = a, y = b;
+        while (x != y) {
+          if (depth[x] >= depth[y]) {
+            const int64_t bit = edge_bit(x, par[x]);
+            v[bit / 64] ^= uint64_t{1} << (bit % 64);
+            x = par[x];
+            up.push_back(x);
+          } else {
+            const int64_t bit = edge_bit(y, par[y]);
+            v[bit / 64] ^= uint64_t{1} << (bit % 64);
+            y = par[y];
+            down.push_back(y);
+          }
+        }
+        if (!reduce_add(std::move(v))) continue;
+        // Loop edge: node, a ... common ancestor ... b, node.
+        const int64_t nid = static_cast<int64_t>(nd);
+        pts = {g.positions[nid]};
+        prad = {static_cast<float>(node_rad[nid])};
+        down.pop_back();
+        std::reverse(down.begin(), down.end());
+        up.insert(up.end(), down.begin(), down.end());
+        for (int64_t l : up) {
+          pts.push_back(pos(mem[l]));
+          if (with_radius) prad.push_back(static_cast<float>(rad[mem[l]]));
+        }
+        pts.push_back(g.positions[nid]);
+        prad.push_back(static_cast<float>(node_rad[nid]));
+        emit(nid, nid);
+      }
+    }
+  }
+  // Isolated loops of 1-manifold voxels: one loop edge on a node at the loop's first voxel.
+  for (int64_t i = 0; i < n; ++i) {
+    if (is_node_voxel(i) || visited[i]) continue;
+    const int64_t nd = g.add_node(pos(i));
+    node_rad.push_back(with_radius ? rad[i] : 0.0);
+    node_kind.push_back(cls[i]);
+    visited[i] = 1;
+    pts = {pos(i)};
+    prad = {static_cast<float>(node_rad[nd])};
+    int64_t prev = i, cur = adj[off[i]];
+    while (cur != i) {
+      visited[cur] = 1;
+      pts.push_back(pos(cur));
+      if (with_radius) prad.push_back(static_cast<float>(rad[cur]));
+      const int64_t nb0 = adj[off[cur]], nb1 = adj[off[cur] + 1];
+      const int64_t next = nb0 == prev ? nb1 : nb0;
+      prev = cur;
+      cur = next;
+    }
+    pts.push_back(pos(i));
+    prad.push_back(static_cast<float>(node_rad[nd]));
+    emit(nd, nd);
+  }
+  intr.check(0.9);
+
+  auto& kind = g.ensure_node_label("kind");
+  for (size_t nd = 0; nd < kind.size(); ++nd) kind[nd] = node_kind[nd];
+  if (with_radius) {
+    auto& nr = g.ensure_node_attribute("radius");
+    for (size_t nd = 0; nd < nr.size(); ++nd) nr[nd] = static_cast<float>(node_rad[nd]);
+    g.point_attributes["radius"] = std::move(point_rad);
+  }
+  smooth_edges(g, options.smooth_passes, options.smooth_kernel);
+  if (options.want_manifold) {
+    result.manifold = VolumeU8(grid, 0);
+    for (int64_t i = 0; i < n; ++i) result.manifold[vox[i]] = cls[i];
+  }
+  intr.check(1.0);
+  return result;
+}
+
+}  // namespace skel

@@ -1,0 +1,290 @@
+// Simple-voxel test (Characterization 2, bit-parallel) with a lazily memoised 2^26 table, and global
+// topology numbers (components, cavities, Euler characteristic, tunnels) of a binary volume.
+#include "thinning/topology.hpp"
+
+#include <array>
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "skel/parallel.hpp"
+
+namespace skel {
+namespace {
+
+struct LocalTables {
+  std::array<uint32_t, 26> adj26{};  // neighbour bits 26-adjacent to bit k (within the 26 positions)
+  std::array<uint32_t, 26> adj6{};   // neighbour bits 6-adjacent to bit k
+  uint32_t n18 = 0;                  // bits of the 18-neighbourhood (centre excluded)
+  uint32_t n6 = 0;                   // bits of the six face neighbours
+};
+
+LocalTables make_local_tables() {
+  LocalTables t;
+  auto offset = [](int k, int& dx, int& dy, int& dz) {
+    const int c = k < 13 ? k : k + 1;
+    dx = c % 3 - 1;
+    dy = (c / 3) % 3 - 1;
+    dz = c / 9 - 1;
+  };
+  for (int a = 0; a < 26; ++a) {
+    int ax, ay, az;
+    offset(a, ax, ay, az);
+    const int la = std::abs(ax) + std::abs(ay) + std::abs(az);
+    if (la <= 2) t.n18 |= 1u << a;
+    if (la == 1) t.n6 |= 1u << a;
+    for (int b = 0; b < 26; ++b) {
+      if (a == b) continue;
+      int bx, by, bz;
+      offset(b, bx, by, bz);
+      const int dx = std::abs(ax - bx), dy = std::abs(ay - by), dz = std::abs(az - bz);
+      if (dx <= 1 && dy <= 1 && dz <= 1) t.adj26[a] |= 1u << b;
+      if (dx + dy + dz == 1) t.adj6[a] |= 1u << b;
+    }
+  }
+  return t;
+}
+
+const LocalTables& local_tables() {
+  static const LocalTables t = make_local_tables();
+  return t;
+}
+
+// Grows `seed` to its component inside `set` using the adjacency masks `adj`.
+inline uint32_t grow_component(uint32_t seed, uint32_t set, const std::array<uint32_t, 26>& adj) {
+  uint32_t comp = seed, frontier = seed;
+  while (frontier != 0) {
+    uint32_t next = 0;
+    for (uint32_t f = frontier; f != 0; f &= f - 1) next |= adj[static_cast<unsigned>(__builtin_ctz(f))];
+    next &= set & ~comp;
+    comp |= next;
+    frontier = next;
+  }
+  return comp;
+}
+
+// Memo table: 2 bits per configuration (known, value), 32 configurations per word.
+constexpr uint64_t kConfigs = uint64_t{1} << 26;
+std::atomic<uint64_t>* simple_table() {
+  static std::unique_ptr<std::atomic<uint64_t>[]> table;
+  static std::once_flag once;
+  std::call_once(once, [] {
+    table.reset(new std::atomic<uint64_t>[kConfigs / 32]);
+    for (uint64_t i = 0; i < kConfigs / 32; ++i) table[i].store(0, std::memory_order_relaxed);
+  });
+  return table.get();
+}
+
+}  // namespace
+
+int object_components26(uint32_t nb) {
+  const LocalTables& t = local_tables();
+  nb &= (1u << 26) - 1;
+  int count = 0;
+  while (nb != 0) {
+    nb &= ~grow_component(nb & (~nb + 1), nb, t.adj26);
+    ++count;
+  }
+  return count;
+}
+
+int background_components6(uint32_t nb) {
+  const LocalTables& t = local_tables();
+  const uint32_t bg = ~nb & t.n18;
+  uint32_t seeds = bg & t.n6;
+  int count = 0;
+  while (seeds != 0) {
+    const uint32_t comp = grow_component(seeds & (~seeds + 1), bg, t.adj6);
+    seeds &= ~comp;
+    ++count;
+  }
+  return count;
+}
+
+bool is_simple_direct(uint32_t nb) {
+  const LocalTables& t = local_tables();
+  nb &= (1u << 26) - 1;
+  if ((~nb & t.n6) == 0 || nb == 0) return false;  // no background 6-neighbour / isolated voxel
+  if (background_components6(nb) != 1) return false;
+  const uint32_t comp = grow_component(nb & (~nb + 1), nb, t.adj26);
+  return comp == nb;
+}
+
+bool is_simple(uint32_t nb) {
+  nb &= (1u << 26) - 1;
+  static std::atomic<uint64_t>* table = simple_table();
+  std::atomic<uint64_t>& word = table[nb >> 5];
+  const unsigned shift = (nb & 31u) * 2u;
+  const uint64_t w = word.load(std::memory_order_relaxed);
+  if ((w >> shift) & 2u) return ((w >> shift) & 1u) != 0;
+  const bool s = is_simple_direct(nb);
+  word.fetch_or((uint64_t{2} | uint64_t{s}) << shift, std::memory_order_relaxed);
+  return s;
+}
+
+uint32_t neighbourhood_at(const VolumeU8& mask, int64_t x, int64_t y, int64_t z) {
+  uint32_t nb = 0;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (dx == 0 && dy == 0 && dz == 0) continue;
+        if (mask.at_or(x + dx, y + dy, z + dz, 0) != 0) nb |= 1u << neighbour_bit(dx, dy, dz);
+      }
+  return nb;
+}
+
+namespace {
+
+// Euler characteristic contribution of the grid vertex at the centre of a 2x2x2 window: the vertex
+// itself plus the three edges, three faces and the cube "owned" by it (those extending towards +x,
+// +y, +z), each counted if any incident voxel is object. Window bit i = x + 2y + 4z.
+std::array<int8_t, 256> make_euler_lut() {
+  std::array<int8_t, 256> lut{};
+  for (int m = 0; m < 256; ++m) {
+    auto v = [m](int x, int y, int z) { return (m >> (x + 2 * y + 4 * z)) & 1; };
+    const int vertex = m != 0 ? 1 : 0;
+    // The edge from the vertex towards +x touches the four voxels with window x = 1, and so on.
+    const int ex = (v(1, 0, 0) | v(1, 1, 0) | v(1, 0, 1) | v(1, 1, 1));
+    const int ey = (v(0, 1, 0) | v(1, 1, 0) | v(0, 1, 1) | v(1, 1, 1));
+    const int ez = (v(0, 0, 1) | v(1, 0, 1) | v(0, 1, 1) | v(1, 1, 1));
+    const int fxy = v(1, 1, 0) | v(1, 1, 1);
+    const int fxz = v(1, 0, 1) | v(1, 1, 1);
+    const int fyz = v(0, 1, 1) | v(1, 1, 1);
+    const int cube = v(1, 1, 1);
+    lut[static_cast<size_t>(m)] = static_cast<int8_t>(vertex - (ex + ey + ez) + (fxy + fxz + fyz) - cube);
+  }
+  return lut;
+}
+
+}  // namespace
+
+TopologyNumbers topology(const VolumeU8& mask, const TopologyOptions& options) {
+  TopologyNumbers r;
+  const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
+  if (mask.size() == 0) return r;
+  // Padded copy: 0 background, 1 object; the one-voxel shell is background.
+  const int64_t px = nx + 2, py = ny + 2, pz = nz + 2;
+  const int64_t sy = px, sz = px * py;
+  std::vector<uint8_t> a(static_cast<size_t>(px * py * pz), 0);
+  const uint8_t* src = mask.data();
+  std::vector<int64_t> counts(static_cast<size_t>(nz), 0);
+  parallel_for(0, nz, options.threads, [&](int64_t z0, int64_t z1) {
+    for (int64_t z = z0; z < z1; ++z) {
+      int64_t c = 0;
+      for (int64_t y = 0; y < ny; ++y) {
+        const uint8_t* s = src + nx * (y + ny * z);
+        uint8_t* d = a.data() + (z + 1) * sz + (y + 1) * sy + 1;
+        for (int64_t x = 0; x < nx; ++x) {
+          d[x] = s[x] != 0 ? 1 : 0;
+          c += d[x];
+        }
+      }
+      counts[static_cast<size_t>(z)] = c;
+    }
+  });
+  for (int64_t c : counts) r.object_voxels += c;
+  options.interrupter.check(0.1);
+
+  // Euler characteristic over all 2x2x2 windows of the padded array (window origin = lower corner).
+  static const std::array<int8_t, 256> lut = make_euler_lut();
+  std::vector<int64_t> eul(static_cast<size_t>(pz - 1), 0);
+  parallel_for(0, pz - 1, options.threads, [&](int64_t z0, int64_t z1) {
+    for (int64_t z = z0; z < z1; ++z) {
+      int64_t e = 0;
+      for (int64_t y = 0; y + 1 < py; ++y) {
+        const uint8_t* p = a.data() + z * sz + y * sy;
+        for (int64_t x = 0; x + 1 < px; ++x) {
+          const uint8_t* q = p + x;
+          const unsigned m = q[0] | (q[1] << 1) | (q[sy] << 2) | (q[sy + 1] << 3) | (q[sz] << 4) |
+                             (q[sz + 1] << 5) | (q[sz + sy] << 6) | (q[sz + sy + 1] << 7);
+          e += lut[m];
+        }
+      }
+      eul[static_cast<size_t>(z)] = e;
+    }
+  });
+  for (int64_t e : eul) r.euler += e;
+  options.interrupter.check(0.3);
+
+  // Offsets of the 26 neighbours (first 6 are the face neighbours).
+  std::vector<int64_t> off;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (std::abs(dx) + std::abs(dy) + std::abs(dz) == 1) off.push_back(dx + dy * sy + dz * sz);
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (std::abs(dx) + std::abs(dy) + std::abs(dz) > 1) off.push_back(dx + dy * sy + dz * sz);
+
+  std::vector<int64_t> stack;
+  auto interior = [&](int64_t x, int64_t y, int64_t z) { return (z + 1) * sz + (y + 1) * sy + (x + 1); };
+  // Object 26-components: mark visited object voxels 3.
+  for (int64_t z = 0; z < nz; ++z) {
+    for (int64_t y = 0; y < ny; ++y)
+      for (int64_t x = 0; x < nx; ++x) {
+        const int64_t i = interior(x, y, z);
+        if (a[static_cast<size_t>(i)] != 1) continue;
+        ++r.components;
+        a[static_cast<size_t>(i)] = 3;
+        stack.push_back(i);
+        while (!stack.empty()) {
+          const int64_t j = stack.back();
+          stack.pop_back();
+          for (int64_t o : off) {
+            uint8_t& n = a[static_cast<size_t>(j + o)];
+            if (n == 1) {
+              n = 3;
+              stack.push_back(j + o);
+            }
+          }
+        }
+      }
+    if ((z & 15) == 15) options.interrupter.check(0.3 + 0.35 * static_cast<double>(z) / static_cast<double>(nz));
+  }
+  // Background 6-components: the shell is the outside; flood from the array faces, then count the
+  // remaining (bounded) components. Visited background voxels become 2.
+  for (int64_t i = 0; i < px * py * pz; ++i) {
+    const int64_t x = i % px, y = (i / px) % py, z = i / sz;
+    if (x == 0 || y == 0 || z == 0 || x == px - 1 || y == py - 1 || z == pz - 1) a[static_cast<size_t>(i)] = 2;
+  }
+  auto flood_bg = [&](int64_t i) {
+    a[static_cast<size_t>(i)] = 2;
+    stack.push_back(i);
+    while (!stack.empty()) {
+      const int64_t j = stack.back();
+      stack.pop_back();
+      for (int k = 0; k < 6; ++k) {
+        const int64_t q = j + off[static_cast<size_t>(k)];
+        if (a[static_cast<size_t>(q)] == 0) {
+          a[static_cast<size_t>(q)] = 2;
+          stack.push_back(q);
+        }
+      }
+    }
+  };
+  for (int64_t z = 0; z < nz; ++z)
+    for (int64_t y = 0; y < ny; ++y)
+      for (int64_t x = 0; x < nx; ++x) {
+        const bool face = x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1;
+        if (!face) continue;
+        const int64_t i = interior(x, y, z);
+        if (a[static_cast<size_t>(i)] == 0) flood_bg(i);
+      }
+  options.interrupter.check(0.8);
+  for (int64_t z = 0; z < nz; ++z)
+    for (int64_t y = 0; y < ny; ++y)
+      for (int64_t x = 0; x < nx; ++x) {
+        const int64_t i = interior(x, y, z);
+        if (a[static_cast<size_t>(i)] == 0) {
+          ++r.cavities;
+          flood_bg(i);
+        }
+      }
+  r.tunnels = r.components + r.cavities - r.euler;
+  options.interrupter.check(1.0);
+  return r;
+}
+
+}  // namespace skel

@@ -1,0 +1,123 @@
+// Geodesic boundary distance: exactness against a plain BFS reference, thread independence, and the
+// behaviour on plates (high importance in the middle of a slab) and rods.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "geodesic/geodesic.hpp"
+
+using namespace skel;
+using namespace skel::geodesic;
+
+namespace {
+
+VolumeU8 random_blobs(Dims d, uint64_t seed, double fill) {
+  std::mt19937_64 rng(seed);
+  VolumeU8 v(d, 0);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (auto& x : v) x = u(rng) < fill ? 1 : 0;
+  // One smoothing pass (majority in the 6-neighbourhood) makes blob-like shapes.
+  VolumeU8 s(d, 0);
+  for (int64_t z = 0; z < d[2]; ++z)
+    for (int64_t y = 0; y < d[1]; ++y)
+      for (int64_t x = 0; x < d[0]; ++x) {
+        int c = v(x, y, z);
+        c += v.at_or(x - 1, y, z, 0) + v.at_or(x + 1, y, z, 0) + v.at_or(x, y - 1, z, 0) + v.at_or(x, y + 1, z, 0) +
+             v.at_or(x, y, z - 1, 0) + v.at_or(x, y, z + 1, 0);
+        s(x, y, z) = c >= 4 ? 1 : 0;
+      }
+  return s;
+}
+
+VolumeU8 slab(Dims d, int64_t thickness, int64_t margin) {
+  VolumeU8 v(d, 0);
+  const int64_t z0 = d[2] / 2 - thickness / 2;
+  for (int64_t z = z0; z < z0 + thickness; ++z)
+    for (int64_t y = margin; y < d[1] - margin; ++y)
+      for (int64_t x = margin; x < d[0] - margin; ++x) v(x, y, z) = 1;
+  return v;
+}
+
+}  // namespace
+
+TEST(Geodesic, EqualsReferenceOnRandomObjects) {
+  for (uint64_t seed = 1; seed <= 12; ++seed) {
+    const Dims d{9 + static_cast<int64_t>(seed % 4), 10, 8 + static_cast<int64_t>(seed % 3)};
+    VolumeU8 m = random_blobs(d, seed, 0.45 + 0.02 * static_cast<double>(seed % 5));
+    for (Mode mode : {Mode::Threshold, Mode::Full}) {
+      for (int64_t t : {2, 5, 9}) {
+        Options o;
+        o.mode = mode;
+        o.threshold = t;
+        o.threads = 1 + static_cast<int>(seed % 3);
+        Result a = boundary_distance(m, o);
+        Result r = boundary_distance_reference(m, o);
+        ASSERT_TRUE(a.importance == r.importance) << "seed " << seed << " t " << t << " full " << (mode == Mode::Full);
+        ASSERT_TRUE(a.surface_skeleton == r.surface_skeleton);
+        if (mode == Mode::Full) break;  // t only selects the surface in full mode
+      }
+    }
+  }
+}
+
+TEST(Geodesic, ObjectTouchingTheArrayBorderUsesTheOutsideRing) {
+  VolumeU8 m(Dims{6, 6, 6}, 1);  // everything is object: L is the ring outside the array
+  Options o;
+  o.threshold = 4;
+  Result a = boundary_distance(m, o);
+  Result r = boundary_distance_reference(m, o);
+  EXPECT_TRUE(a.importance == r.importance);
+  EXPECT_GT(a.stats.layer_voxels, 0);
+  EXPECT_EQ(a.stats.object_voxels, 216);
+}
+
+TEST(Geodesic, IdenticalForAnyThreadCount) {
+  VolumeU8 m = random_blobs(Dims{40, 36, 30}, 7, 0.5);
+  Options o;
+  o.threshold = 12;
+  o.threads = 1;
+  Result a = boundary_distance(m, o);
+  for (int th : {2, 4}) {
+    o.threads = th;
+    Result b = boundary_distance(m, o);
+    EXPECT_TRUE(a.importance == b.importance) << th;
+  }
+}
+
+TEST(Geodesic, SlabMidSurfaceIsSelectedAndPivotsSaveSearches) {
+  // A 4-voxel thick slab: the two sides are far apart along the boundary (around the rim), so the
+  // voxels at the mid-plane get importance t; near the rim the value drops.
+  VolumeU8 m = slab(Dims{48, 48, 16}, 4, 4);
+  Options o;
+  o.threshold = 10;
+  Result a = boundary_distance(m, o);
+  // Mid-surface far from the rim: selected.
+  const int64_t zmid = 16 / 2;  // upper voxel of the pair across the mid-plane
+  int64_t selected_interior = 0, interior = 0;
+  for (int64_t y = 14; y < 34; ++y)
+    for (int64_t x = 14; x < 34; ++x) {
+      ++interior;
+      selected_interior += a.surface_skeleton(x, y, zmid);
+    }
+  EXPECT_EQ(selected_interior, interior);
+  // No voxel outside the two middle planes is selected away from the rim.
+  for (int64_t z = 0; z < 16; ++z) {
+    if (z == zmid || z == zmid - 1) continue;
+    for (int64_t y = 14; y < 34; ++y)
+      for (int64_t x = 14; x < 34; ++x) EXPECT_EQ(a.surface_skeleton(x, y, z), 0) << x << " " << y << " " << z;
+  }
+  EXPECT_GT(a.stats.saturated_by_pivot, 0);
+  EXPECT_LT(a.stats.searches, a.stats.base_points + a.stats.base_points / 2);
+  Result r = boundary_distance_reference(m, o);
+  EXPECT_TRUE(a.importance == r.importance);
+}
+
+TEST(Geodesic, EmptyAndInvalid) {
+  VolumeU8 e(Dims{5, 5, 5}, 0);
+  Result r = boundary_distance(e);
+  EXPECT_EQ(r.stats.object_voxels, 0);
+  for (float v : r.importance) EXPECT_EQ(v, 0.0f);
+  Options o;
+  o.threshold = 0;
+  EXPECT_THROW(boundary_distance(e, o), InputError);
+}

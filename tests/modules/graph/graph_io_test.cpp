@@ -1,0 +1,196 @@
+#include "graph/graph_io.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+
+#include "graph/skeleton_to_graph.hpp"
+#include "graph_test_util.hpp"
+#include "skel/error.hpp"
+
+using namespace skel;
+
+namespace {
+
+// A graph with every kind of content: junctions, ends, a loop edge, an isolated node, radii,
+// node/edge attributes and labels, non-integer coordinates.
+SpatialGraph sample_graph(bool with_loop) {
+  VolumeU8 v({24, 20, 6}, 0, {0.7, 1.3, 2.1}, {-3.25, 10.0, 0.125});
+  skel::test::draw_line(v, {1, 1, 2}, {20, 12, 2});
+  skel::test::draw_line(v, {10, 1, 3}, {10, 18, 3});
+  skel::test::draw_line(v, {10, 10, 3}, {3, 17, 4});
+  if (with_loop) skel::test::draw_square_ring(v, {15, 14, 1}, 0, 1, 5);
+  VolumeF32 d(v.grid(), 0.0f);
+  for (int64_t i = 0; i < d.size(); ++i) d[i] = 0.1f * static_cast<float>(i % 17) + 0.33f;
+  auto g = skeleton_to_graph(v, &d, {}).graph;
+  if (with_loop) g.add_node({1.0 / 3.0, 2.0 / 7.0, -5.5});
+  auto& w = g.ensure_edge_attribute("weight");
+  for (size_t e = 0; e < w.size(); ++e) w[e] = 0.25f * static_cast<float>(e) + 1.0f / 3.0f;
+  auto& t = g.ensure_edge_label("tree");
+  for (size_t e = 0; e < t.size(); ++e) t[e] = static_cast<int32_t>(e % 3) - 1;
+  auto& nw = g.ensure_node_attribute("score");
+  for (size_t n = 0; n < nw.size(); ++n) nw[n] = static_cast<float>(n) / 7.0f;
+  EXPECT_TRUE(g.check_invariants().empty());
+  return g;
+}
+
+void expect_near(const Vec3& a, const Vec3& b, double tol) {
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(a[k], b[k], tol * (1.0 + std::abs(a[k])));
+}
+
+// Same ids, order, polylines, attributes (coordinates within `tol`).
+void expect_same(const SpatialGraph& a, const SpatialGraph& b, double tol, bool node_radius_too = true) {
+  ASSERT_EQ(a.node_count(), b.node_count());
+  ASSERT_EQ(a.edge_count(), b.edge_count());
+  for (int64_t n = 0; n < a.node_count(); ++n) expect_near(a.positions[n], b.positions[n], tol);
+  for (int64_t e = 0; e < a.edge_count(); ++e) {
+    EXPECT_EQ(a.edges[e].node0, b.edges[e].node0);
+    EXPECT_EQ(a.edges[e].node1, b.edges[e].node1);
+    ASSERT_EQ(a.edges[e].points.size(), b.edges[e].points.size());
+    for (size_t i = 0; i < a.edges[e].points.size(); ++i) expect_near(a.edges[e].points[i], b.edges[e].points[i], tol);
+  }
+  EXPECT_EQ(a.edge_labels, b.edge_labels);
+  EXPECT_EQ(a.edge_attributes, b.edge_attributes);  // floats are written with 9 digits: exact
+  EXPECT_EQ(a.point_attributes, b.point_attributes);
+  if (node_radius_too) {
+    EXPECT_EQ(a.node_attributes, b.node_attributes);
+    EXPECT_EQ(a.node_labels, b.node_labels);
+  }
+}
+
+std::filesystem::path tmp_dir() {
+  auto d = std::filesystem::path(SKEL_BINARY_DIR) / "graph_io_test";
+  std::filesystem::create_directories(d);
+  return d;
+}
+
+}  // namespace
+
+TEST(GraphIo, FormatFromExtension) {
+  EXPECT_EQ(graph_format_from_path("a/b.AM"), GraphFormat::amira);
+  EXPECT_EQ(graph_format_from_path("x.vtp"), GraphFormat::vtp);
+  EXPECT_EQ(graph_format_from_path("x.swc"), GraphFormat::swc);
+  EXPECT_EQ(graph_format_from_path("x.graphml"), GraphFormat::graphml);
+  EXPECT_EQ(graph_format_from_path("x.csv"), GraphFormat::csv);
+  EXPECT_THROW(graph_format_from_path("x.obj"), InputError);
+}
+
+TEST(GraphIo, AmiraRoundTripAndLayout) {
+  const auto g = sample_graph(true);
+  const std::string text = graph_to_text(g, GraphFormat::amira);
+  EXPECT_EQ(text.rfind("# AmiraMesh 3D ASCII 2.0\n", 0), 0u);
+  EXPECT_NE(text.find("define VERTEX " + std::to_string(g.node_count()) + "\n"), std::string::npos);
+  EXPECT_NE(text.find("define EDGE " + std::to_string(g.edge_count()) + "\n"), std::string::npos);
+  EXPECT_NE(text.find("define POINT " + std::to_string(g.point_count()) + "\n"), std::string::npos);
+  EXPECT_NE(text.find("ContentType \"HxSpatialGraph\""), std::string::npos);
+  EXPECT_NE(text.find("VERTEX { float[3] VertexCoordinates } @1\n"), std::string::npos);
+  EXPECT_NE(text.find("EDGE { int[2] EdgeConnectivity } @2\n"), std::string::npos);
+  EXPECT_NE(text.find("EDGE { int NumEdgePoints } @3\n"), std::string::npos);
+  EXPECT_NE(text.find("POINT { float[3] EdgePointCoordinates } @4\n"), std::string::npos);
+  EXPECT_NE(text.find("POINT { float thickness } @5\n"), std::string::npos);
+  EXPECT_NE(text.find("EDGE { int tree } @"), std::string::npos);
+  const auto r = graph_from_text(text, GraphFormat::amira);
+  expect_same(g, r, 1e-7);
+  // Amira stores float coordinates: the second round trip is exact.
+  EXPECT_EQ(graph_to_text(r, GraphFormat::amira), text);
+}
+
+TEST(GraphIo, VtpRoundTrip) {
+  const auto g = sample_graph(true);
+  const std::string text = graph_to_text(g, GraphFormat::vtp);
+  EXPECT_NE(text.find("<VTKFile type=\"PolyData\""), std::string::npos);
+  const auto r = graph_from_text(text, GraphFormat::vtp);
+  expect_same(g, r, 0.0);
+}
+
+TEST(GraphIo, GraphmlRoundTrip) {
+  const auto g = sample_graph(true);
+  const auto r = graph_from_text(graph_to_text(g, GraphFormat::graphml), GraphFormat::graphml);
+  expect_same(g, r, 0.0);
+}
+
+TEST(GraphIo, CsvRoundTripThroughFiles) {
+  const auto g = sample_graph(true);
+  const auto d = tmp_dir();
+  write_graph(g, d / "net.csv", GraphFormat::csv, d / "net_nodes.csv");
+  const auto r = read_graph(d / "net.csv", GraphFormat::csv);  // nodes file found by name
+  expect_same(g, r, 0.0);
+  EXPECT_THROW(write_graph(g, d / "x.csv", GraphFormat::csv), InputError);
+}
+
+TEST(GraphIo, AllFormatsThroughFiles) {
+  const auto g = sample_graph(true);
+  const auto d = tmp_dir();
+  for (const char* name : {"net.am", "net.vtp", "net.graphml"}) {
+    const auto p = d / name;
+    const auto f = graph_format_from_path(p);
+    write_graph(g, p, f);
+    expect_same(g, read_graph(p, f), 1e-7);
+  }
+}
+
+TEST(GraphIo, SwcRoundTripOfATree) {
+  const auto g = sample_graph(false);
+  ASSERT_EQ(g.cyclomatic_number(), 0);
+  const std::string text = graph_to_text(g, GraphFormat::swc);
+  const auto r = graph_from_text(text, GraphFormat::swc);
+  // Node ids and edge directions change (breadth-first order); compare canonical edges.
+  ASSERT_EQ(r.node_count(), g.node_count());
+  ASSERT_EQ(r.edge_count(), g.edge_count());
+  auto canon = [](const SpatialGraph& x) {
+    std::vector<std::pair<std::vector<Vec3>, std::vector<float>>> out;
+    for (int64_t e = 0; e < x.edge_count(); ++e) {
+      auto p = x.edges[e].points;
+      auto rad = x.point_attributes.at("radius")[e];
+      if (p.back() < p.front()) {
+        std::reverse(p.begin(), p.end());
+        std::reverse(rad.begin(), rad.end());
+      }
+      out.emplace_back(p, rad);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  EXPECT_EQ(canon(g), canon(r));
+  auto sg = g.degrees(), sr = r.degrees();
+  std::sort(sg.begin(), sg.end());
+  std::sort(sr.begin(), sr.end());
+  EXPECT_EQ(sg, sr);
+  EXPECT_THROW(graph_to_text(sample_graph(true), GraphFormat::swc), InputError);
+}
+
+TEST(GraphIo, MalformedFilesAreInputErrors) {
+  EXPECT_THROW(graph_from_text("hello", GraphFormat::amira), InputError);
+  EXPECT_THROW(graph_from_text("# AmiraMesh BINARY-LITTLE-ENDIAN 2.0\n", GraphFormat::amira), InputError);
+  const std::string bad_am =
+      "# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 1\ndefine EDGE 1\ndefine POINT 2\n"
+      "VERTEX { float[3] VertexCoordinates } @1\nEDGE { int[2] EdgeConnectivity } @2\n"
+      "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\n"
+      "@1\n0 0 0\n@2\n0 3\n@3\n2\n@4\n0 0 0 1 1 1\n";
+  EXPECT_THROW(graph_from_text(bad_am, GraphFormat::amira), InputError);
+  EXPECT_THROW(graph_from_text("1 0 0 0 0 1 7\n", GraphFormat::swc), InputError);
+  EXPECT_THROW(graph_from_text("<graphml><graph><edge source=\"a\" target=\"b\"/></graph></graphml>",
+                               GraphFormat::graphml),
+               InputError);
+  EXPECT_THROW(graph_from_text("<VTKFile type=\"PolyData\"><PolyData>", GraphFormat::vtp), InputError);
+  EXPECT_THROW(read_graph("/nonexistent/x.am", GraphFormat::amira), InputError);
+}
+
+TEST(GraphIo, ReadsAmiraWrittenByAmira) {
+  // Layout as Amira writes it (extra parameters, CRLF-free, thickness), edge points not exactly at
+  // the vertices are snapped to them.
+  const std::string am =
+      "# AmiraMesh 3D ASCII 2.0\n\n\ndefine VERTEX 3\ndefine EDGE 2\ndefine POINT 5\n\n"
+      "Parameters {\n    SpatialGraphUnitsVertex {\n    }\n    ContentType \"HxSpatialGraph\"\n}\n\n"
+      "VERTEX { float[3] VertexCoordinates } @1\nEDGE { int[2] EdgeConnectivity } @2\n"
+      "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\n"
+      "POINT { float thickness } @5\n\n# Data section follows\n"
+      "@1\n0 0 0\n10 0 0\n10 5 0\n\n@2\n0 1\n1 2\n\n@3\n3\n2\n\n@4\n0 0 0\n5 0.5 0\n10 0 0\n10 0 0\n10 5 0\n\n"
+      "@5\n1\n2\n3\n3\n4\n";
+  const auto g = graph_from_text(am, GraphFormat::amira);
+  EXPECT_EQ(g.node_count(), 3);
+  EXPECT_EQ(g.edge_count(), 2);
+  EXPECT_EQ(g.point_attributes.at("radius")[0], (std::vector<float>{1, 2, 3}));
+  EXPECT_NEAR(g.total_length(), 2 * std::sqrt(25.25) + 5, 1e-6);
+}
