@@ -1,0 +1,336 @@
+// Registration modules (thesis §6.2): landmark fit, ICP refinement, applying transforms, and the
+// landmark / transform file modules io.read_landmarks, io.write_landmarks, io.read_transform,
+// io.write_transform (with `skelflow info` inspectors for .landmarkAscii, .fcsv and .tfm).
+#include <sstream>
+
+#include "registration/landmark_io.hpp"
+#include "registration/registration.hpp"
+#include "skel/module.hpp"
+
+namespace skel {
+namespace {
+
+using namespace registration;
+
+std::vector<std::string> volume_or_graph_types() {
+  std::vector<std::string> t = all_volume_types();
+  t.emplace_back(type_ids::graph);
+  return t;
+}
+
+class RegisterLandmarks final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("registration.landmarks", "Fit a rigid, similarity or affine transform to corresponding landmarks")
+        .optional_input<LandmarkSet>("landmarks", "landmark object with >= 2 sets (fixed_set and moving_set pick them)")
+        .optional_input<LandmarkSet>("fixed", "fixed (reference) landmarks, set 0 used; instead of 'landmarks'")
+        .optional_input<LandmarkSet>("moving", "moving landmarks, set 0 used; same count and order as 'fixed'")
+        .output<Transform>("transform", "least-squares transform mapping moving coordinates onto fixed ones")
+        .output<Table>("table", "residual per landmark (dx, dy, dz, distance) and a last row 'RMS'")
+        .choice("model", {"rigid", "similarity", "affine"}, "rigid",
+                "rigid: rotation + translation; similarity: + uniform scale; affine: general linear + translation")
+        .param<int64_t>("fixed_set", 0, "set of 'landmarks' holding the fixed points").min(0)
+        .param<int64_t>("moving_set", 1, "set of 'landmarks' holding the moving points").min(0)
+        .details(R"(Closed-form least-squares fit of corresponding landmark pairs, as in thesis §6.2
+("Analyzing Architectural Alterations"): the two scans of one specimen are aligned with landmarks
+picked by hand. Rigid and similarity use Umeyama's SVD solution (Kabsch with the determinant sign
+fix, so the rotation never contains a reflection, even when the landmarks are mirrored: the fit then
+simply has large residuals); similarity adds the optimal uniform scale; affine solves the linear
+least-squares problem by column-pivoting QR on centred coordinates.
+
+Convention: the transform maps *moving* physical coordinates onto *fixed* ones (p_fixed ≈ T p_moving),
+which is what `registration.apply_transform` needs to bring the moving data onto the fixed data.
+
+Errors: neither or both of `landmarks` and `fixed`+`moving`; fewer than 3 pairs (4 for affine);
+all points coinciding, collinear points (rigid, similarity) or coplanar points (affine) in either set
+(tested on the principal spreads of the centred points, relative tolerance 1e-7).
+
+Table: one row per landmark (landmark name, fixed_x/y/z, moving_x/y/z, dx/dy/dz = T(moving) −
+fixed, distance) and a final row "RMS" whose dx/dy/dz hold the per-axis RMS and `distance` the
+overall RMS (coordinates 0 there). Memory: O(landmarks).)");
+  }
+  void run(RunContext& ctx) override {
+    const TransformKind model = parse_transform_kind(ctx.param<std::string>("model"), "param 'model'");
+    const bool has_set = ctx.has_input("landmarks");
+    const bool has_pair = ctx.has_input("fixed") || ctx.has_input("moving");
+    if (has_set == has_pair) {
+      throw InputError("connect either 'landmarks' (one object with >= 2 sets) or both 'fixed' and 'moving'");
+    }
+    std::vector<Vec3> fixed, moving;
+    std::vector<std::string> names;
+    std::string what;
+    if (has_set) {
+      auto lm = ctx.input<LandmarkSet>("landmarks");
+      const int64_t fs = ctx.param<int64_t>("fixed_set"), ms = ctx.param<int64_t>("moving_set");
+      if (lm->set_count() < 2) {
+        throw InputError("input 'landmarks': has " + std::to_string(lm->set_count()) + " set(s); expected at least 2");
+      }
+      if (fs >= lm->set_count()) throw InputError("param 'fixed_set': " + std::to_string(fs) + " >= number of sets " + std::to_string(lm->set_count()));
+      if (ms >= lm->set_count()) throw InputError("param 'moving_set': " + std::to_string(ms) + " >= number of sets " + std::to_string(lm->set_count()));
+      if (fs == ms) throw InputError("param 'moving_set': equals 'fixed_set' (" + std::to_string(fs) + ")");
+      fixed = lm->set(fs);
+      moving = lm->set(ms);
+      names = lm->names;
+      what = "input 'landmarks'";
+    } else {
+      auto f = ctx.input<LandmarkSet>("fixed");
+      auto m = ctx.input<LandmarkSet>("moving");
+      if (f->set_count() < 1) throw InputError("input 'fixed': has no landmark set");
+      if (m->set_count() < 1) throw InputError("input 'moving': has no landmark set");
+      fixed = f->set(0);
+      moving = m->set(0);
+      names = f->names;
+      what = "inputs 'fixed'/'moving'";
+    }
+    const LandmarkFit fit = fit_landmarks(fixed, moving, model, what);
+    ctx.output("transform", fit.transform);
+    ctx.output("table", residual_table(names, fixed, moving, fit));
+  }
+};
+SKEL_REGISTER_MODULE(RegisterLandmarks);
+
+class RefineRegistration final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("registration.refine", "Refine a transform by ICP on skeleton or graph point sets")
+        .add_input("fixed", volume_or_graph_types(), "fixed points: non-zero voxels of a (skeleton) volume, or a graph's nodes and edge points", true)
+        .add_input("moving", volume_or_graph_types(), "moving points, same kinds as 'fixed'", true)
+        .optional_input<Transform>("initial", "start transform moving → fixed (e.g. from registration.landmarks); identity if absent")
+        .output<Transform>("transform", "refined transform mapping moving coordinates onto fixed ones")
+        .output<Table>("table", "per iteration: pairs used, RMS before and after the update")
+        .choice("model", {"rigid", "similarity", "affine"}, "rigid", "transform model fitted in every iteration")
+        .param<int64_t>("iterations", 50, "maximum number of ICP iterations").range(1, 10000)
+        .param<double>("trim_fraction", 0.9, "fraction of the closest correspondences kept in each iteration (1 = all)").range(0.01, 1.0)
+        .param<double>("max_distance", 0.0, "drop correspondences farther apart than this (0 = no limit)").min(0.0).unit("µm")
+        .param<double>("tolerance", 1e-6, "stop when an iteration lowers the RMS of its pairs by less than this").min(0.0).unit("µm")
+        .param<int64_t>("max_points", 200000, "use at most this many moving points (regular subsample; 0 = all)").min(0)
+        .details(R"(Point-to-point ICP (Besl & McKay) refining the landmark fit of thesis §6.2 on the
+skeletons (or graphs) themselves — Amira stops at the landmark fit. Point sets: for a volume, the
+physical centres of its non-zero voxels (a skeleton, a mask); for a SpatialGraph, its node positions
+and interior polyline points.
+
+Each iteration maps the moving points by the current transform, finds the nearest fixed point with a
+nanoflann k-d tree (built once on the fixed points), drops pairs farther than `max_distance`, keeps
+the `trim_fraction` closest pairs (trimmed ICP, robust to structures present in only one scan — a
+fracture, removed rods), and refits the model in closed form (same solver as registration.landmarks,
+never a reflection for rigid/similarity). It stops after `iterations` or when the RMS of the kept
+pairs improves by less than `tolerance`. The table lists, per iteration, the pairs used, rms_before
+(under the incoming transform) and rms_after (same pairs, updated transform): the first row's
+rms_before is the RMS before refinement, the last row's rms_after the RMS after.
+
+Results are identical for any thread count (each nearest-neighbour query is independent; sorting
+and fitting are serial). Memory: 24 bytes per fixed and per moving point plus the k-d tree (~1/16
+of that again); a full 1280³ mask would give 2·10⁹ points, so feed skeletons or use `max_points`.)");
+  }
+  void run(RunContext& ctx) override {
+    IcpOptions o;
+    o.model = parse_transform_kind(ctx.param<std::string>("model"), "param 'model'");
+    o.iterations = static_cast<int>(ctx.param<int64_t>("iterations"));
+    o.trim_fraction = ctx.param<double>("trim_fraction");
+    const double md = ctx.param<double>("max_distance");
+    if (md > 0.0) o.max_distance = md;
+    o.tolerance = ctx.param<double>("tolerance");
+    o.max_points = ctx.param<int64_t>("max_points");
+    o.threads = ctx.threads();
+    o.interrupter = ctx.progress();
+    const auto fixed = points_of(*ctx.input_data("fixed"), "input 'fixed'");
+    const auto moving = points_of(*ctx.input_data("moving"), "input 'moving'");
+    auto initial = ctx.optional_input<Transform>("initial");
+    const IcpResult r = refine_icp(fixed, moving, initial ? *initial : Transform{}, o);
+    if (!r.converged) {
+      ctx.warn("ICP did not converge within " + std::to_string(o.iterations) + " iterations (tolerance " +
+               std::to_string(o.tolerance) + ")");
+    }
+    ctx.output("transform", r.transform);
+    ctx.output("table", icp_table(r));
+  }
+};
+SKEL_REGISTER_MODULE(RefineRegistration);
+
+class ApplyTransform final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("registration.apply_transform", "Apply a transform to a volume, a graph or landmarks")
+        .input<Transform>("transform", "transform mapping moving coordinates onto fixed ones")
+        .add_input("volume", all_volume_types(), "volume to resample (optional; one of volume, graph, landmarks)", false)
+        .optional_input<SpatialGraph>("graph", "graph whose nodes and polyline points are moved")
+        .optional_input<LandmarkSet>("landmarks", "landmarks whose points (all sets) are moved")
+        .add_input("reference", all_volume_types(), "volume whose grid becomes the output grid (optional)", false)
+        .add_output("volume", all_volume_types(), "resampled volume (same voxel type as the input)")
+        .output<SpatialGraph>("graph", "transformed graph")
+        .output<LandmarkSet>("landmarks", "transformed landmarks")
+        .choice("interpolation", {"auto", "nearest", "linear"}, "auto",
+                "auto: nearest for integer volumes (masks, labels), linear for float volumes")
+        .param<bool>("inverse", false, "apply the inverse transform (fixed → moving)")
+        .details(R"(Brings the moving data of thesis §6.2 onto the fixed data once the transform is known.
+
+Volume: every output voxel centre p takes the input value at T⁻¹(p) (backward mapping, so there are no
+holes). The output grid is the `reference` volume's grid when connected (e.g. the fixed scan),
+otherwise the bounding box of the transformed input at the input's spacing. Nearest neighbour keeps
+masks and labels exact; linear is trilinear interpolation (integer results rounded and clamped).
+Positions outside the input's voxel boxes get 0; within half a voxel of the input border the edge
+value is replicated. Parallel over output rows, 64-bit indices, identical results for any thread
+count. Memory: the output volume only (its voxel size: 1 byte per voxel for masks), no temporary
+per voxel.
+
+Graph: node positions and polyline points are mapped; float attributes whose name contains radius,
+thickness, diameter or length are multiplied by the transform's scale |det A|^(1/3) (exact for rigid
+and similarity, a mean for affine); labels and other attributes are kept. The graph's source grid
+becomes the reference grid, or the transformed bounding box of the old one.
+
+Landmarks: every point of every set is mapped; names are kept.
+
+Exactly one of `volume`, `graph`, `landmarks` must be connected; the output of the same name is
+produced. `inverse` applies T⁻¹ instead (a singular affine transform is an error).)");
+  }
+  void run(RunContext& ctx) override {
+    auto t = ctx.input<Transform>("transform");
+    const Transform tr = ctx.param<bool>("inverse") ? t->inverse() : *t;
+    const int connected = static_cast<int>(ctx.has_input("volume")) + static_cast<int>(ctx.has_input("graph")) +
+                          static_cast<int>(ctx.has_input("landmarks"));
+    if (connected != 1) {
+      throw InputError("connect exactly one of 'volume', 'graph', 'landmarks' (" + std::to_string(connected) + " connected)");
+    }
+    DataPtr ref = ctx.input_data("reference");
+    if (ctx.has_input("volume")) {
+      ResampleOptions o;
+      o.interpolation = parse_interpolation(ctx.param<std::string>("interpolation"), "param 'interpolation'");
+      o.threads = ctx.threads();
+      o.interrupter = ctx.progress();
+      DataPtr in = ctx.input_data("volume");
+      const Grid out_grid = ref ? volume_grid(*ref, "input 'reference'") : transformed_bounding_grid(volume_grid(*in, "input 'volume'"), tr);
+      DataPtr out = visit_volume(*in, "input 'volume'", [&](const auto& v) -> DataPtr {
+        return std::make_shared<std::decay_t<decltype(v)>>(transform_volume(v, tr, out_grid, o));
+      });
+      ctx.output("volume", out);
+    } else if (ctx.has_input("graph")) {
+      const Grid g = ref ? volume_grid(*ref, "input 'reference'") : Grid{};
+      ctx.output("graph", transform_graph(*ctx.input<SpatialGraph>("graph"), tr, g));
+    } else {
+      ctx.output("landmarks", transform_landmarks(*ctx.input<LandmarkSet>("landmarks"), tr));
+    }
+  }
+};
+SKEL_REGISTER_MODULE(ApplyTransform);
+
+class ReadLandmarks final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("io.read_landmarks", "Read landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
+        .output<LandmarkSet>("landmarks", "the landmark sets of the file (followed by those of 'path2')")
+        .path("path", "", PathRole::Input, "landmark file: .landmarkAscii, .fcsv or .csv")
+        .path("path2", "", PathRole::Input, "optional second file whose sets are appended (e.g. the moving .fcsv)").optional_value()
+        .choice("format", {"auto", "amira", "fcsv", "csv"}, "auto", "file format (auto: by extension, for both files)")
+        .details(R"(Formats (see docs/registration.md):
+- Amira `.landmarkAscii` (AmiraMesh 3D ASCII 2.0): `define Markers N`, `Parameters { NumSets k,
+  ContentType "LandmarkSet" }`, declarations `Markers { float[3] Coordinates } @1`,
+  `Markers { float[3] Coordinates2 } @2`, ..., then one `@K` block of N lines "x y z" per set. Amira
+  stores no names: points are named L1..LN.
+- 3D Slicer markups fiducial `.fcsv`: one set per file; `label` gives the names; `CoordinateSystem =
+  RAS` (or 0) is converted to our LPS/ITK physical coordinates by negating x and y.
+- CSV with header `set,name,x,y,z`: all sets in one file, rows of later sets matched to set 0 by name.
+Two corresponding Slicer files (fixed, moving) become one object of two sets with `path2`; the
+points are matched by order and the names come from `path`. Malformed files are errors naming the
+file and line. Memory: O(landmarks).)");
+  }
+  void run(RunContext& ctx) override {
+    const LandmarkFormat f = parse_landmark_format(ctx.param<std::string>("format"));
+    LandmarkSet lm = read_landmarks(ctx.input_path("path"), f);
+    if (!ctx.param<std::string>("path2").empty()) {
+      const auto p2 = ctx.input_path("path2");
+      LandmarkSet second = read_landmarks(p2, f);
+      if (second.point_count() != lm.point_count()) {
+        throw InputError("param 'path2': '" + p2.string() + "' has " + std::to_string(second.point_count()) +
+                         " points per set; 'path' has " + std::to_string(lm.point_count()));
+      }
+      for (auto& s : second.sets) lm.add_set(std::move(s));
+    }
+    ctx.output("landmarks", std::move(lm));
+  }
+};
+SKEL_REGISTER_MODULE(ReadLandmarks);
+
+class WriteLandmarks final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("io.write_landmarks", "Write landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
+        .input<LandmarkSet>("landmarks", "landmarks to write")
+        .path("path", "", PathRole::Output, "file to create (.landmarkAscii, .fcsv or .csv); renamed into place when the run succeeds")
+        .choice("format", {"auto", "amira", "fcsv", "csv"}, "auto", "file format (auto: by extension)")
+        .param<int64_t>("set", -1, "write only this set (-1 = all sets; .fcsv holds one set per file)").min(-1)
+        .details(R"(Writes the layout Amira writes for a LandmarkSet (`# AmiraMesh 3D ASCII 2.0`,
+`define Markers N`, `Parameters { NumSets k, ContentType "LandmarkSet" }`, `Markers { float[3]
+Coordinates } @1`, `Markers { float[3] Coordinates2 } @2`, ..., `# Data section follows` and the `@K`
+blocks), a Slicer markups fiducial file (version 4.11 header, `CoordinateSystem = LPS`, our physical
+coordinates unchanged, names as labels; one set only — choose it with `set`), or CSV `set,name,x,y,z`.
+Coordinates have 17 significant digits, so reading back is exact. Names with commas or quotes cannot
+be written to .fcsv/CSV (error). The file is written to a temporary name and renamed.)");
+  }
+  void run(RunContext& ctx) override {
+    auto lm = ctx.input<LandmarkSet>("landmarks");
+    const int64_t s = ctx.param<int64_t>("set");
+    if (s >= lm->set_count()) {
+      throw InputError("param 'set': " + std::to_string(s) + " but the landmarks have " + std::to_string(lm->set_count()) + " set(s)");
+    }
+    const LandmarkFormat f = parse_landmark_format(ctx.param<std::string>("format"));
+    write_landmarks(ctx.output_path("path"), s >= 0 ? lm->single_set(s) : *lm,
+                    resolve_landmark_format(f, ctx.final_output_path("path")));
+  }
+};
+SKEL_REGISTER_MODULE(WriteLandmarks);
+
+class ReadTransform final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("io.read_transform", "Read a transform (4x4 text matrix or ITK .tfm)")
+        .output<Transform>("transform", "transform mapping moving coordinates onto fixed ones")
+        .path("path", "", PathRole::Input, "transform file: .tfm (ITK) or a text 4x4 matrix")
+        .choice("format", {"auto", "matrix", "itk"}, "auto", "file format (auto: .tfm is ITK, anything else a matrix)")
+        .details(R"(Plain matrix: 16 numbers (4 rows of 4, row-major; or 12 for the top 3 rows), '#'
+comments allowed; a `kind=rigid|similarity|affine` in a comment sets the kind, otherwise it is
+classified from the matrix. ITK `.tfm` (`#Insight Transform File V1.0`, one
+`AffineTransform_double_3_3` / `_float_` / `MatrixOffsetTransformBase`): ITK and Slicer store the
+resampling transform fixed → moving in LPS with `T(x) = A(x − c) + c + t` (`Parameters` = A row-major
+and t, `FixedParameters` = c); it is inverted here so that the result maps moving → fixed like every
+skelflow transform. Other ITK transform types are errors naming the type.)");
+  }
+  void run(RunContext& ctx) override {
+    ctx.output("transform", read_transform(ctx.input_path("path"), parse_transform_format(ctx.param<std::string>("format"))));
+  }
+};
+SKEL_REGISTER_MODULE(ReadTransform);
+
+class WriteTransform final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("io.write_transform", "Write a transform (4x4 text matrix or ITK .tfm)")
+        .input<Transform>("transform", "transform to write (moving → fixed)")
+        .path("path", "", PathRole::Output, "file to create (.tfm for ITK, else a text matrix); renamed into place when the run succeeds")
+        .choice("format", {"auto", "matrix", "itk"}, "auto", "file format (auto: .tfm is ITK, anything else a matrix)")
+        .details(R"(Matrix: a comment `# skelflow transform kind=<kind> maps moving -> fixed` and the 4x4
+homogeneous matrix (17 significant digits). ITK `.tfm`: `AffineTransform_double_3_3` holding the
+INVERSE (fixed → moving, the resampling direction ITK and Slicer expect; our physical coordinates are
+ITK's LPS coordinates), centre 0, so Slicer applies it to the moving image to bring it onto the fixed
+one. A singular affine transform cannot be written as .tfm (error). Written to a temporary name and
+renamed.)");
+  }
+  void run(RunContext& ctx) override {
+    const TransformFormat f = parse_transform_format(ctx.param<std::string>("format"));
+    write_transform(ctx.output_path("path"), *ctx.input<Transform>("transform"),
+                    resolve_transform_format(f, ctx.final_output_path("path")));
+  }
+};
+SKEL_REGISTER_MODULE(WriteTransform);
+
+std::string describe_landmark_file(const std::filesystem::path& p) {
+  const LandmarkSet lm = read_landmarks(p);
+  return lm.describe() + "\n";
+}
+
+SKEL_REGISTER_INSPECTOR("Amira landmarks", {".landmarkascii"}, describe_landmark_file);
+SKEL_REGISTER_INSPECTOR("Slicer markups fiducials", {".fcsv"}, describe_landmark_file);
+SKEL_REGISTER_INSPECTOR("ITK transform", {".tfm"},
+                        [](const std::filesystem::path& p) { return read_transform(p).describe() + "\n"; });
+
+}  // namespace
+}  // namespace skel
