@@ -1,14 +1,19 @@
 #!/usr/bin/env bash
 # Installs the Debian packages Skelflow needs (only those missing), then configures and builds.
 # Idempotent: a second run installs nothing and rebuilds only what changed.
-#   scripts/setup.sh [--no-build] [--build-dir DIR] [--build-type TYPE]
+#   scripts/setup.sh [demo|test] [--no-build] [--build-dir DIR] [--build-type TYPE]
+#     (no command)  install + configure + build everything
+#     demo          install + build the CLI + run the vessel pipeline (pipelines/vessel_network.yaml); results go to out/demo/
+#     test          install + build everything + run the whole test suite (ctest)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir="$here/build"
 build_type=RelWithDebInfo
 do_build=1
+command=build
 while [ $# -gt 0 ]; do
   case "$1" in
+    demo|test|build) command=$1 ;;
     --no-build) do_build=0 ;;
     --build-dir) build_dir=$2; shift ;;
     --build-type) build_type=$2; shift ;;
@@ -44,4 +49,23 @@ fi
 [ $do_build = 1 ] || exit 0
 jobs=$(nproc)
 cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="$build_type"
-cmake --build "$build_dir" -j "$jobs"
+case "$command" in
+  demo)
+    cmake --build "$build_dir" -j "$jobs" --target skelflow
+    out="$here/out/demo"
+    "$build_dir/cli/skelflow" run "$here/pipelines/vessel_network.yaml" --output-dir "$out" --report "$out/run.json"
+    echo
+    echo "demo: results are in $out (run report: $out/run.json)"
+    echo "demo: vessel graph $out/vessels/network.am and network.vtp (open in Amira / ParaView),"
+    echo "demo: ground truth $out/vessels/truth.am, per-segment table $out/vessels/segments.csv, summary:"
+    cat "$out/vessels/summary.csv" || true
+    echo "demo: inspect a file with: $build_dir/cli/skelflow info <file>"
+    ;;
+  test)
+    cmake --build "$build_dir" -j "$jobs"
+    ctest --test-dir "$build_dir" -j "$jobs" --output-on-failure --timeout 900
+    ;;
+  build)
+    cmake --build "$build_dir" -j "$jobs"
+    ;;
+esac

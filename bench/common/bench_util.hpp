@@ -42,6 +42,7 @@ template <class T> constexpr const char* npy_descr();
 template <> constexpr const char* npy_descr<uint8_t>() { return "|u1"; }
 template <> constexpr const char* npy_descr<uint16_t>() { return "<u2"; }
 template <> constexpr const char* npy_descr<uint32_t>() { return "<u4"; }
+template <> constexpr const char* npy_descr<uint64_t>() { return "<u8"; }
 template <> constexpr const char* npy_descr<int32_t>() { return "<i4"; }
 template <> constexpr const char* npy_descr<float>() { return "<f4"; }
 template <> constexpr const char* npy_descr<double>() { return "<f8"; }

@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# HDF5 I/O: our io::write_volume / read_volume / read_box (automatic ~1 MiB chunks, deflate 0 and 1)
+# vs h5py (contiguous, chunks=True, chunks=True + gzip 1) on the same 512³ uint8 and float32 arrays,
+# in the same run. Files go to a temporary directory that is deleted at the end. Prints one markdown
+# section.
+#   bench/io/run.sh BUILD_DIR [SIZE] [BLOCK]   (SIZE default 512, BLOCK default 64)
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+build=${1:-build}
+n=${2:-512}
+block=${3:-64}
+py=${SKEL_BENCH_PYTHON:-/usr/bin/python3}
+cmake --build "$build" --target bench_io >/dev/null
+bin="$build/bench/io/bench_io"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+get() { sed -n "s/^$1=//p" "$2"; }
+
+"$bin" "$n" "$work" generate
+rows=""
+row() {  # dtype writer layout chunks write read blocks bytes peak identical
+  rows+=$(awk -v n="$n" -v dt="$1" -v who="$2" -v lay="$3" -v ch="$4" -v tw="$5" -v tr="$6" -v tb="$7" -v fb="$8" -v pk="$9" -v same="${10}" 'BEGIN {
+    bytes = n * n * n * (dt == "uint8" ? 1 : 4)
+    printf "| %s | %s | %s | %s | %.3f | %.0f | %.3f | %.0f | %.3f | %.0f | %.1f | %.2f | %s | %s |", dt, who, lay, ch, tw, bytes / tw / 1e6, tr, bytes / tr / 1e6, tb, bytes / tb / 1e6, fb / 1048576, bytes / fb, pk, same }')$'\n'
+}
+for dt in uint8 float32; do
+  shuf=""
+  if [ "$dt" = float32 ]; then shuf=" + shuffle"; fi
+  for level in 0 1; do
+    "$bin" "$n" "$work" run "$dt" "$level" "$block" >"$work/ours_${dt}_$level.txt"
+  done
+  "$py" "$here/h5py_peer.py" "$work" "$dt" "$block" >"$work/h5py_$dt.txt"
+  for level in 0 1; do
+    f="$work/ours_${dt}_$level.txt"
+    lay="auto ~1 MiB chunks"
+    if [ "$level" = 1 ]; then lay="auto ~1 MiB chunks, deflate 1$shuf"; fi
+    row "$dt" "ours" "$lay" "$(get chunks "$f")" "$(get write "$f")" "$(get read "$f")" "$(get blocks "$f")" \
+        "$(get file_bytes "$f")" "$(get peak_rss_mib "$f")" "$(get identical "$f"); h5py reads it: $(get "h5py_reads_ours_$level" "$work/h5py_$dt.txt")"
+  done
+  p="$work/h5py_$dt.txt"
+  for lay in contiguous auto_chunks auto_chunks_gzip1; do
+    case $lay in
+      contiguous) text="contiguous" ;;
+      auto_chunks) text="chunks=True" ;;
+      auto_chunks_gzip1) text="chunks=True, gzip 1$shuf" ;;
+    esac
+    row "$dt" "h5py" "$text" "$(get "$lay.chunks" "$p")" "$(get "$lay.write" "$p")" "$(get "$lay.read" "$p")" "$(get "$lay.blocks" "$p")" \
+        "$(get "$lay.file_bytes" "$p")" "$(get peak_rss_mib "$p")" "$(get "$lay.identical" "$p")"
+  done
+  rm -f "$work"/*.h5
+done
+
+echo "## HDF5 I/O"
+echo
+echo "Volumes: \`synthetic.network\` rods ${n}³ (seed 1, noise 0.1): uint8 = its 0/1 mask, float32 = its"
+echo "smoothed grey image with noise ($(awk -v n="$n" 'BEGIN { printf "%.0f", n*n*n/1048576 }') MiB and $(awk -v n="$n" 'BEGIN { printf "%.0f", 4*n*n*n/1048576 }') MiB). Both sides write the identical arrays (.npy),"
+echo "best of 2 runs each; write = until the file is closed (no fsync; our write goes to a temporary sibling"
+echo "and is renamed into place), read = whole dataset into memory right after writing (page cache warm:"
+echo "this measures HDF5 + filters, not the disk), blocks = every ${block}³ box read by its own call"
+echo "(ours: \`io::read_box\`, which opens the file each call; h5py: slicing one open dataset). MB/s ="
+echo "uncompressed bytes / time / 10⁶. Chunks are (x, y, z). Peak MiB: ours per (dtype, level) process,"
+echo "h5py one process per dtype (all its layouts). Identical: the read-back array equals the written one."
+echo
+echo "| dtype | writer | layout | chunks | write (s) | write MB/s | read (s) | read MB/s | ${block}³ blocks (s) | blocks MB/s | file MiB | compression ratio | peak MiB | identical |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+printf "%s" "$rows"
+echo
+echo "HDF5 $(/usr/bin/python3 -c 'import h5py; print(h5py.version.hdf5_version, "(h5py", h5py.__version__ + ")")' 2>/dev/null || echo "?"); ours links the system HDF5"
+echo "$(dpkg-query -W -f='${Version}' libhdf5-dev 2>/dev/null || echo "?"). Machine: $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); temp dir on"
+echo "$(df -P "${TMPDIR:-/tmp}" | awk 'NR == 2 { print $1 }')."

@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# The whole vessel pipeline (pipelines/vessel_network.yaml, unchanged) on a 512³ phantom: wall time
+# and peak RSS per stage from the run report, and the recovered network against the phantom's ground
+# truth. Prints one markdown section.
+#   bench/vessel/run.sh BUILD_DIR [SIZE]     (SIZE default 512)
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+build=${1:-build}
+n=${2:-512}
+threads=${SKEL_BENCH_THREADS:-2}
+py=${SKEL_BENCH_PYTHON:-/usr/bin/python3}
+cmake --build "$build" --target skelflow >/dev/null
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+# The shipped pipeline plus statistics of the ground-truth graph, for the comparison below.
+cp "$root/pipelines/vessel_network.yaml" "$work/p.yaml"
+cat >>"$work/p.yaml" <<'YAML'
+  truth_stats: {module: analysis.network_statistics, inputs: {graph: phantom.truth}}
+  save_truth_summary: {module: io.write_table, inputs: {table: truth_stats.summary}, params: {path: vessels/truth_summary.csv}}
+YAML
+# A denser network than the small default: 64 roots, thicker root vessels, longer segments.
+params=(--set "phantom.size=[$n,$n,$n]" --set phantom.roots=64 --set phantom.root_radius=9
+        --set phantom.min_radius=2.5 --set phantom.length_scale=2)
+"$build/cli/skelflow" run "$work/p.yaml" "${params[@]}" --threads "$threads" --output-dir "$work/out" \
+  --report "$work/run.json" >"$work/log.txt" 2>&1
+"$py" - "$work" "$n" "$threads" "${params[*]}" <<'PY'
+import csv, json, sys
+work, n, threads, params = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+r = json.load(open(work + "/run.json"))
+print("## Vessel pipeline (whole, %d³)" % n)
+print()
+print("`pipelines/vessel_network.yaml` run by `skelflow run` with `%s`, %s threads." % (params, threads))
+print("Per stage: wall time and the process's peak RSS when the stage ended (from the run report).")
+print()
+print("| stage | module | time (s) | peak RSS (MiB) |")
+print("|---|---|---|---|")
+for node in r["nodes"]:
+    print("| %s | %s | %.3f | %.0f |" % (node["id"], node["module"], node["seconds"], node["peak_rss_mib"]))
+print("| **total** | | **%.2f** | **%.0f** |" % (r["seconds"], r["peak_rss_mib"]))
+print()
+def row(path):
+    with open(path) as f:
+        return next(csv.DictReader(f))
+rec = row(work + "/out/vessels/summary.csv")
+tru = row(work + "/out/vessels/truth_summary.csv")
+length = [k for k in rec if k.startswith("total_length")][0]
+print("| | ground truth | recovered | difference |")
+print("|---|---|---|---|")
+for key in ["branch_points", "end_points", "loops", length]:
+    a, b = float(tru[key]), float(rec[key])
+    print("| %s | %.1f | %.1f | %+.1f%% |" % (key, a, b, 100.0 * (b - a) / a if a else 0.0))
+print()
+import os
+cpu = [l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")][0]
+print("Machine: %d cores, %s." % (os.cpu_count(), cpu))
+PY

@@ -1,0 +1,77 @@
+// The shipped pipelines run end to end; the vessel pipeline recovers the phantom's ground truth.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "skel/executor.hpp"
+#include "skel/pipeline.hpp"
+#include "skel/spatial_graph.hpp"
+#include "skel/table.hpp"
+
+namespace fs = std::filesystem;
+using namespace skel;
+
+namespace {
+fs::path pipeline(const std::string& name) { return fs::path(SKEL_SOURCE_DIR) / "pipelines" / name; }
+fs::path scratch(const std::string& name) {
+  fs::path d = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / ("pipelines_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+}  // namespace
+
+TEST(Pipelines, AllShippedPipelinesValidate) {
+  for (const auto& e : fs::directory_iterator(fs::path(SKEL_SOURCE_DIR) / "pipelines")) {
+    if (e.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(e.path().string());
+    Pipeline p = Pipeline::load_file(e.path());
+    auto ds = validate(p);
+    for (const auto& d : ds) ADD_FAILURE() << d.format();
+    // Canonical save and reload give the same pipeline.
+    EXPECT_TRUE(Pipeline::parse(p.to_yaml()) == p);
+  }
+}
+
+TEST(Pipelines, DemoRunsAndWritesItsOutputs) {
+  const fs::path out = scratch("demo");
+  Pipeline p = Pipeline::load_file(pipeline("demo.yaml"));
+  Executor ex;
+  ExecOptions o;
+  o.output_dir = out;
+  o.threads = 2;
+  RunReport r = ex.run(p, o);
+  EXPECT_TRUE(r.ok);
+  for (const char* f : {"demo/image.h5", "demo/mask.h5", "demo/skeleton.h5", "demo/skeleton_topology.csv"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  EXPECT_NE(r.to_json().find("\"module\": \"thinning.doht\""), std::string::npos);
+}
+
+TEST(Pipelines, VesselPipelineRecoversTheGroundTruth) {
+  Pipeline p = Pipeline::load_file(pipeline("vessel_network.yaml"));
+  Executor ex;
+  ExecOptions o;
+  o.keep_outputs = true;
+  o.threads = 2;
+  o.targets = {"stats", "phantom"};  // no files
+  ex.run(p, o);
+  auto truth = std::dynamic_pointer_cast<const SpatialGraph>(ex.output(p, "phantom", "truth"));
+  auto summary = std::dynamic_pointer_cast<const Table>(ex.output(p, "stats", "summary"));
+  ASSERT_TRUE(truth && summary);
+  const auto deg = truth->degrees();
+  int64_t branch = 0, ends = 0;
+  for (auto d : deg) {
+    branch += d >= 3;
+    ends += d == 1;
+  }
+  const double length = truth->total_length();
+  const double rb = static_cast<double>(summary->ints("branch_points")[0]);
+  const double re = static_cast<double>(summary->ints("end_points")[0]);
+  const double rl = summary->reals("total_length")[0];
+  std::printf("truth: %lld branch points, %lld end points, length %.1f; reconstruction: %.0f, %.0f, %.1f\n",
+              static_cast<long long>(branch), static_cast<long long>(ends), length, rb, re, rl);
+  EXPECT_LE(std::abs(rb - static_cast<double>(branch)), 0.05 * static_cast<double>(branch));
+  EXPECT_LE(std::abs(re - static_cast<double>(ends)), std::max(1.0, 0.05 * static_cast<double>(ends)));
+  EXPECT_LE(std::abs(rl - length), 0.05 * length);
+}
