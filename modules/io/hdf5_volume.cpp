@@ -3,6 +3,8 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
 #include <cstring>
 #include <mutex>
 #include <sstream>
@@ -271,13 +273,18 @@ template Volume<float> read_box(const fs::path&, const std::string&, Dims, Dims)
 template Volume<double> read_box(const fs::path&, const std::string&, Dims, Dims);
 
 std::array<int64_t, 3> automatic_chunks(Dims dims, int64_t bytes_per_voxel) {
-  // Whole rows, about 1 MiB per chunk; whole z-slabs when a slab fits (large chunks read at
-  // > 1 GB/s; HDF5's small automatic chunks read at ~300 MB/s).
+  // About 1 MiB per chunk, as close to a cube as the dims allow, with power-of-two edges
+  // (uint8: 128x128x64, uint16: 128x128x32, float32: 64x64x64, float64: 64x64x32). Large chunks keep
+  // whole-volume reads fast (HDF5's small automatic chunks read at ~300 MB/s), cube-like ones keep
+  // block reads of the out-of-core algorithms cheap: an aligned 64³ box touches one or two chunks
+  // instead of 64 whole-slice chunks.
   const int64_t nx = std::max<int64_t>(dims[0], 1), ny = std::max<int64_t>(dims[1], 1), nz = std::max<int64_t>(dims[2], 1);
-  const int64_t row = nx * std::max<int64_t>(bytes_per_voxel, 1);
-  const int64_t rows = std::clamp<int64_t>((1 << 20) / row, 1, ny);
-  const int64_t planes = rows == ny ? std::clamp<int64_t>((1 << 20) / (row * ny), 1, nz) : 1;
-  return {nx, rows, planes};
+  const int64_t target = std::max<int64_t>((int64_t{1} << 20) / std::max<int64_t>(bytes_per_voxel, 1), 1);
+  const auto side = static_cast<int64_t>(std::bit_ceil(static_cast<uint64_t>(std::max(1.0, std::floor(std::cbrt(static_cast<double>(target)) + 1e-9)))));
+  const int64_t cx = std::min(nx, side);
+  const int64_t cy = std::clamp<int64_t>(target / cx, 1, std::min(ny, side));
+  const int64_t cz = std::clamp<int64_t>(target / (cx * cy), 1, nz);
+  return {cx, cy, cz};
 }
 
 namespace {

@@ -23,13 +23,14 @@ struct VolumeInfo {
   bool has_spacing = false, has_origin = false;
 };
 
-// Chunking: automatic chunks are whole x-rows grouped into about 1 MiB (for typical volumes whole
-// z-slabs, e.g. 512x512x4 for a 512³ uint8 volume): a full read touches each chunk once, sequential
-// z-slab access is cheap, and 1 MiB chunks read far faster than HDF5's small default chunks.
+// Chunking: automatic chunks hold about 1 MiB, as cube-like as the dims allow (128x128x64 for
+// uint8, 64x64x64 for float32): a full read touches each chunk once, an aligned 64³ block (the
+// out-of-core algorithms' unit) one or two chunks, and 1 MiB chunks read far faster than HDF5's small
+// default chunks.
 // Compression: deflate at `compression` (0 = none); multi-byte types also get the shuffle filter.
 struct WriteOptions {
   int compression = 1;           // deflate level 0..9 (0 = none)
-  std::array<int64_t, 3> chunks{0, 0, 0};  // (x, y, z); 0 = automatic (whole rows, ~1 MiB chunks)
+  std::array<int64_t, 3> chunks{0, 0, 0};  // (x, y, z); 0 = automatic (~1 MiB, cube-like chunks)
 };
 
 // Chunk shape (x, y, z) that write_volume / create_volume_dataset use for these dims and voxel size.

@@ -82,6 +82,27 @@ TEST(Hdf5, SubBoxEqualsCrop) {
   EXPECT_THROW(io::read_box<uint16_t>(f, "/volume", Dims{15, 0, 0}, Dims{10, 1, 1}), InputError);
 }
 
+TEST(Hdf5, AutomaticChunksAreAboutOneMebibyteAndCubeLike) {
+  EXPECT_EQ(io::automatic_chunks(Dims{512, 512, 512}, 1), (std::array<int64_t, 3>{128, 128, 64}));
+  EXPECT_EQ(io::automatic_chunks(Dims{512, 512, 512}, 2), (std::array<int64_t, 3>{128, 128, 32}));
+  EXPECT_EQ(io::automatic_chunks(Dims{512, 512, 512}, 4), (std::array<int64_t, 3>{64, 64, 64}));
+  EXPECT_EQ(io::automatic_chunks(Dims{512, 512, 512}, 8), (std::array<int64_t, 3>{64, 64, 32}));
+  // Small or flat volumes: never larger than the volume, still about 1 MiB when it is larger.
+  EXPECT_EQ(io::automatic_chunks(Dims{30, 26, 20}, 4), (std::array<int64_t, 3>{30, 26, 20}));
+  EXPECT_EQ(io::automatic_chunks(Dims{2000, 3, 1000}, 1), (std::array<int64_t, 3>{128, 3, 1000}));
+  EXPECT_EQ(io::automatic_chunks(Dims{0, 0, 0}, 1), (std::array<int64_t, 3>{1, 1, 1}));
+  for (int64_t b : {1, 2, 4, 8}) {
+    const auto c = io::automatic_chunks(Dims{1280, 1280, 1280}, b);
+    const int64_t bytes = c[0] * c[1] * c[2] * b;
+    EXPECT_GE(bytes, int64_t{1} << 19) << b;
+    EXPECT_LE(bytes, int64_t{1} << 20) << b;
+  }
+  // The file records the chosen shape.
+  const fs::path f = scratch() / "chunks.h5";
+  io::write_volume(f, VolumeF32(Dims{100, 90, 80}, 1.0f));
+  EXPECT_EQ(io::read_volume_info(f).chunks, io::automatic_chunks(Dims{100, 90, 80}, 4));
+}
+
 TEST(Hdf5, ClearErrors) {
   const fs::path good = scratch() / "good.h5";
   io::write_volume(good, random_volume<uint8_t>(Dims{64, 64, 32}, 2), "/volume", io::WriteOptions{0, {0, 0, 0}});
