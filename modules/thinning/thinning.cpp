@@ -1,5 +1,5 @@
 // Distance ordered homotopic thinning (thesis §2.3.1, Algorithms 1 and 2) with a bucket priority
-// queue, the memoised simple-voxel table, directional sub-iterations and end-point importance.
+// queue, the bit-parallel simple-voxel test, directional sub-iterations and end-point importance.
 #include "thinning/thinning.hpp"
 
 #include <algorithm>
@@ -291,7 +291,7 @@ public:
     }
     const uint32_t nb = neighbourhood(i);
     nb_out = nb;
-    if (!is_simple(nb)) return false;
+    if (!is_simple_direct(nb)) return false;
     if (l_ > 0 && std::popcount(nb) == 1 && importance(i) > l_) return false;
     return true;
   }
@@ -575,7 +575,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         if (!found) break;
       }
     }
-    stats.bytes = static_cast<uint64_t>(q.peak) * 8 + levels.bytes() + (uint64_t{1} << 24) +
+    stats.bytes = static_cast<uint64_t>(q.peak) * 8 + levels.bytes() +
                   levels.array_bytes_per_voxel() * static_cast<uint64_t>(mask.size());
     irq.check(0.9);
 
@@ -598,7 +598,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         continue;
       }
       const uint32_t nb = th.neighbourhood(i);
-      if (std::popcount(nb) == 1 && is_simple(nb)) ++stats.kept_end_points;
+      if (std::popcount(nb) == 1 && is_simple_direct(nb)) ++stats.kept_end_points;
       if (!(st[i] & kBorder)) {
         const uint8_t* p = st + i;
         if (p[1] & p[-1] & p[nx] & p[-nx] & p[nx * ny] & p[-nx * ny] & kObject) ++stats.interior_voxels;
