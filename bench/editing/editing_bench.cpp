@@ -199,16 +199,36 @@ int main(int argc, char** argv) {
   {
     std::printf("| batch op | op ms | undo ms | changed |\n|---|---|---|---|\n");
     editing::GraphEditor ed{SpatialGraph(g0)};
-    // Open 1000 gaps first (untimed) so bridge_gaps and prune have work.
+    // Make 1000 dangling ends first (untimed): a random node keeps one of its 6 lattice edges, so it
+    // ends a 10-long spur pointing at the next lattice node — prune {15} removes the spurs,
+    // bridge_gaps {12} (on the state before the prune, which is undone) reconnects them.
+    std::vector<std::vector<int64_t>> incident(static_cast<size_t>(g0.node_count()));
+    for (int64_t e = 0; e < g0.edge_count(); ++e) {
+      incident[static_cast<size_t>(g0.edges[static_cast<size_t>(e)].node0)].push_back(e);
+      incident[static_cast<size_t>(g0.edges[static_cast<size_t>(e)].node1)].push_back(e);
+    }
     std::vector<int64_t> del;
-    for (int i = 0; i < 1000; ++i) del.push_back(rnd(g0.edge_count()));
+    std::vector<char> touched(static_cast<size_t>(g0.node_count()), 0);
+    for (int made = 0; made < 1000;) {
+      const int64_t v = rnd(g0.node_count());
+      if (touched[static_cast<size_t>(v)] || incident[static_cast<size_t>(v)].size() < 6) continue;
+      bool ok = true;  // keep the ends apart: no neighbour may be an end already
+      for (int64_t e : incident[static_cast<size_t>(v)]) {
+        const auto& ed0 = g0.edges[static_cast<size_t>(e)];
+        ok = ok && !touched[static_cast<size_t>(ed0.node0 == v ? ed0.node1 : ed0.node0)];
+      }
+      if (!ok) continue;
+      touched[static_cast<size_t>(v)] = 1;
+      for (size_t k = 1; k < incident[static_cast<size_t>(v)].size(); ++k) del.push_back(incident[static_cast<size_t>(v)][k]);
+      ++made;
+    }
     std::sort(del.begin(), del.end());
     del.erase(std::unique(del.begin(), del.end()), del.end());
     ed.delete_edges(del);
     const int64_t e0 = ed.graph().edge_count();
-    for (const char* name : {"prune {max_length: 5}", "bridge_gaps {max_distance: 12}"}) {
+    for (const char* name : {"prune {max_length: 15}", "bridge_gaps {max_distance: 12}"}) {
       double s = now_seconds();
-      if (name[0] == 'p') ed.prune(5.0);
+      if (name[0] == 'p') ed.prune(15.0);
       else ed.bridge_gaps(12.0);
       const double top = now_seconds() - s;
       const int64_t changed = ed.graph().edge_count() - e0;
