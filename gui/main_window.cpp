@@ -27,6 +27,7 @@
 #include <cmath>
 
 #include "graph_edit_mode.hpp"
+#include "landmark_mode.hpp"
 #include "node_editor.hpp"
 #include "palette.hpp"
 #include "properties_panel.hpp"
@@ -101,6 +102,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   statusBar()->addPermanentWidget(progress_);
 
   edit_ = new GraphEditMode(this);
+  landmarks_ = new LandmarkMode(this);
   build_actions();
 
   connect(palette_, &Palette::module_activated, this, [this](const QString& module) {
@@ -166,6 +168,8 @@ MainWindow::~MainWindow() {
   run_->wait();
   delete edit_;  // leaves edit mode while the 3D view still exists
   edit_ = nullptr;
+  delete landmarks_;
+  landmarks_ = nullptr;
   // Views first: they refer to the document while they are torn down.
   delete view_;
   delete scene_;
@@ -259,6 +263,8 @@ void MainWindow::build_actions() {
     else edit_graph(node, port);
   });
   add(edit, "&Leave Graph Edit Mode", QKeySequence(), [this] { edit_->stop(); });
+  add(edit, "Place &Landmarks in 3D View", QKeySequence("Ctrl+L"), [this] { edit_landmarks(); });
+  add(edit, "Leave Landmar&k Mode", QKeySequence(), [this] { landmarks_->stop(); });
 
   QAction* fit = add(view, "&Fit Pipeline", QKeySequence("F"), [this] { view_->fit_all(); });
   add(view, "Zoom &In", QKeySequence::ZoomIn, [this] { view_->zoom(1.25); });
@@ -444,7 +450,13 @@ bool MainWindow::edit_graph(const QString& node, const QString& port) {
     log("A run is in progress; edit the graph when it has finished.", true);
     return false;
   }
+  landmarks_->stop();
   return edit_->start(node, port);
+}
+
+void MainWindow::edit_landmarks() {
+  edit_->stop();
+  landmarks_->start();
 }
 
 void MainWindow::show_table(const QString& name, const DataPtr& data) {

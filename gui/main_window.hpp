@@ -17,6 +17,7 @@ class QTableWidget;
 namespace skel::gui {
 
 class GraphEditMode;
+class LandmarkMode;
 class NodeScene;
 class NodeView;
 class Palette;
@@ -56,6 +57,9 @@ public:
   [[nodiscard]] QProgressBar* progress_bar() const { return progress_; }
   [[nodiscard]] QTableWidget* table_view() const { return table_; }
   [[nodiscard]] GraphEditMode* graph_edit() const { return edit_; }
+  // Landmark mode of the 3D view (docs/landmarks.md); leaves the graph edit mode.
+  void edit_landmarks();
+  [[nodiscard]] LandmarkMode* landmark_mode() const { return landmarks_; }
 
   void log(const QString& text, bool error = false);
   [[nodiscard]] QString log_text() const;
@@ -83,6 +87,7 @@ private:
   QPlainTextEdit* log_;
   QTableWidget* table_;
   GraphEditMode* edit_ = nullptr;
+  LandmarkMode* landmarks_ = nullptr;
   QProgressBar* progress_;
   QLabel* status_label_;
   QMenu* recent_menu_ = nullptr;
