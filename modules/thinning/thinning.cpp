@@ -170,12 +170,8 @@ public:
   }
   [[nodiscard]] int64_t count() const { return count_; }
   [[nodiscard]] uint64_t bytes() const { return keys_.size() * 12; }
-  // Level of object voxel i: from the compact level array when one was built, else from the priority.
-  [[nodiscard]] uint32_t level(int64_t i) const {
-    if (lv8_) return lv8_[i];
-    if (lv16_) return lv16_[i];
-    return level_from_priority(i);
-  }
+  // Level of object voxel i, from its priority (hash of the distinct values; no per-voxel array).
+  [[nodiscard]] uint32_t level(int64_t i) const { return level_from_priority(i); }
   [[nodiscard]] uint32_t level_from_priority(int64_t i) const {
     const uint64_t k = order_key(pr_[i]);
     if (direct_) return static_cast<uint32_t>(k - min_key_);
@@ -184,50 +180,11 @@ public:
     return static_cast<uint32_t>(ranks_[h]);
   }
 
-  // Builds a 1- or 2-byte level per voxel (object voxels only) when the levels fit: the queue then
-  // reads 1-2 bytes per neighbour instead of the priority value (fewer cache misses).
-  void build_array(const uint8_t* mask, int64_t n, int64_t nz, int threads) {
-    if (count_ <= 256) {
-      arr8_.reset(new uint8_t[static_cast<size_t>(n)]);
-      lv8_ = arr8_.get();
-    } else if (count_ <= 65536) {
-      arr16_.reset(new uint16_t[static_cast<size_t>(n)]);
-      lv16_ = arr16_.get();
-    } else {
-      return;
-    }
-    const int64_t plane = n / nz;
-    parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
-      uint64_t last_key = 0;
-      uint32_t last_level = 0;
-      bool has = false;
-      for (int64_t i = z0 * plane, e = z1 * plane; i < e; ++i) {
-        uint32_t l = 0;
-        if (mask[i]) {
-          const uint64_t k = order_key(pr_[i]);
-          if (!has || k != last_key) {
-            last_level = level_from_priority(i);
-            last_key = k;
-            has = true;
-          }
-          l = last_level;
-        }
-        if (lv8_) arr8_[static_cast<size_t>(i)] = static_cast<uint8_t>(l);
-        else arr16_[static_cast<size_t>(i)] = static_cast<uint16_t>(l);
-      }
-    });
-  }
-  [[nodiscard]] uint64_t array_bytes_per_voxel() const { return lv8_ ? 1 : lv16_ ? 2 : 0; }
-
 private:
   [[nodiscard]] size_t slot(uint64_t k) const {
     return static_cast<size_t>((k * 0x9E3779B97F4A7C15ull) >> 17) & (keys_.size() - 1);
   }
   const T* pr_;
-  std::unique_ptr<uint8_t[]> arr8_;
-  std::unique_ptr<uint16_t[]> arr16_;
-  const uint8_t* lv8_ = nullptr;
-  const uint16_t* lv16_ = nullptr;
   bool direct_ = false;
   uint64_t min_key_ = 0;
   int64_t count_ = 0;
@@ -402,17 +359,24 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
       for (int64_t y = 0; y < ny; ++y) {
         const int64_t row = nx * (y + ny * z);
         const bool edge_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
+        const uint8_t* mr = m + row;
+        uint8_t* sr = st + row;
+        std::memset(sr, 0, static_cast<size_t>(nx));
         for (int64_t x = 0; x < nx; ++x) {
+          if (x + 8 <= nx) {  // skip background eight voxels at a time
+            uint64_t w;
+            std::memcpy(&w, mr + x, 8);
+            if (w == 0) {
+              x += 7;
+              continue;
+            }
+          }
+          if (!mr[x]) continue;
           const int64_t i = row + x;
           const bool edge = edge_row || x == 0 || x == nx - 1;
-          if (!m[i]) {
-            st[i] = edge ? kBorder : 0;
-            continue;
-          }
           uint8_t s = kObject;
           if (lk && lk[i]) s |= kLocked;
-          if (edge) s |= kBorder;
-          st[i] = s;
+          sr[x] = s;
           ++pl.objects;
           const T v = pv[i];
           if constexpr (std::is_floating_point_v<T>) {
@@ -425,6 +389,12 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
           if (s & kLocked) continue;
           const bool boundary = edge || !(m[i - 1] && m[i + 1] && m[i - nx] && m[i + nx] && m[i - nx * ny] && m[i + nx * ny]);
           if (boundary) pl.boundary.push_back(i);
+        }
+        if (edge_row) {
+          for (int64_t x = 0; x < nx; ++x) sr[x] |= kBorder;
+        } else {
+          sr[0] |= kBorder;
+          sr[nx - 1] |= kBorder;
         }
       }
     }
@@ -440,15 +410,33 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
   if (stats.object_voxels > 0) {
     Levels<T> levels(pv, std::move(all_keys));
     stats.priority_levels = levels.count();
-    levels.build_array(m, mask.size(), nz, threads);
     Thinner th(st, mask.dims(), opt.end_point_length);
-    BucketQueue q(levels.count());
-    for (Plane& pl : planes) {
-      for (int64_t i : pl.boundary) {
-        st[i] |= kQueued;
-        q.push(levels.level(i), i);
+    // Initial queue: boundary voxels in raster order within each level; buckets sized exactly.
+    std::vector<std::vector<uint32_t>> plane_levels(static_cast<size_t>(nz));
+    parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
+      for (int64_t z = z0; z < z1; ++z) {
+        const auto& b = planes[static_cast<size_t>(z)].boundary;
+        auto& l = plane_levels[static_cast<size_t>(z)];
+        l.resize(b.size());
+        for (size_t j = 0; j < b.size(); ++j) {
+          st[b[j]] |= kQueued;
+          l[j] = levels.level(b[j]);
+        }
       }
-      std::vector<int64_t>().swap(pl.boundary);
+    });
+    BucketQueue q(levels.count());
+    {
+      std::vector<int64_t> count(static_cast<size_t>(levels.count()), 0);
+      for (const auto& l : plane_levels)
+        for (uint32_t v : l) ++count[v];
+      for (size_t v = 0; v < count.size(); ++v) q.bucket[v].reserve(static_cast<size_t>(count[v]));
+    }
+    for (int64_t z = 0; z < nz; ++z) {
+      auto& b = planes[static_cast<size_t>(z)].boundary;
+      auto& l = plane_levels[static_cast<size_t>(z)];
+      for (size_t j = 0; j < b.size(); ++j) q.push(l[j], b[j]);
+      std::vector<int64_t>().swap(b);
+      std::vector<uint32_t>().swap(l);
     }
     q.lowest = 0;
     irq.check(0.08);
@@ -575,8 +563,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         if (!found) break;
       }
     }
-    stats.bytes = static_cast<uint64_t>(q.peak) * 8 + levels.bytes() +
-                  levels.array_bytes_per_voxel() * static_cast<uint64_t>(mask.size());
+    stats.bytes = static_cast<uint64_t>(q.peak) * 8 + levels.bytes();
     irq.check(0.9);
 
     // Skeleton voxels, collected per plane in raster order.
