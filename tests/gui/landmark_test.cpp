@@ -4,7 +4,7 @@
 // planes, projected back onto the clicked pixel), check the residual table against an independent
 // fit, drag a landmark onto another slice position, undo/redo with the keys of the 3D view, save
 // (.landmarkAscii + io.read_landmarks/registration.landmarks nodes whose run reproduces the RMS),
-// clear and reload.
+// clear and reload, and place a point on the iso-surface (image value = iso value there).
 //
 // Screenshots go to <build>/gui_screenshots; with SKELFLOW_UPDATE_DOC_IMAGES=1 also to docs/images.
 #include <gtest/gtest.h>
@@ -76,6 +76,25 @@ QString write_pipeline(const QString& dir) {
 }
 
 double dist(const Vec3& a, const Vec3& b) { return std::hypot(a[0] - b[0], a[1] - b[1], a[2] - b[2]); }
+
+// Trilinear image value at a physical position (clamped to the grid).
+double trilinear(const VolumeF32& v, const Vec3& p) {
+  const Grid& g = v.grid();
+  int64_t i0[3];
+  double f[3];
+  for (int k = 0; k < 3; ++k) {
+    const double x = std::clamp((p[k] - g.origin[k]) / g.spacing[k], 0.0, double(g.dims[k] - 1));
+    i0[k] = std::min<int64_t>(static_cast<int64_t>(std::floor(x)), g.dims[k] - 2);
+    f[k] = x - double(i0[k]);
+  }
+  double value = 0;
+  for (int c = 0; c < 8; ++c) {
+    const int dx = c & 1, dy = (c >> 1) & 1, dz = (c >> 2) & 1;
+    const double w = (dx ? f[0] : 1 - f[0]) * (dy ? f[1] : 1 - f[1]) * (dz ? f[2] : 1 - f[2]);
+    value += w * v(i0[0] + dx, i0[1] + dy, i0[2] + dz);
+  }
+  return value;
+}
 
 }  // namespace
 
@@ -289,12 +308,37 @@ TEST(LandmarkMode, PlaceDragUndoSaveReload) {
   EXPECT_NEAR(s->rms(), rms_saved, 1e-9);
   EXPECT_EQ(table->model()->rowCount(), 5);
 
+  // Picking on an iso-surface: the placed point lies where the image crosses the iso value.
+  w.view3d()->set_volume_mode("phantom.image", VolumeMode::IsoSurface);
+  w.view3d()->set_iso_value("phantom.image", 0.5);
+  QTest::qWait(50);
+  std::optional<QPoint> on_surface;
+  for (int r = 0; r <= 120 && !on_surface; r += 3) {
+    for (int dy = -r; dy <= r && !on_surface; dy += 3) {
+      for (int dx = -r; dx <= r && !on_surface; dx += 3) {
+        const QPoint q = c + QPoint(dx, dy);
+        if (!lm->pick_landmark(q) && lm->pick_surface(q)) on_surface = q;
+      }
+    }
+  }
+  ASSERT_TRUE(on_surface.has_value());
+  EXPECT_EQ(s->active_set(), 0);
+  QTest::mouseClick(vtk, Qt::LeftButton, Qt::NoModifier, *on_surface);
+  ASSERT_EQ(s->pair_count(), 5);
+  const auto iso_point = s->point(4, 0);
+  ASSERT_TRUE(iso_point.has_value());
+  EXPECT_NEAR(trilinear(*image, *iso_point), 0.5, 0.05)
+      << (*iso_point)[0] << " " << (*iso_point)[1] << " " << (*iso_point)[2];
+  const auto iso_screen = lm->screen_position_f(*iso_point);
+  ASSERT_TRUE(iso_screen.has_value());
+  EXPECT_LT(std::hypot(iso_screen->first - (on_surface->x() + 0.5), iso_screen->second - (on_surface->y() + 0.5)), 1.0);
+
   // Leaving keeps the landmarks; the graph edit mode's menu entry would leave this mode.
   QDockWidget* dock = lm->dock();
   lm->stop();
   EXPECT_FALSE(lm->active());
   EXPECT_EQ(lm->dock(), nullptr);
-  EXPECT_EQ(s->pair_count(), 4);
+  EXPECT_EQ(s->pair_count(), 5);
   QTest::qWait(20);
   EXPECT_FALSE(w.findChildren<QDockWidget*>().contains(dock));
   // Opening another pipeline clears them.
