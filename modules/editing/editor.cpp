@@ -342,7 +342,18 @@ struct GraphEditor::Step {
 };
 
 GraphEditor::GraphEditor(SpatialGraph graph, EditContext context)
-    : graph_(std::move(graph)), context_(std::move(context)) {}
+    : graph_(std::move(graph)), context_(std::move(context)) {
+  // Headroom for added nodes and edges: without it the first edit that outgrows a vector of a
+  // 10⁶-edge graph reallocates it (and every attribute column) inside one interactive operation.
+  auto grow = [](auto& v) { v.reserve(v.size() + v.size() / 4 + 1024); };
+  grow(graph_.positions);
+  grow(graph_.edges);
+  for (auto& [name, v] : graph_.node_attributes) grow(v);
+  for (auto& [name, v] : graph_.node_labels) grow(v);
+  for (auto& [name, v] : graph_.edge_attributes) grow(v);
+  for (auto& [name, v] : graph_.edge_labels) grow(v);
+  for (auto& [name, v] : graph_.point_attributes) grow(v);
+}
 GraphEditor::~GraphEditor() = default;
 
 void GraphEditor::set_journal(const std::filesystem::path& path, double tolerance) {
