@@ -170,7 +170,8 @@ public:
   }
   [[nodiscard]] int64_t count() const { return count_; }
   [[nodiscard]] uint64_t bytes() const { return keys_.size() * 12; }
-  // Level of object voxel i, from its priority (hash of the distinct values; no per-voxel array).
+  // Level of object voxel i, from its priority (hash of the distinct values; no per-voxel array:
+  // measured faster than building one).
   [[nodiscard]] uint32_t level(int64_t i) const { return level_from_priority(i); }
   [[nodiscard]] uint32_t level_from_priority(int64_t i) const {
     const uint64_t k = order_key(pr_[i]);
@@ -308,11 +309,17 @@ struct BucketQueue {
   std::vector<size_t> head;
   int64_t lowest = 0;
   int64_t size = 0, peak = 0;
+  uint64_t extra_bytes = 0;  // working buffers outside the buckets (smooth variant)
   explicit BucketQueue(int64_t levels) : bucket(static_cast<size_t>(levels)), head(static_cast<size_t>(levels), 0) {}
   void push(uint32_t level, int64_t i) {
     bucket[level].push_back(i);
     if (static_cast<int64_t>(level) < lowest) lowest = level;
     peak = std::max(peak, ++size);
+  }
+  [[nodiscard]] uint64_t capacity_bytes() const {
+    uint64_t b = extra_bytes + bucket.capacity() * sizeof(bucket[0]) + head.capacity() * sizeof(size_t);
+    for (const auto& v : bucket) b += v.capacity() * sizeof(int64_t);
+    return b;
   }
   // Advances `lowest` to the first non-empty bucket; false if the queue is empty.
   bool settle() {
@@ -320,8 +327,9 @@ struct BucketQueue {
     while (lowest < n) {
       auto& b = bucket[static_cast<size_t>(lowest)];
       if (head[static_cast<size_t>(lowest)] < b.size()) return true;
-      if (b.capacity() > (1u << 16)) std::vector<int64_t>().swap(b);
-      else b.clear();
+      // Keep the capacity: levels are revisited (smooth variant); nothing is freed before the end, so
+      // the final capacities are the peak queue memory (reported in the statistics).
+      b.clear();
       head[static_cast<size_t>(lowest)] = 0;
       ++lowest;
     }
@@ -484,8 +492,11 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         bool found = false;
         while (!found && q.settle()) {
           const size_t lv = static_cast<size_t>(q.lowest);
-          tv.assign(q.bucket[lv].begin() + static_cast<std::ptrdiff_t>(q.head[lv]), q.bucket[lv].end());
-          q.bucket[lv].clear();
+          // Take the whole bucket (swap, no copy); entries pushed at this level meanwhile go to the
+          // emptied bucket, which reuses the previous level's buffer.
+          tv.clear();
+          std::swap(tv, q.bucket[lv]);
+          if (q.head[lv] > 0) tv.erase(tv.begin(), tv.begin() + static_cast<std::ptrdiff_t>(q.head[lv]));
           q.head[lv] = 0;
           q.size -= static_cast<int64_t>(tv.size());
           const int64_t nt = static_cast<int64_t>(tv.size());
@@ -562,8 +573,9 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         }
         if (!found) break;
       }
+      q.extra_bytes = tv.capacity() * 8 + dirs.capacity();
     }
-    stats.bytes = static_cast<uint64_t>(q.peak) * 8 + levels.bytes();
+    stats.bytes = q.capacity_bytes() + levels.bytes();
     irq.check(0.9);
 
     // Skeleton voxels, collected per plane in raster order.
