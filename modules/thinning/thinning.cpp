@@ -68,6 +68,10 @@ const DirectionMasks& direction_masks() {
   return m;
 }
 
+// Queue entries looked ahead when prefetching the state and priorities they will touch (the check,
+// flag and removal loops walk the level bucket in queue order; its voxels are scattered).
+constexpr int64_t kAhead = 8;  // (flag loop: 2 x kAhead)
+
 // Sub-iteration order: up, down, north, south, east, west (+z, -z, +y, -y, +x, -x).
 constexpr std::array<int, 6> kDirectionOrder = {4, 5, 2, 3, 0, 1};
 
@@ -208,6 +212,7 @@ public:
           ++k;
         }
     f6_ = {1, -1, nx_, -nx_, nx_ * ny_, -nx_ * ny_};
+    for (int r = 0; r < 9; ++r) row_[static_cast<size_t>(r)] = nx_ * ((r % 3 - 1) + ny_ * (r / 3 - 1));
   }
 
   [[nodiscard]] uint32_t neighbourhood(int64_t i) const {
@@ -216,6 +221,24 @@ public:
     uint32_t nb = 0;
     for (int k = 0; k < 26; ++k) nb |= static_cast<uint32_t>(p[off_[static_cast<size_t>(k)]] & kObject) << k;
     return nb;
+  }
+
+  // Prefetch hints for the nine rows of the 3x3x3 neighbourhood of i: state (and priority) bytes.
+  // Addresses are formed as integers: rows of a voxel on an array face may lie outside the arrays,
+  // which a prefetch ignores.
+  template <class P>
+  void prefetch(int64_t i, const P* pv) const {
+    for (const int64_t r : row_) {
+      __builtin_prefetch(address(st_, i + r - 1), 1);
+      __builtin_prefetch(address(pv, i + r - 1), 0);
+    }
+  }
+  void prefetch_state(int64_t i) const {
+    for (const int64_t r : row_) __builtin_prefetch(address(st_, i + r - 1), 0);
+  }
+  template <class P>
+  static const void* address(const P* base, int64_t i) {
+    return reinterpret_cast<const void*>(reinterpret_cast<uintptr_t>(base) + static_cast<uintptr_t>(i) * sizeof(P));
   }
 
   // Object neighbours of i as indices (returns count).
@@ -301,6 +324,7 @@ public:
   std::array<int64_t, 26> off_{};
   std::array<std::array<int, 3>, 26> d_{};
   std::array<int64_t, 6> f6_{};
+  std::array<int64_t, 9> row_{};  // index offsets of the nine rows of the 3x3x3 neighbourhood
 };
 
 // Bucket queue over dense levels; FIFO inside a bucket.
@@ -507,6 +531,12 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
           auto check = [&](int64_t b, int64_t e) {
             int64_t tested = 0;
             for (int64_t j = b; j < e; ++j) {
+              if (j + kAhead < e) {  // prefetch: the state of a voxel checked soon, its rows if uncached
+                const uint64_t ahead = static_cast<uint64_t>(tv[static_cast<size_t>(j + kAhead)]);
+                const int64_t a = static_cast<int64_t>(ahead & kIndexMask);
+                if (ahead & kCacheValid) __builtin_prefetch(st + a, 0);  // a is a voxel index: in range
+                else th.prefetch_state(a);
+              }
               const uint64_t entry = static_cast<uint64_t>(tv[static_cast<size_t>(j)]);
               const int64_t t = static_cast<int64_t>(entry & kIndexMask);
               if ((entry & kCacheValid) && !(st[t] & kDirty)) {
@@ -534,25 +564,34 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
           if (nt >= 8192 && threads != 1) parallel_for(0, nt, threads, check, 2048);
           else check(0, nt);
           stats.tests += fresh.load();
+          // Flags (branch-free), and the candidates compacted to the front of tv with their directions
+          // in bits 56..62, in queue order.
           uint32_t x_set = 0;
+          int64_t nc = 0;
           for (int64_t j = 0; j < nt; ++j) {
-            const int64_t t = static_cast<int64_t>(static_cast<uint64_t>(tv[static_cast<size_t>(j)]) & kIndexMask);
-            tv[static_cast<size_t>(j)] = t;
-            st[t] &= static_cast<uint8_t>(~(kQueued | kDirty));
-            if (dirs[static_cast<size_t>(j)]) {
-              st[t] |= kCandidate;
-              x_set |= dirs[static_cast<size_t>(j)] & 63u;
-            }
+            if (j + 2 * kAhead < nt)
+              __builtin_prefetch(st + (static_cast<uint64_t>(tv[static_cast<size_t>(j + 2 * kAhead)]) & kIndexMask), 1);
+            const uint64_t t = static_cast<uint64_t>(tv[static_cast<size_t>(j)]) & kIndexMask;
+            const uint8_t d = dirs[static_cast<size_t>(j)];
+            st[t] = static_cast<uint8_t>((st[t] & ~(kQueued | kDirty)) | (d != 0 ? kCandidate : 0));
+            x_set |= d;
+            tv[static_cast<size_t>(nc)] = static_cast<int64_t>(t | (static_cast<uint64_t>(d) << 56));
+            nc += d != 0;
           }
+          x_set &= 63u;
           if (x_set == 0) continue;  // nothing deletable at this level: next level
           found = true;
           ++stats.sub_iterations;
           const uint32_t chosen = 1u << choose_subiteration(x_set, iteration);
           // Sequential rechecking of the chosen sub-iteration; others are re-queued.
-          for (int64_t j = 0; j < nt; ++j) {
-            const uint8_t d = dirs[static_cast<size_t>(j)];
-            if (d == 0) continue;
-            const int64_t t = tv[static_cast<size_t>(j)];
+          for (int64_t j = 0; j < nc; ++j) {
+            if (j + kAhead < nc) {  // prefetch the neighbourhood of a voxel that will be removed soon
+              const uint64_t ahead = static_cast<uint64_t>(tv[static_cast<size_t>(j + kAhead)]);
+              if ((ahead >> 56) & chosen) th.prefetch(static_cast<int64_t>(ahead & kIndexMask), pv);
+            }
+            const uint64_t entry = static_cast<uint64_t>(tv[static_cast<size_t>(j)]);
+            const uint8_t d = static_cast<uint8_t>(entry >> 56);
+            const int64_t t = static_cast<int64_t>(entry & kIndexMask);
             st[t] &= static_cast<uint8_t>(~kCandidate);
             if (d & chosen) {
               // Unchanged neighbourhood since the parallel check (and not an end point): still deletable.
