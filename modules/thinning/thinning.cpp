@@ -19,8 +19,9 @@
 namespace skel {
 namespace {
 
-// Voxel state bits, kept in the output volume while thinning runs.
-constexpr uint8_t kObject = 1, kQueued = 2, kCandidate = 4, kLocked = 8, kBorder = 16;
+// Voxel state bits, kept in the output volume while thinning runs. kQueued: in the queue or a
+// candidate of the running sub-iteration; kVisited: skeleton component search after thinning.
+constexpr uint8_t kObject = 1, kQueued = 2, kVisited = 4, kLocked = 8, kBorder = 16;
 // A 26-neighbour was removed since the voxel's sub-iteration directions were cached (smooth variant).
 constexpr uint8_t kDirty = 32;
 // Smooth-variant queue entries may carry the voxel's cached sub-iteration directions (bits 56..61)
@@ -481,7 +482,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
       for (int k = 0; k < c; ++k) {
         const int64_t s = nbr[k];
         st[s] |= kDirty;
-        if (st[s] & (kQueued | kCandidate | kLocked)) continue;
+        if (st[s] & (kQueued | kLocked)) continue;
         st[s] |= kQueued;
         q.push(levels.level(s), s);
       }
@@ -565,7 +566,8 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
           else check(0, nt);
           stats.tests += fresh.load();
           // Flags (branch-free), and the candidates compacted to the front of tv with their directions
-          // in bits 56..62, in queue order.
+          // in bits 56..62, in queue order. Candidates keep kQueued while the removals below run (their
+          // removed neighbours must not queue them again); the re-queued ones keep it afterwards.
           uint32_t x_set = 0;
           int64_t nc = 0;
           for (int64_t j = 0; j < nt; ++j) {
@@ -573,7 +575,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
               __builtin_prefetch(st + (static_cast<uint64_t>(tv[static_cast<size_t>(j + 2 * kAhead)]) & kIndexMask), 1);
             const uint64_t t = static_cast<uint64_t>(tv[static_cast<size_t>(j)]) & kIndexMask;
             const uint8_t d = dirs[static_cast<size_t>(j)];
-            st[t] = static_cast<uint8_t>((st[t] & ~(kQueued | kDirty)) | (d != 0 ? kCandidate : 0));
+            st[t] = static_cast<uint8_t>((st[t] & ~(kQueued | kDirty)) | (d != 0 ? kQueued : 0));
             x_set |= d;
             tv[static_cast<size_t>(nc)] = static_cast<int64_t>(t | (static_cast<uint64_t>(d) << 56));
             nc += d != 0;
@@ -592,8 +594,8 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
             const uint64_t entry = static_cast<uint64_t>(tv[static_cast<size_t>(j)]);
             const uint8_t d = static_cast<uint8_t>(entry >> 56);
             const int64_t t = static_cast<int64_t>(entry & kIndexMask);
-            st[t] &= static_cast<uint8_t>(~kCandidate);
             if (d & chosen) {
+              st[t] &= static_cast<uint8_t>(~kQueued);
               // Unchanged neighbourhood since the parallel check (and not an end point): still deletable.
               if (!(d & 64u) && !(st[t] & kDirty)) {
                 remove(t);
@@ -603,7 +605,6 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
               uint32_t nb = 0;
               if (th.deletable(t, nb)) remove(t);
             } else {
-              st[t] |= kQueued;
               const uint64_t cache = (d & 64u) ? 0 : (kCacheValid | (static_cast<uint64_t>(d & 63u) << 56));
               q.push(static_cast<uint32_t>(lv), static_cast<int64_t>(static_cast<uint64_t>(t) | cache));
             }
@@ -646,9 +647,9 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
     // Stuck (fig. 2.23) components: contractible, more than one voxel, no kept end point, no lock.
     std::vector<int64_t> comp, stack;
     for (int64_t s0 : skel) {
-      if (st[s0] & kCandidate) continue;
+      if (st[s0] & kVisited) continue;
       comp.clear();
-      st[s0] |= kCandidate;  // reused as "visited"
+      st[s0] |= kVisited;
       stack.push_back(s0);
       bool anchored = false;
       while (!stack.empty()) {
@@ -659,8 +660,8 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         const int c = th.neighbours(i, nbr);
         if (c == 1 && opt.end_point_length > 0) anchored = true;
         for (int k = 0; k < c; ++k)
-          if (!(st[nbr[k]] & kCandidate)) {
-            st[nbr[k]] |= kCandidate;
+          if (!(st[nbr[k]] & kVisited)) {
+            st[nbr[k]] |= kVisited;
             stack.push_back(nbr[k]);
           }
       }
