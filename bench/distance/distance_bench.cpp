@@ -127,6 +127,7 @@ int main(int argc, char** argv) {
     t = bench::best_of(repeats, [&] { (void)distance::feature_transform(m, o); });
   } else if (mode == "chamfer") {
     distance::ChamferOptions o;
+    o.threads = threads;
     t = bench::best_of(repeats, [&] { (void)distance::chamfer(m, o); });
     std::printf("bits=%d\n", distance::chamfer_output_bits(m.grid(), o));
   } else if (mode == "chamfer_bp") {

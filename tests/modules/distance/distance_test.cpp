@@ -218,6 +218,7 @@ TEST(Chamfer, EqualsDijkstra345) {
   for (int trial = 0; trial < 200; ++trial) {
     ChamferOptions o;
     o.border_is_object = trial % 3 == 2;
+    o.threads = 1 + trial % 4;  // the wavefront over z with 1..4 threads (more threads than slices too)
     VolumeU8 m = random_mask(rng, random_dims(rng, 11), 0.5 + 0.49 * (trial % 5) / 4.0);
     DataPtr d = chamfer(m, o);
     auto c = std::dynamic_pointer_cast<const VolumeU16>(d);
@@ -423,6 +424,25 @@ TEST(Threads, IdenticalFor1_2_4) {
       EXPECT_TRUE(e1 == euclidean(*v, o));
       EXPECT_TRUE(f1 == feature_transform_as<uint32_t>(*v, fo));
       EXPECT_TRUE(s1 == seeded(*v, so));
+    }
+  }
+}
+
+TEST(Threads, ChamferIdenticalForAnyThreadCount) {
+  std::mt19937 rng(11);
+  for (const Dims& dims : {Dims{53, 47, 41}, Dims{70, 3, 9}, Dims{16, 16, 1}, Dims{5, 40, 2}}) {
+    VolumeU8 m = random_mask(rng, dims, 0.93);
+    for (bool border : {false, true}) {
+      ChamferOptions o;
+      o.border_is_object = border;
+      o.threads = 1;
+      const VolumeU16 c16 = chamfer_as<uint16_t>(m, o);
+      const VolumeU32 c32 = chamfer_as<uint32_t>(m, o);
+      for (int t : {2, 3, 4, 7}) {
+        o.threads = t;
+        EXPECT_TRUE(c16 == chamfer_as<uint16_t>(m, o)) << t << " threads, border " << border;
+        EXPECT_TRUE(c32 == chamfer_as<uint32_t>(m, o)) << t << " threads, border " << border;
+      }
     }
   }
 }
