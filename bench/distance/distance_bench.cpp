@@ -5,7 +5,6 @@
 // usage: bench_distance SIZE rods|plates OUT_DIR MODE [THREADS]; prints key=value lines.
 // The volume is synthetic.network (make_network, module defaults) when that library is built, else a
 // built-in lattice of rods / plates.
-#include <sys/mman.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -148,10 +147,7 @@ int main(int argc, char** argv) {
     std::vector<char> a(bytes, 1);
     t = bench::best_of(repeats + 2, [&] {
       std::unique_ptr<char[]> b(new char[bytes]);
-      constexpr uintptr_t kHuge = uintptr_t{2} << 20;
-      const uintptr_t lo = (reinterpret_cast<uintptr_t>(b.get()) + kHuge - 1) & ~(kHuge - 1);
-      const uintptr_t hi = (reinterpret_cast<uintptr_t>(b.get()) + bytes) & ~(kHuge - 1);
-      if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+      advise_huge_pages(b.get(), bytes);
       std::memcpy(b.get(), a.data(), bytes);
       a[static_cast<size_t>(static_cast<unsigned char>(b[bytes / 2])) % bytes] ^= 1;
     });

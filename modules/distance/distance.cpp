@@ -11,8 +11,6 @@
 #include <thread>
 #include <vector>
 
-#include <sys/mman.h>
-
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -28,21 +26,9 @@ namespace {
 
 // ============================================================================================ chamfer
 
-// Asks the kernel for transparent huge pages on a fresh output buffer before its first touch: the
-// first write to every 4 KiB page otherwise costs a page fault, a large part of a memory-bound pass.
-void advise_huge_pages(void* data, size_t bytes) {
-  constexpr uintptr_t kHuge = uintptr_t{2} << 20;
-  const uintptr_t b = (reinterpret_cast<uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
-  const uintptr_t e = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kHuge - 1);
-  if (e > b) (void)madvise(reinterpret_cast<void*>(b), e - b, MADV_HUGEPAGE);
-}
-
-template <class T> Volume<T> new_output(const Grid& g) {
-  Volume<T> v = Volume<T>::uninitialized(g);
-  if (v.size() > 0) advise_huge_pages(v.data(), static_cast<size_t>(v.bytes()));
-  return v;
-}
-
+// Outputs are allocated uninitialised; Volume's allocator already asks for transparent huge pages
+// (skel::advise_huge_pages), so the first touch of a 512³ output costs few page faults.
+template <class T> Volume<T> new_output(const Grid& g) { return Volume<T>::uninitialized(g); }
 
 struct Weights64 {
   uint64_t fx, fy, fz, exy, exz, eyz, v;
