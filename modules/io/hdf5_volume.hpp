@@ -28,9 +28,14 @@ struct VolumeInfo {
 // out-of-core algorithms' unit) one or two chunks, and 1 MiB chunks read far faster than HDF5's small
 // default chunks.
 // Compression: deflate at `compression` (0 = none); multi-byte types also get the shuffle filter.
+// write_volume compresses the chunks itself on `threads` threads (shuffle + zlib, the exact byte
+// layout of HDF5's shuffle and deflate filters) and stores them with H5Dwrite_chunk: the file is
+// the same as one written through HDF5's (single-threaded) filter pipeline, readable by any HDF5
+// reader. Edge chunks are stored full-size, zero-padded, as HDF5 stores them.
 struct WriteOptions {
   int compression = 1;           // deflate level 0..9 (0 = none)
   std::array<int64_t, 3> chunks{0, 0, 0};  // (x, y, z); 0 = automatic (~1 MiB, cube-like chunks)
+  int threads = 0;               // compression threads of write_volume; <= 0: all hardware threads
 };
 
 // Chunk shape (x, y, z) that write_volume / create_volume_dataset use for these dims and voxel size.

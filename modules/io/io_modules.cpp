@@ -58,6 +58,7 @@ of the volume.)");
   void run(RunContext& ctx) override {
     io::WriteOptions o;
     o.compression = static_cast<int>(ctx.param<int64_t>("compression"));
+    o.threads = ctx.threads();
     io::write_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.param<std::string>("dataset"), o);
   }
 };
