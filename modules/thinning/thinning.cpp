@@ -273,9 +273,22 @@ public:
     }
     const uint32_t nb = neighbourhood(i);
     nb_out = nb;
-    if (!is_simple_direct(nb)) return false;
+    if (!simple(nb)) return false;
     if (l_ > 0 && std::popcount(nb) == 1 && importance(i) > l_) return false;
     return true;
+  }
+
+  // The exact simple test behind a small direct-mapped cache of recent answers (thinning meets the
+  // same configurations over and over). Each slot packs the 26-bit configuration, a valid bit and
+  // the answer in one relaxed atomic word, so the parallel check may share it; only speed depends
+  // on its contents, never the answer.
+  [[nodiscard]] bool simple(uint32_t nb) const {
+    std::atomic<uint32_t>& slot = cache_[(nb * 0x9E3779B1u) >> (32 - kCacheBits)];
+    const uint32_t c = slot.load(std::memory_order_relaxed);
+    if ((c & ((1u << 27) - 1)) == (nb | (1u << 26))) return (c >> 27) & 1u;
+    const bool r = is_simple_direct(nb);
+    slot.store(nb | (1u << 26) | (static_cast<uint32_t>(r) << 27), std::memory_order_relaxed);
+    return r;
   }
 
   // Importance of the local end point i (thesis §2.3.1): the number of voxels p_0 = i, p_1, ... that
@@ -326,6 +339,8 @@ public:
   std::array<std::array<int, 3>, 26> d_{};
   std::array<int64_t, 6> f6_{};
   std::array<int64_t, 9> row_{};  // index offsets of the nine rows of the 3x3x3 neighbourhood
+  static constexpr int kCacheBits = 15;
+  std::unique_ptr<std::atomic<uint32_t>[]> cache_{new std::atomic<uint32_t>[size_t{1} << kCacheBits]()};
 };
 
 // Bucket queue over dense levels; FIFO inside a bucket.
