@@ -143,22 +143,32 @@ std::vector<char> coverage(const Sampled& s, const detail::PointIndex& index, do
   return covered;
 }
 
-// Fraction of the samples of edge `e` (in `s`) that have a sample of edge `f` (in `t`, indexed by
-// `t_index`) within tol.
-double edge_coverage(const Sampled& s, int64_t e, const Sampled& t, const detail::PointIndex& t_index, int64_t f,
-                     double tol, std::vector<std::pair<size_t, double>>& scratch, std::vector<int64_t>& found) {
+// Fraction of the samples of edge `e` (in `s`) that have a sample of edge `f` (in `t`) within tol.
+// Direct comparison of the two edges' samples (a few dozen each): the same squared distance
+// (summed over x, y, z in that order) and the same <= tol² test as PointIndex::within, so the result
+// equals the k-d tree query filtered to edge f. Once so many samples are missed that the fraction
+// cannot reach `overlap`, returns an upper bound that is < overlap (callers only compare it then).
+double edge_coverage(const Sampled& s, int64_t e, const Sampled& t, int64_t f, double tol, double overlap) {
   const int64_t a = s.offsets[static_cast<size_t>(e)], b = s.offsets[static_cast<size_t>(e) + 1];
+  const int64_t c = t.offsets[static_cast<size_t>(f)], d = t.offsets[static_cast<size_t>(f) + 1];
   if (b <= a) return 0.0;
-  int64_t hit = 0;
+  const double n = static_cast<double>(b - a), r2 = tol * tol;
+  int64_t hit = 0, miss = 0;
   for (int64_t i = a; i < b; ++i) {
-    t_index.within(s.points[static_cast<size_t>(i)], tol, scratch, found);
-    for (int64_t j : found)
-      if (t.edge[static_cast<size_t>(j)] == f) {
-        ++hit;
-        break;
-      }
+    const Vec3& p = s.points[static_cast<size_t>(i)];
+    bool covered = false;
+    for (int64_t j = c; j < d && !covered; ++j) {
+      const Vec3& q = t.points[static_cast<size_t>(j)];
+      const double dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+      covered = dx * dx + dy * dy + dz * dz <= r2;
+    }
+    if (covered) {
+      ++hit;
+    } else if (static_cast<double>(b - a - ++miss) / n < overlap) {
+      return static_cast<double>(b - a - miss) / n;
+    }
   }
-  return static_cast<double>(hit) / static_cast<double>(b - a);
+  return static_cast<double>(hit) / n;
 }
 
 MatchCounts counts(double reference, double other, double tp, double fp, double fn) {
@@ -301,8 +311,6 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
   std::atomic<int64_t> done{0};
   const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(64, ER / 1024 + 1));
   parallel_chunks(0, ER, chunks, th, [&](int64_t, int64_t a, int64_t b) {
-    std::vector<std::pair<size_t, double>> scratch;
-    std::vector<int64_t> found;
     for (int64_t e = a; e < b; ++e) {
       const auto& ed = reference.edges[static_cast<size_t>(e)];
       const int64_t m0 = node_match_r[static_cast<size_t>(ed.node0)], m1 = node_match_r[static_cast<size_t>(ed.node1)];
@@ -310,9 +318,9 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
       auto it = other_by_nodes.find({std::min(m0, m1), std::max(m0, m1)});
       if (it == other_by_nodes.end()) continue;
       for (int64_t f : it->second) {
-        const double c1 = edge_coverage(sr, e, so, io, f, o.edge_tolerance, scratch, found);
+        const double c1 = edge_coverage(sr, e, so, f, o.edge_tolerance, o.overlap);
         if (c1 < o.overlap) continue;
-        const double c2 = edge_coverage(so, f, sr, ir, e, o.edge_tolerance, scratch, found);
+        const double c2 = edge_coverage(so, f, sr, e, o.edge_tolerance, o.overlap);
         if (c2 < o.overlap) continue;
         per_edge[static_cast<size_t>(e)].push_back({e, f, std::max(0.0, 2.0 - c1 - c2)});
       }
