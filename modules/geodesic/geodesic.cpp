@@ -18,27 +18,31 @@ namespace {
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
 // A bitmap over the padded domain with O(1) rank (number of set bits before a position).
-// 2 bits per voxel: the bits and a 64-bit prefix count per word.
+// 2 bits per voxel. Before build_rank(), `words` holds the bits; after, pairs (bits of word w, set
+// bits before word w) interleaved, so a test and a rank touch one cache line.
 struct RankBits {
   std::vector<uint64_t> words;
-  std::vector<uint64_t> prefix;
-  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6)] >> (pos & 63)) & 1u; }
+  [[nodiscard]] uint64_t word(size_t w) const { return words[2 * w]; }
+  [[nodiscard]] uint64_t prefix(size_t w) const { return words[2 * w + 1]; }
+  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6) * 2] >> (pos & 63)) & 1u; }
   [[nodiscard]] uint64_t rank(int64_t pos) const {
-    const size_t w = static_cast<size_t>(pos >> 6);
-    const uint64_t below = (pos & 63) ? (words[w] & ((uint64_t{1} << (pos & 63)) - 1)) : 0;
-    return prefix[w] + static_cast<uint64_t>(std::popcount(below));
+    const size_t w = static_cast<size_t>(pos >> 6) * 2;
+    const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
+    return words[w + 1] + static_cast<uint64_t>(std::popcount(below));
   }
   uint64_t build_rank() {
-    prefix.resize(words.size() + 1);
+    const size_t n = words.size();
+    words.resize(2 * n);
+    for (size_t i = n; i-- > 1;) words[2 * i] = words[i];  // spread in place (word 0 stays)
     uint64_t s = 0;
-    for (size_t i = 0; i < words.size(); ++i) {
-      prefix[i] = s;
-      s += static_cast<uint64_t>(std::popcount(words[i]));
+    for (size_t i = 0; i < n; ++i) {
+      words[2 * i + 1] = s;
+      s += static_cast<uint64_t>(std::popcount(words[2 * i]));
     }
-    prefix[words.size()] = s;
     return s;
   }
-  [[nodiscard]] uint64_t bytes() const { return (words.size() + prefix.size()) * 8; }
+  [[nodiscard]] size_t word_count() const { return words.size() / 2; }
+  [[nodiscard]] uint64_t bytes() const { return words.size() * 8; }
 };
 
 struct Coord {
@@ -142,8 +146,8 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
   P.lcoord.resize(static_cast<size_t>(P.nl));
   parallel_for(0, static_cast<int64_t>(nwords), threads, [&](int64_t w0, int64_t w1) {
     for (int64_t w = w0; w < w1; ++w) {
-      uint64_t bits = P.layer.words[static_cast<size_t>(w)];
-      uint64_t id = P.layer.prefix[static_cast<size_t>(w)];
+      uint64_t bits = P.layer.word(static_cast<size_t>(w));
+      uint64_t id = P.layer.prefix(static_cast<size_t>(w));
       while (bits) {
         const int64_t pos = w * 64 + std::countr_zero(bits);
         bits &= bits - 1;
@@ -172,7 +176,7 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
                     [&](int64_t c, int64_t w0, int64_t w1) {
                       auto& out = parts[static_cast<size_t>(c)];
                       for (int64_t w = w0; w < w1; ++w) {
-                        uint64_t bits = P.obj.words[static_cast<size_t>(w)];
+                        uint64_t bits = P.obj.word(static_cast<size_t>(w));
                         while (bits) {
                           const int64_t pos = w * 64 + std::countr_zero(bits);
                           bits &= bits - 1;
@@ -264,33 +268,40 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
   intr.check(0.22);
 }
 
-// A distance array over L with range encoding (thesis fig. 2.37): a search stores base + d, so values
-// below the current base read as "unvisited" and the array is initialised only once, or again when
-// the 32-bit range overflows.
-struct RangeArray {
-  std::vector<uint32_t> d;
-  uint32_t base = 1, used = 0;  // `used`: largest distance stored by the last search
-  explicit RangeArray(size_t n) : d(n, 0) {}
-  uint32_t start(uint64_t max_distance) {
-    uint64_t nb = static_cast<uint64_t>(base) + used + 1;
-    if (nb + max_distance + 2 >= kNone) {
-      std::fill(d.begin(), d.end(), 0);
-      nb = 1;
-    }
-    base = static_cast<uint32_t>(nb);
-    used = 0;
-    return base;
+// Scratch of one worker. Own searches need only "visited" and "target" marks (one byte per L voxel:
+// the search runs level by level, so the distance is the level); pivot searches keep 16-bit distances
+// (d + 1, 0 = unvisited) because targets of neighbouring bases are looked up afterwards. Both are
+// reset through the lists of voxels they touched, so a search costs O(visited), never O(|L|).
+struct Scratch {
+  static constexpr uint8_t kVisited = 1, kTarget = 2;
+  std::vector<uint8_t> mark;    // own search: kVisited | kTarget
+  std::vector<uint16_t> pdist;  // pivot search: distance + 1
+  std::vector<uint32_t> queue;  // own search: visited voxels in distance order (cleared after the search)
+  std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
+  explicit Scratch(size_t nl) : mark(nl, 0), pdist(nl, 0) {}
+  [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist[v] != 0; }
+  [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return static_cast<uint32_t>(pdist[v]) - 1; }
+  [[nodiscard]] uint64_t bytes() const {
+    return mark.size() + pdist.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4;
   }
-  [[nodiscard]] bool visited(uint32_t v) const { return d[v] >= base; }
-  [[nodiscard]] uint32_t at(uint32_t v) const { return d[v] - base; }
 };
 
-// Scratch of one worker: a distance array for its own searches, one for pivot searches, a queue.
-struct Scratch {
-  RangeArray own, pivot;
-  std::vector<uint32_t> queue;
-  std::vector<uint8_t> is_target;  // set only during a search, for its targets
-  explicit Scratch(size_t nl) : own(nl), pivot(nl), is_target(nl, 0) {}
+// Object voxels grouped by base point, as padded positions: 32-bit where the padded domain allows.
+struct Members {
+  bool wide = false;
+  std::vector<uint32_t> narrow;
+  std::vector<int64_t> full;
+  void resize(size_t n, bool w) {
+    wide = w;
+    if (wide) full.resize(n);
+    else narrow.resize(n);
+  }
+  void set(size_t i, int64_t pos) {
+    if (wide) full[i] = pos;
+    else narrow[i] = static_cast<uint32_t>(pos);
+  }
+  [[nodiscard]] int64_t operator[](size_t i) const { return wide ? full[i] : static_cast<int64_t>(narrow[i]); }
+  [[nodiscard]] uint64_t bytes() const { return narrow.size() * 4 + full.size() * 8; }
 };
 
 // The considered neighbours of object voxel `pos` and their base points.
@@ -334,25 +345,30 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   std::vector<uint32_t> start(static_cast<size_t>(P.nl) + 1, 0);
   for (uint32_t l : P.b) ++start[l + 1];
   for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
-  std::vector<int64_t> members(static_cast<size_t>(P.k));
+  Members members;
+  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
   {
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    const size_t nwords = P.obj.words.size();
+    const size_t nwords = P.obj.word_count();
     for (size_t w = 0; w < nwords; ++w) {
-      uint64_t bits = P.obj.words[w];
-      uint64_t id = P.obj.prefix[w];
+      uint64_t bits = P.obj.word(w);
+      uint64_t id = P.obj.prefix(w);
       while (bits) {
         const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
         bits &= bits - 1;
-        members[fill[P.b[id++]]++] = pos;
+        members.set(fill[P.b[id++]]++, pos);
       }
     }
   }
   opt.interrupter.check(0.25);
 
   const float inf = std::numeric_limits<float>::infinity();
-  // Importance per object id (written once per voxel: each voxel is in exactly one bucket).
-  std::vector<float> imp(static_cast<size_t>(P.k), 0.0f);
+  // Importance goes straight into the output (written once per voxel: each voxel is in exactly one
+  // bucket, so threads never write the same element).
+  auto mask_index = [&](int64_t pos) {
+    const int64_t z = pos / D.plane, rem = pos % D.plane;
+    return mask.index(rem % D.BX - 2, rem / D.BX - 2, z - 2);
+  };
   // Bases are claimed once: by their own search or by a neighbouring pivot.
   std::vector<std::atomic<uint8_t>> claimed(static_cast<size_t>(P.nl));
   for (auto& c : claimed) c.store(0, std::memory_order_relaxed);
@@ -361,7 +377,8 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   std::mutex scratch_mutex;
   std::vector<std::unique_ptr<Scratch>> pool;
   std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
-  const uint32_t pivot_margin = full ? 0 : std::max<uint32_t>(2, t / 4);
+  // Pivot distances are 16-bit: no pivots where t + margin does not fit (results are the same).
+  const uint32_t pivot_margin = full || t + std::max<uint32_t>(2, t / 4) >= 65534 ? 0 : std::max<uint32_t>(2, t / 4);
 
   auto acquire = [&]() {
     std::lock_guard lock(scratch_mutex);
@@ -377,21 +394,27 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     pool.push_back(std::move(s));
   };
 
-  // Breadth-first search over L from `src` up to distance `limit`, stopping early once every target
-  // in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns the number of
-  // visited voxels. S.queue holds the visited voxels in order of distance afterwards.
-  auto bfs = [&](Scratch& S, RangeArray& R, uint32_t src, uint32_t limit, const std::vector<uint32_t>& want,
-                 std::vector<uint32_t>& wd) -> int64_t {
-    const uint32_t base = R.start(limit);
+  // The six 6-neighbours of L voxel v that are in L, as L-ids, passed to f.
+  auto for_each_layer_neighbour = [&](uint32_t v, auto&& f) {
+    const int64_t pos = P.lpos(v);
+    const int64_t nb[6] = {pos - 1, pos + 1, pos - D.BX, pos + D.BX, pos - D.plane, pos + D.plane};
+    for (int64_t q : nb)
+      if (P.layer.test(q)) f(static_cast<uint32_t>(P.layer.rank(q)));
+  };
+
+  // Own search: breadth-first over L from `src`, level by level up to distance `limit`, stopping once
+  // every target in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns
+  // the number of visited voxels. The marks are cleared again before returning.
+  auto own_bfs = [&](Scratch& S, uint32_t src, uint32_t limit, const std::vector<uint32_t>& want,
+                     std::vector<uint32_t>& wd) -> int64_t {
     S.queue.clear();
     S.queue.push_back(src);
-    R.d[src] = base;
+    S.mark[src] |= Scratch::kVisited;
     int64_t left = static_cast<int64_t>(want.size());
-    const bool stop_early = left > 0;
     wd.assign(want.size(), kNone);
-    for (uint32_t w : want) S.is_target[w] = 1;
+    for (uint32_t w : want) S.mark[w] |= Scratch::kTarget;
     auto check_target = [&](uint32_t v, uint32_t d) {
-      if (!S.is_target[v]) return;
+      if (!(S.mark[v] & Scratch::kTarget)) return;
       for (size_t i = 0; i < want.size(); ++i)
         if (want[i] == v && wd[i] == kNone) {
           wd[i] = d;
@@ -400,28 +423,47 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     };
     check_target(src, 0);
     int64_t visited = 0;
-    uint32_t dmax = 0;
-    for (size_t head = 0; head < S.queue.size(); ++head) {
-      if (stop_early && left == 0) break;
+    uint32_t dv = 0;
+    size_t level_end = 1;  // queue[.. level_end) has distance <= dv
+    for (size_t head = 0; head < S.queue.size() && left > 0; ++head) {
+      if (head == level_end) {
+        ++dv;
+        level_end = S.queue.size();
+      }
       const uint32_t v = S.queue[head];
-      const uint32_t dv = R.d[v] - base;
       ++visited;
       if (dv >= limit) continue;
-      const int64_t pos = P.lpos(v);
-      const int64_t nb[6] = {pos - 1, pos + 1, pos - D.BX, pos + D.BX, pos - D.plane, pos + D.plane};
-      for (int64_t q : nb) {
-        if (!P.layer.test(q)) continue;
-        const uint32_t u = static_cast<uint32_t>(P.layer.rank(q));
-        if (R.d[u] >= base) continue;
-        R.d[u] = base + dv + 1;
-        dmax = dv + 1;
+      for_each_layer_neighbour(v, [&](uint32_t u) {
+        if (S.mark[u] & Scratch::kVisited) return;
+        S.mark[u] |= Scratch::kVisited;
         S.queue.push_back(u);
-        if (stop_early) check_target(u, dv + 1);
-      }
+        check_target(u, dv + 1);
+      });
     }
-    R.used = dmax;
-    for (uint32_t w : want) S.is_target[w] = 0;
+    for (uint32_t v : S.queue) S.mark[v] = 0;
+    for (uint32_t w : want) S.mark[w] = 0;
     return visited;
+  };
+
+  // Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
+  // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
+  // voxels in distance order.
+  auto pivot_bfs = [&](Scratch& S, uint32_t src, uint32_t limit) -> int64_t {
+    for (uint32_t v : S.pqueue) S.pdist[v] = 0;
+    S.pqueue.clear();
+    S.pqueue.push_back(src);
+    S.pdist[src] = 1;
+    for (size_t head = 0; head < S.pqueue.size(); ++head) {
+      const uint32_t v = S.pqueue[head];
+      const uint16_t dv1 = S.pdist[v];  // distance + 1
+      if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
+      for_each_layer_neighbour(v, [&](uint32_t u) {
+        if (S.pdist[u]) return;
+        S.pdist[u] = static_cast<uint16_t>(dv1 + 1);
+        S.pqueue.push_back(u);
+      });
+    }
+    return static_cast<int64_t>(S.pqueue.size());
   };
 
   // Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
@@ -446,7 +488,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
           if (!full) g = std::min(g, static_cast<float>(t));
           v = std::max(v, g);
         });
-        imp[P.obj.rank(members[m])] = v;
+        res.importance[mask_index(members[m])] = v;
       }
     };
     // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
@@ -464,7 +506,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
         }
       if (want.empty()) return false;
       const uint32_t limit = full ? static_cast<uint32_t>(std::min<int64_t>(P.nl, kNone / 2)) : t;
-      n_visited += bfs(S, S.own, base_id, limit, want, wd);
+      n_visited += own_bfs(S, base_id, limit, want, wd);
       ++n_search;
       bool open = false;
       for (size_t j = 0; j < want.size(); ++j) {
@@ -484,14 +526,12 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
 
     // Pivot: search from `a` up to t + margin, then settle the bases within `margin`.
     const uint32_t plimit = t + pivot_margin;
-    const std::vector<uint32_t> no_targets;
-    std::vector<uint32_t> no_dist;
-    n_visited += bfs(S, S.pivot, a, plimit, no_targets, no_dist);
+    n_visited += pivot_bfs(S, a, plimit);
     ++n_search;
     ++n_pivots;
     std::vector<uint32_t> near;  // bases with work within `margin` of a (the queue is in distance order)
-    for (uint32_t v : S.queue) {
-      if (S.pivot.at(v) > pivot_margin) break;
+    for (uint32_t v : S.pqueue) {
+      if (S.pivot_at(v) > pivot_margin) break;
       if (v != a && start[v + 1] > start[v]) near.push_back(v);
     }
     for (uint32_t a2 : near) {
@@ -499,11 +539,11 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
       if (!claimed[a2].compare_exchange_strong(expected, 1)) continue;
       gather(a2);
       tdist.assign(targets.size(), kNone);
-      const uint32_t da2 = S.pivot.at(a2);
+      const uint32_t da2 = S.pivot_at(a2);
       for (size_t i = 0; i < targets.size(); ++i) {
         const uint32_t c = targets[i];
         // g(a, c) > t + margin (unreached) or >= t + g(a, a2): then g(a2, c) >= t.
-        if (!S.pivot.visited(c) || S.pivot.at(c) >= t + da2) {
+        if (!S.pivot_visited(c) || S.pivot_at(c) >= t + da2) {
           tdist[i] = t;
           ++n_saturated;
         }
@@ -536,19 +576,11 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     release(std::move(S));
   });
 
-  // Scatter into the output volumes.
-  parallel_for(0, D.nz, opt.threads, [&](int64_t z0, int64_t z1) {
-    for (int64_t z = z0; z < z1; ++z)
-      for (int64_t y = 0; y < D.ny; ++y)
-        for (int64_t x = 0; x < D.nx; ++x) {
-          const int64_t pos = D.pos(x + 2, y + 2, z + 2);
-          if (!P.obj.test(pos)) continue;
-          const float v = imp[P.obj.rank(pos)];
-          const int64_t i = mask.index(x, y, z);
-          res.importance[i] = v;
-          res.surface_skeleton[i] = v >= static_cast<float>(t) ? 1 : 0;
-        }
-  });
+  // Surface skeleton from the importance (background is 0 < t).
+  const float tf = static_cast<float>(t);
+  parallel_for(0, static_cast<int64_t>(mask.size()), opt.threads, [&](int64_t i0, int64_t i1) {
+    for (int64_t i = i0; i < i1; ++i) res.surface_skeleton[i] = res.importance[i] >= tf ? 1 : 0;
+  }, 1 << 16);
   res.stats.base_points = n_bases.load();
   res.stats.searches = n_search.load();
   res.stats.pivots = n_pivots.load();
@@ -556,8 +588,8 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.saturated_by_pivot = n_saturated.load();
   res.stats.visited = n_visited.load();
   res.stats.bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 +
-                    P.lcomp.size() * 4 + start.size() * 4 + members.size() * 8 + imp.size() * 4 +
-                    claimed.size() + static_cast<uint64_t>(std::max<size_t>(pool.size(), 1)) * static_cast<uint64_t>(P.nl) * 8;
+                    P.lcomp.size() * 4 + start.size() * 4 + members.bytes() + claimed.size();
+  for (const auto& sc : pool) res.stats.bytes += sc->bytes();
   // (The ring propagation's temporary `reached` array, 1 byte per object voxel, is freed before.)
   opt.interrupter.check(1.0);
   return res;
