@@ -278,11 +278,12 @@ struct Scratch {
   std::vector<uint16_t> pdist;  // pivot search: distance + 1
   std::vector<uint32_t> queue;  // own search: visited voxels in distance order (cleared after the search)
   std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
+  std::vector<int64_t> qpos;    // padded positions of the current search's queue
   explicit Scratch(size_t nl) : mark(nl, 0), pdist(nl, 0) {}
   [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist[v] != 0; }
   [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return static_cast<uint32_t>(pdist[v]) - 1; }
   [[nodiscard]] uint64_t bytes() const {
-    return mark.size() + pdist.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4;
+    return mark.size() + pdist.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4 + qpos.capacity() * 8;
   }
 };
 
@@ -394,12 +395,12 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     pool.push_back(std::move(s));
   };
 
-  // The six 6-neighbours of L voxel v that are in L, as L-ids, passed to f.
-  auto for_each_layer_neighbour = [&](uint32_t v, auto&& f) {
-    const int64_t pos = P.lpos(v);
+  // The 6-neighbours of the L voxel at padded position `pos` that are in L: f(L-id, position).
+  // (Searches queue positions as well as L-ids, so a visit needs no coordinate look-up.)
+  auto for_each_layer_neighbour = [&](int64_t pos, auto&& f) {
     const int64_t nb[6] = {pos - 1, pos + 1, pos - D.BX, pos + D.BX, pos - D.plane, pos + D.plane};
     for (int64_t q : nb)
-      if (P.layer.test(q)) f(static_cast<uint32_t>(P.layer.rank(q)));
+      if (P.layer.test(q)) f(static_cast<uint32_t>(P.layer.rank(q)), q);
   };
 
   // Own search: breadth-first over L from `src`, level by level up to distance `limit`, stopping once
@@ -409,6 +410,8 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
                      std::vector<uint32_t>& wd) -> int64_t {
     S.queue.clear();
     S.queue.push_back(src);
+    S.qpos.clear();
+    S.qpos.push_back(P.lpos(src));
     S.mark[src] |= Scratch::kVisited;
     int64_t left = static_cast<int64_t>(want.size());
     wd.assign(want.size(), kNone);
@@ -430,13 +433,13 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
         ++dv;
         level_end = S.queue.size();
       }
-      const uint32_t v = S.queue[head];
       ++visited;
       if (dv >= limit) continue;
-      for_each_layer_neighbour(v, [&](uint32_t u) {
+      for_each_layer_neighbour(S.qpos[head], [&](uint32_t u, int64_t q) {
         if (S.mark[u] & Scratch::kVisited) return;
         S.mark[u] |= Scratch::kVisited;
         S.queue.push_back(u);
+        S.qpos.push_back(q);
         check_target(u, dv + 1);
       });
     }
@@ -452,15 +455,17 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     for (uint32_t v : S.pqueue) S.pdist[v] = 0;
     S.pqueue.clear();
     S.pqueue.push_back(src);
+    S.qpos.clear();
+    S.qpos.push_back(P.lpos(src));
     S.pdist[src] = 1;
     for (size_t head = 0; head < S.pqueue.size(); ++head) {
-      const uint32_t v = S.pqueue[head];
-      const uint16_t dv1 = S.pdist[v];  // distance + 1
+      const uint16_t dv1 = S.pdist[S.pqueue[head]];  // distance + 1
       if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-      for_each_layer_neighbour(v, [&](uint32_t u) {
+      for_each_layer_neighbour(S.qpos[head], [&](uint32_t u, int64_t q) {
         if (S.pdist[u]) return;
         S.pdist[u] = static_cast<uint16_t>(dv1 + 1);
         S.pqueue.push_back(u);
+        S.qpos.push_back(q);
       });
     }
     return static_cast<int64_t>(S.pqueue.size());
