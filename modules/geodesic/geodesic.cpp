@@ -499,13 +499,35 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
     // component of L (the others have no path: infinite). Returns true if targets were left when
     // the search reached the threshold.
+    // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
+    // its other targets are searched only if another voxel of the bucket needs them.
     std::vector<uint32_t> want, wd;
     std::vector<size_t> want_index;
+    std::vector<uint8_t> needed;
+    auto mark_needed = [&](uint32_t base_id) {
+      const bool any_saturated =
+          !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
+      needed.assign(targets.size(), any_saturated ? 0 : 1);
+      if (!any_saturated) return;
+      for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+        size_t idx[6];
+        int n = 0;
+        bool saturated = false;
+        for_each_target(P, members[m], [&](uint32_t c) {
+          const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
+          idx[n++] = i;
+          if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
+        });
+        if (!saturated)
+          for (int j = 0; j < n; ++j) needed[idx[j]] = 1;
+      }
+    };
     auto own_search = [&](uint32_t base_id) -> bool {
       want.clear();
       want_index.clear();
+      mark_needed(base_id);
       for (size_t i = 0; i < targets.size(); ++i)
-        if (tdist[i] == kNone && P.lcomp[targets[i]] == P.lcomp[base_id]) {
+        if (tdist[i] == kNone && needed[i] && P.lcomp[targets[i]] == P.lcomp[base_id]) {
           want.push_back(targets[i]);
           want_index.push_back(i);
         }
