@@ -18,9 +18,9 @@ int main(int argc, char** argv) {
   std::printf("## Geodesic boundary distance\n\n");
   std::printf("Threshold mode, %d threads. Yardstick: `distance.euclidean` (exact EDT) on the same mask in the same run. "
               "k = object voxels, |L| = boundary-layer voxels; searches = breadth-first searches run (one per base point, "
-              "plus pivots); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
-  std::printf("| phantom | size | t | object %% | time (s) | EDT (s) | time / EDT | searches | visited / k | bytes / k |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+              "plus pivots), of them pivots and long (own searches that ran to t); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
+  std::printf("| phantom | size | t | object %% | time (s) | EDT (s) | time / EDT | |L| / k | searches | pivots | long | visited / k | bytes / k |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const char* shape : {"plates", "mixed"}) {
     std::vector<int64_t> sizes = {256};
     if (big) sizes.push_back(512);
@@ -42,9 +42,11 @@ int main(int argc, char** argv) {
         go.threads = threads;
         geodesic::Result r;
         const double s = bench::best_of(1, [&] { r = geodesic::boundary_distance(ph.mask, go); });
-        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.0f | %lld | %.0f | %.1f |\n", shape,
+        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.0f | %.2f | %lld | %lld | %lld | %.0f | %.1f |\n", shape,
                     static_cast<long long>(n), static_cast<long long>(t), 100.0 * static_cast<double>(k) / static_cast<double>(ph.mask.size()),
-                    s, edt, s / edt, static_cast<long long>(r.stats.searches),
+                    s, edt, s / edt, static_cast<double>(r.stats.layer_voxels) / static_cast<double>(k),
+                    static_cast<long long>(r.stats.searches), static_cast<long long>(r.stats.pivots),
+                    static_cast<long long>(r.stats.long_searches),
                     static_cast<double>(r.stats.visited) / static_cast<double>(k), static_cast<double>(r.stats.bytes) / static_cast<double>(k));
         std::fflush(stdout);
       }
