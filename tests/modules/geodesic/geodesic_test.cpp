@@ -112,6 +112,23 @@ TEST(Geodesic, SlabMidSurfaceIsSelectedAndPivotsSaveSearches) {
   EXPECT_TRUE(a.importance == r.importance);
 }
 
+TEST(Geodesic, ThresholdBeyondPivotRangeEqualsReference) {
+  // Pivot distances are 16-bit, so for t + t/4 >= 65534 the pivots are switched off; the values
+  // must not change (here every path is shorter than t, so the values are the plain distances).
+  VolumeU8 m = slab(Dims{20, 18, 10}, 4, 2);
+  Options o;
+  o.threshold = 60000;
+  o.threads = 2;
+  Result a = boundary_distance(m, o);
+  Result r = boundary_distance_reference(m, o);
+  EXPECT_EQ(a.stats.pivots, 0);
+  EXPECT_TRUE(a.importance == r.importance);
+  o.threshold = 10;
+  Result b = boundary_distance(m, o);
+  EXPECT_GT(b.stats.pivots, 0);
+  EXPECT_TRUE(b.importance == boundary_distance_reference(m, o).importance);
+}
+
 TEST(Geodesic, EmptyAndInvalid) {
   VolumeU8 e(Dims{5, 5, 5}, 0);
   Result r = boundary_distance(e);
