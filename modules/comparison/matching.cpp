@@ -113,18 +113,37 @@ struct Sampled {
   std::vector<int64_t> offsets;  // samples of edge e: [offsets[e], offsets[e+1])
 };
 
-Sampled sample_graph(const SpatialGraph& g, double spacing) {
+// Two parallel passes over the edges: sample counts (for the offsets), then each edge's samples
+// written in place: no reallocation of the multi-million-sample arrays. resample_polyline is
+// deterministic, so both passes see the same samples.
+Sampled sample_graph(const SpatialGraph& g, double spacing, int threads) {
   Sampled s;
-  s.offsets.assign(g.edges.size() + 1, 0);
-  std::vector<Vec3> p;
-  std::vector<double> w;
-  for (size_t e = 0; e < g.edges.size(); ++e) {
-    resample_polyline(g.edges[e].points, spacing, p, w);
-    s.points.insert(s.points.end(), p.begin(), p.end());
-    s.weights.insert(s.weights.end(), w.begin(), w.end());
-    s.edge.insert(s.edge.end(), p.size(), static_cast<int64_t>(e));
-    s.offsets[e + 1] = static_cast<int64_t>(s.points.size());
-  }
+  const int64_t E = static_cast<int64_t>(g.edges.size());
+  s.offsets.assign(static_cast<size_t>(E) + 1, 0);
+  parallel_for(0, E, threads, [&](int64_t a, int64_t b) {
+    std::vector<Vec3> p;
+    std::vector<double> w;
+    for (int64_t e = a; e < b; ++e) {
+      resample_polyline(g.edges[static_cast<size_t>(e)].points, spacing, p, w);
+      s.offsets[static_cast<size_t>(e) + 1] = static_cast<int64_t>(p.size());
+    }
+  }, 1024);
+  for (int64_t e = 0; e < E; ++e) s.offsets[static_cast<size_t>(e) + 1] += s.offsets[static_cast<size_t>(e)];
+  const auto total = static_cast<size_t>(s.offsets.back());
+  s.points.resize(total);
+  s.weights.resize(total);
+  s.edge.resize(total);
+  parallel_for(0, E, threads, [&](int64_t a, int64_t b) {
+    std::vector<Vec3> p;
+    std::vector<double> w;
+    for (int64_t e = a; e < b; ++e) {
+      resample_polyline(g.edges[static_cast<size_t>(e)].points, spacing, p, w);
+      const auto o = static_cast<size_t>(s.offsets[static_cast<size_t>(e)]);
+      std::copy(p.begin(), p.end(), s.points.begin() + static_cast<std::ptrdiff_t>(o));
+      std::copy(w.begin(), w.end(), s.weights.begin() + static_cast<std::ptrdiff_t>(o));
+      std::fill_n(s.edge.begin() + static_cast<std::ptrdiff_t>(o), p.size(), e);
+    }
+  }, 1024);
   return s;
 }
 
@@ -281,8 +300,8 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
   intr.check(0.15);
 
   // 2. Samples and geometric coverage.
-  const Sampled sr = sample_graph(reference, o.sample_spacing);
-  const Sampled so = sample_graph(other, o.sample_spacing);
+  const Sampled sr = sample_graph(reference, o.sample_spacing, th);
+  const Sampled so = sample_graph(other, o.sample_spacing, th);
   const detail::PointIndex ir(sr.points), io(so.points);
   const std::vector<char> cov_r = coverage(sr, io, o.edge_tolerance, th, intr.sub(0.15, 0.35));
   const std::vector<char> cov_o = coverage(so, ir, o.edge_tolerance, th, intr.sub(0.35, 0.55));
