@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <type_traits>
 #include <vector>
 
 #include "skel/error.hpp"
@@ -269,21 +270,28 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
 }
 
 // Scratch of one worker. Own searches need only "visited" and "target" marks (one byte per L voxel:
-// the search runs level by level, so the distance is the level); pivot searches keep 16-bit distances
-// (d + 1, 0 = unvisited) because targets of neighbouring bases are looked up afterwards. Both are
-// reset through the lists of voxels they touched, so a search costs O(visited), never O(|L|).
+// the search runs level by level, so the distance is the level); pivot searches keep 8- or 16-bit
+// distances (d + 1, 0 = unvisited; none without pivots) because targets of neighbouring bases are
+// looked up afterwards. Both are reset through the lists of voxels they touched, so a search costs
+// O(visited), never O(|L|).
 struct Scratch {
   static constexpr uint8_t kVisited = 1, kTarget = 2;
-  std::vector<uint8_t> mark;    // own search: kVisited | kTarget
-  std::vector<uint16_t> pdist;  // pivot search: distance + 1
+  std::vector<uint8_t> mark;      // own search: kVisited | kTarget
+  std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
+  std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
   std::vector<uint32_t> queue;  // own search: visited voxels in distance order (cleared after the search)
   std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
   std::vector<int64_t> qpos;    // padded positions of the current search's queue
-  explicit Scratch(size_t nl) : mark(nl, 0), pdist(nl, 0) {}
-  [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist[v] != 0; }
-  [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return static_cast<uint32_t>(pdist[v]) - 1; }
+  Scratch(size_t nl, uint32_t pivot_limit) : mark(nl, 0) {
+    if (pivot_limit == 0) return;
+    if (pivot_limit <= 254) pdist8.assign(nl, 0);
+    else pdist16.assign(nl, 0);
+  }
+  [[nodiscard]] uint32_t pdist(uint32_t v) const { return pdist8.empty() ? pdist16[v] : pdist8[v]; }
+  [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist(v) != 0; }
+  [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return pdist(v) - 1; }
   [[nodiscard]] uint64_t bytes() const {
-    return mark.size() + pdist.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4 + qpos.capacity() * 8;
+    return mark.size() + pdist8.size() + pdist16.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4 + qpos.capacity() * 8;
   }
 };
 
@@ -371,8 +379,12 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     return mask.index(rem % D.BX - 2, rem / D.BX - 2, z - 2);
   };
   // Bases are claimed once: by their own search or by a neighbouring pivot.
-  std::vector<std::atomic<uint8_t>> claimed(static_cast<size_t>(P.nl));
+  std::vector<std::atomic<uint64_t>> claimed(static_cast<size_t>((P.nl + 63) / 64));
   for (auto& c : claimed) c.store(0, std::memory_order_relaxed);
+  auto claim = [&](uint32_t l) {  // true for the one caller that claims base l
+    const uint64_t bit = uint64_t{1} << (l & 63);
+    return !(claimed[l >> 6].fetch_or(bit) & bit);
+  };
 
   const int nthreads = effective_threads(opt.threads);
   std::mutex scratch_mutex;
@@ -388,7 +400,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
       pool.pop_back();
       return s;
     }
-    return std::make_unique<Scratch>(static_cast<size_t>(P.nl));
+    return std::make_unique<Scratch>(static_cast<size_t>(P.nl), pivot_margin ? t + pivot_margin : 0);
   };
   auto release = [&](std::unique_ptr<Scratch> s) {
     std::lock_guard lock(scratch_mutex);
@@ -452,22 +464,27 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
   // voxels in distance order.
   auto pivot_bfs = [&](Scratch& S, uint32_t src, uint32_t limit) -> int64_t {
-    for (uint32_t v : S.pqueue) S.pdist[v] = 0;
-    S.pqueue.clear();
-    S.pqueue.push_back(src);
-    S.qpos.clear();
-    S.qpos.push_back(P.lpos(src));
-    S.pdist[src] = 1;
-    for (size_t head = 0; head < S.pqueue.size(); ++head) {
-      const uint16_t dv1 = S.pdist[S.pqueue[head]];  // distance + 1
-      if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-      for_each_layer_neighbour(S.qpos[head], [&](uint32_t u, int64_t q) {
-        if (S.pdist[u]) return;
-        S.pdist[u] = static_cast<uint16_t>(dv1 + 1);
-        S.pqueue.push_back(u);
-        S.qpos.push_back(q);
-      });
-    }
+    auto run = [&](auto& pdist) {
+      using T = typename std::decay_t<decltype(pdist)>::value_type;
+      for (uint32_t v : S.pqueue) pdist[v] = 0;
+      S.pqueue.clear();
+      S.pqueue.push_back(src);
+      S.qpos.clear();
+      S.qpos.push_back(P.lpos(src));
+      pdist[src] = 1;
+      for (size_t head = 0; head < S.pqueue.size(); ++head) {
+        const T dv1 = pdist[S.pqueue[head]];  // distance + 1
+        if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
+        for_each_layer_neighbour(S.qpos[head], [&](uint32_t u, int64_t q) {
+          if (pdist[u]) return;
+          pdist[u] = static_cast<T>(dv1 + 1);
+          S.pqueue.push_back(u);
+          S.qpos.push_back(q);
+        });
+      }
+    };
+    if (S.pdist8.empty()) run(S.pdist16);
+    else run(S.pdist8);
     return static_cast<int64_t>(S.pqueue.size());
   };
 
@@ -562,8 +579,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
       if (v != a && start[v + 1] > start[v]) near.push_back(v);
     }
     for (uint32_t a2 : near) {
-      uint8_t expected = 0;
-      if (!claimed[a2].compare_exchange_strong(expected, 1)) continue;
+      if (!claim(a2)) continue;
       gather(a2);
       tdist.assign(targets.size(), kNone);
       const uint32_t da2 = S.pivot_at(a2);
@@ -594,8 +610,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
     auto S = acquire();
     for (int64_t w = w0; w < w1; ++w) {
       const uint32_t a = work[static_cast<size_t>(w)];
-      uint8_t expected = 0;
-      if (!claimed[a].compare_exchange_strong(expected, 1)) continue;
+      if (!claim(a)) continue;
       process_base(*S, a);
       if ((w & 255) == 0)
         search_progress.check(static_cast<double>(done_bases.load()) / static_cast<double>(std::max<int64_t>(1, n_bases.load())));
@@ -615,7 +630,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.saturated_by_pivot = n_saturated.load();
   res.stats.visited = n_visited.load();
   res.stats.bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 +
-                    P.lcomp.size() * 4 + start.size() * 4 + members.bytes() + claimed.size();
+                    P.lcomp.size() * 4 + start.size() * 4 + members.bytes() + claimed.size() * 8;
   for (const auto& sc : pool) res.stats.bytes += sc->bytes();
   // (The ring propagation's temporary `reached` array, 1 byte per object voxel, is freed before.)
   opt.interrupter.check(1.0);
