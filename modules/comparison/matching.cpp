@@ -156,7 +156,7 @@ std::vector<char> coverage(const Sampled& s, const detail::PointIndex& index, do
   std::atomic<int64_t> done{0};
   parallel_chunks(0, n, chunks, threads, [&](int64_t, int64_t a, int64_t b) {
     for (int64_t i = a; i < b; ++i)
-      covered[static_cast<size_t>(i)] = index.nearest(s.points[static_cast<size_t>(i)]).second <= tol ? 1 : 0;
+      covered[static_cast<size_t>(i)] = index.any_within(s.points[static_cast<size_t>(i)], tol) ? 1 : 0;
     intr.check(static_cast<double>(++done) / static_cast<double>(chunks));
   });
   return covered;
@@ -407,7 +407,7 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
       for (int64_t e = a; e < b; ++e) {
         const auto& pts = g.edges[static_cast<size_t>(e)].points;
         for (size_t i = 0; i < pts.size(); ++i)
-          pcovered[static_cast<size_t>(e)][i] = other_index.nearest(pts[i]).second <= tol ? 1.0f : 0.0f;
+          pcovered[static_cast<size_t>(e)][i] = other_index.any_within(pts[i], tol) ? 1.0f : 0.0f;
       }
     }, 256);
   };

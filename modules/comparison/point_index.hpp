@@ -38,6 +38,16 @@ public:
     return {static_cast<int64_t>(idx), std::sqrt(d2)};
   }
 
+  // Whether some point has distance <= radius: the same test as nearest(q).second <= radius
+  // (sqrt of the same squared distance), but the search prunes everything farther than radius and
+  // stops at the first point that passes.
+  [[nodiscard]] bool any_within(const Vec3& q, double radius) const {
+    if (!tree_) return false;
+    AnyWithin rs{radius * radius * (1.0 + 1e-12) + 1e-300, radius};
+    tree_->findNeighbors(rs, q.data(), nanoflann::SearchParams());
+    return rs.found;
+  }
+
   // Indices of all points with distance <= radius, in ascending index order.
   void within(const Vec3& q, double radius, std::vector<std::pair<size_t, double>>& scratch,
               std::vector<int64_t>& out) const {
@@ -55,6 +65,18 @@ public:
   }
 
 private:
+  // nanoflann result set: candidates are points with squared distance < limit (slightly above
+  // radius², so no point with sqrt(d²) <= radius is pruned); returning false ends the search.
+  struct AnyWithin {
+    double limit, radius;
+    bool found = false;
+    [[nodiscard]] double worstDist() const { return limit; }
+    [[nodiscard]] bool full() const { return true; }
+    bool addPoint(double d2, size_t) {
+      found = std::sqrt(d2) <= radius;
+      return !found;
+    }
+  };
   struct Cloud {
     std::vector<Vec3> points;
     [[nodiscard]] size_t kdtree_get_point_count() const { return points.size(); }
