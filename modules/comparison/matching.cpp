@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <queue>
 #include <tuple>
@@ -302,7 +303,14 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
   // 2. Samples and geometric coverage.
   const Sampled sr = sample_graph(reference, o.sample_spacing, th);
   const Sampled so = sample_graph(other, o.sample_spacing, th);
-  const detail::PointIndex ir(sr.points), io(so.points);
+  // The two k-d trees are independent: built side by side when there are threads for it.
+  std::unique_ptr<const detail::PointIndex> index_r, index_o;
+  parallel_for(0, 2, th, [&](int64_t a, int64_t b) {
+    for (int64_t k = a; k < b; ++k)
+      (k == 0 ? index_r : index_o) = std::make_unique<const detail::PointIndex>(k == 0 ? sr.points : so.points);
+  });
+  const detail::PointIndex& ir = *index_r;
+  const detail::PointIndex& io = *index_o;
   const std::vector<char> cov_r = coverage(sr, io, o.edge_tolerance, th, intr.sub(0.15, 0.35));
   const std::vector<char> cov_o = coverage(so, ir, o.edge_tolerance, th, intr.sub(0.35, 0.55));
   res.reference_samples = static_cast<int64_t>(sr.points.size());
