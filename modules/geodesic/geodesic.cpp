@@ -69,10 +69,12 @@ struct Domain {
 struct Prepared {
   Domain dom;
   RankBits obj, layer;
-  std::vector<Coord> lcoord;  // L-id -> padded coordinates
+  std::vector<Coord> lcoord;  // L-id -> padded coordinates (freed after the nearest-point transform
+                              // unless kept for the reference; searches carry positions instead)
   std::vector<uint32_t> b;    // object id -> L-id of its nearest background point
   std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
   int64_t k = 0, nl = 0;
+  uint64_t prepare_bytes = 0;  // peak working memory of prepare()
   explicit Prepared(const Dims& d) : dom(d) {}
   [[nodiscard]] int64_t lpos(uint32_t l) const { return dom.pos(lcoord[l].x, lcoord[l].y, lcoord[l].z); }
   // L-id of the nearest background point of the voxel at `pos` (object or layer voxel).
@@ -92,7 +94,7 @@ std::vector<int64_t> offsets26(const Domain& d) {
 }
 
 // Builds the bitmaps, L coordinates, the nearest-point transform and L's components.
-void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr) {
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords) {
   const Domain& D = P.dom;
   if (D.nx > 65000 || D.ny > 65000 || D.nz > 65000)
     throw InputError("geodesic: volumes up to 65000 voxels per axis are supported");
@@ -246,6 +248,9 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
     ++ring;
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
+  P.prepare_bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 + reached.size();
+  std::vector<uint8_t>().swap(reached);
+  if (!keep_coords) std::vector<Coord>().swap(P.lcoord);
 
   // 6-connected components of L (union-find with path halving over forward neighbours).
   P.lcomp.resize(static_cast<size_t>(P.nl));
@@ -257,12 +262,16 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
     }
     return a;
   };
-  for (int64_t i = 0; i < P.nl; ++i) {
-    const int64_t pos = P.lpos(static_cast<uint32_t>(i));
-    for (int64_t o : {int64_t{1}, D.BX, D.plane}) {
-      if (!P.layer.test(pos + o)) continue;
-      uint32_t a = find(static_cast<uint32_t>(i)), c = find(static_cast<uint32_t>(P.layer.rank(pos + o)));
-      if (a != c) P.lcomp[std::max(a, c)] = std::min(a, c);
+  for (size_t w = 0; w < P.layer.word_count(); ++w) {
+    uint64_t bits = P.layer.word(w);
+    uint32_t i = static_cast<uint32_t>(P.layer.prefix(w));
+    for (; bits; bits &= bits - 1, ++i) {
+      const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
+      for (int64_t o : {int64_t{1}, D.BX, D.plane}) {
+        if (!P.layer.test(pos + o)) continue;
+        uint32_t a = find(i), c = find(static_cast<uint32_t>(P.layer.rank(pos + o)));
+        if (a != c) P.lcomp[std::max(a, c)] = std::min(a, c);
+      }
     }
   }
   for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = find(static_cast<uint32_t>(i));
@@ -344,7 +353,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   if (mask.size() == 0) return res;
 
   Prepared P(mask.dims());
-  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0));
+  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0), false);
   res.stats.object_voxels = P.k;
   res.stats.layer_voxels = P.nl;
   if (P.k == 0) return res;
@@ -418,12 +427,12 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // Own search: breadth-first over L from `src`, level by level up to distance `limit`, stopping once
   // every target in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns
   // the number of visited voxels. The marks are cleared again before returning.
-  auto own_bfs = [&](Scratch& S, uint32_t src, uint32_t limit, const std::vector<uint32_t>& want,
+  auto own_bfs = [&](Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit, const std::vector<uint32_t>& want,
                      std::vector<uint32_t>& wd) -> int64_t {
     S.queue.clear();
     S.queue.push_back(src);
     S.qpos.clear();
-    S.qpos.push_back(P.lpos(src));
+    S.qpos.push_back(src_pos);
     S.mark[src] |= Scratch::kVisited;
     int64_t left = static_cast<int64_t>(want.size());
     wd.assign(want.size(), kNone);
@@ -463,14 +472,14 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
   // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
   // voxels in distance order.
-  auto pivot_bfs = [&](Scratch& S, uint32_t src, uint32_t limit) -> int64_t {
+  auto pivot_bfs = [&](Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) -> int64_t {
     auto run = [&](auto& pdist) {
       using T = typename std::decay_t<decltype(pdist)>::value_type;
       for (uint32_t v : S.pqueue) pdist[v] = 0;
       S.pqueue.clear();
       S.pqueue.push_back(src);
       S.qpos.clear();
-      S.qpos.push_back(P.lpos(src));
+      S.qpos.push_back(src_pos);
       pdist[src] = 1;
       for (size_t head = 0; head < S.pqueue.size(); ++head) {
         const T dv1 = pdist[S.pqueue[head]];  // distance + 1
@@ -491,7 +500,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
   // to t + margin that settles the far targets of all bases within `margin` of `a` (triangle
   // inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
-  auto process_base = [&](Scratch& S, uint32_t a) {
+  auto process_base = [&](Scratch& S, uint32_t a, int64_t apos) {
     std::vector<uint32_t> targets, tdist;
     auto gather = [&](uint32_t base_id) {
       targets.clear();
@@ -539,7 +548,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
           for (int j = 0; j < n; ++j) needed[idx[j]] = 1;
       }
     };
-    auto own_search = [&](uint32_t base_id) -> bool {
+    auto own_search = [&](uint32_t base_id, int64_t base_pos) -> bool {
       want.clear();
       want_index.clear();
       mark_needed(base_id);
@@ -550,7 +559,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
         }
       if (want.empty()) return false;
       const uint32_t limit = full ? static_cast<uint32_t>(std::min<int64_t>(P.nl, kNone / 2)) : t;
-      n_visited += own_bfs(S, base_id, limit, want, wd);
+      n_visited += own_bfs(S, base_id, base_pos, limit, want, wd);
       ++n_search;
       bool open = false;
       for (size_t j = 0; j < want.size(); ++j) {
@@ -562,7 +571,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
 
     gather(a);
     tdist.assign(targets.size(), kNone);
-    const bool long_search = own_search(a);
+    const bool long_search = own_search(a, apos);
     if (long_search) ++n_long;
     finish(a);
     done_bases++;
@@ -570,15 +579,17 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
 
     // Pivot: search from `a` up to t + margin, then settle the bases within `margin`.
     const uint32_t plimit = t + pivot_margin;
-    n_visited += pivot_bfs(S, a, plimit);
+    n_visited += pivot_bfs(S, a, apos, plimit);
     ++n_search;
     ++n_pivots;
-    std::vector<uint32_t> near;  // bases with work within `margin` of a (the queue is in distance order)
-    for (uint32_t v : S.pqueue) {
+    // Bases with work within `margin` of a, with their positions (the queue is in distance order).
+    std::vector<std::pair<uint32_t, int64_t>> near;
+    for (size_t i = 0; i < S.pqueue.size(); ++i) {
+      const uint32_t v = S.pqueue[i];
       if (S.pivot_at(v) > pivot_margin) break;
-      if (v != a && start[v + 1] > start[v]) near.push_back(v);
+      if (v != a && start[v + 1] > start[v]) near.emplace_back(v, S.qpos[i]);
     }
-    for (uint32_t a2 : near) {
+    for (const auto& [a2, a2pos] : near) {
       if (!claim(a2)) continue;
       gather(a2);
       tdist.assign(targets.size(), kNone);
@@ -591,28 +602,34 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
           ++n_saturated;
         }
       }
-      if (own_search(a2)) ++n_long;
+      if (own_search(a2, a2pos)) ++n_long;
       finish(a2);
       done_bases++;
     }
   };
 
-  // Work list: bases with a non-empty bucket, in L order. Chunks are processed in parallel; each base
-  // is claimed exactly once, and every value is exact (searches) or a proven saturation, so the
-  // result does not depend on the thread count or on who claimed a base.
-  std::vector<uint32_t> work;
-  for (int64_t l = 0; l < P.nl; ++l)
-    if (start[static_cast<size_t>(l) + 1] > start[static_cast<size_t>(l)]) work.push_back(static_cast<uint32_t>(l));
-  n_bases = static_cast<int64_t>(work.size());
-  const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(static_cast<int64_t>(work.size()), nthreads * 64));
+  // Work: bases with a non-empty bucket, in L order, found by walking the words of L (which gives
+  // their positions too). Chunks of words are processed in parallel; each base is claimed exactly
+  // once, and every value is exact (searches) or a proven saturation, so the result does not depend
+  // on the thread count or on who claimed a base.
+  {
+    int64_t nb = 0;
+    for (int64_t l = 0; l < P.nl; ++l) nb += start[static_cast<size_t>(l) + 1] > start[static_cast<size_t>(l)];
+    n_bases = nb;
+  }
+  const int64_t lwords = static_cast<int64_t>(P.layer.word_count());
+  const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(lwords, nthreads * 64));
   const Interrupter search_progress = opt.interrupter.sub(0.25, 0.97);
-  parallel_chunks(0, static_cast<int64_t>(work.size()), chunks, nthreads, [&](int64_t, int64_t w0, int64_t w1) {
+  parallel_chunks(0, lwords, chunks, nthreads, [&](int64_t, int64_t w0, int64_t w1) {
     auto S = acquire();
     for (int64_t w = w0; w < w1; ++w) {
-      const uint32_t a = work[static_cast<size_t>(w)];
-      if (!claim(a)) continue;
-      process_base(*S, a);
-      if ((w & 255) == 0)
+      uint64_t bits = P.layer.word(static_cast<size_t>(w));
+      uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
+      for (; bits; bits &= bits - 1, ++a) {
+        if (start[a + 1] == start[a] || !claim(a)) continue;
+        process_base(*S, a, w * 64 + std::countr_zero(bits));
+      }
+      if ((w & 1023) == 0)
         search_progress.check(static_cast<double>(done_bases.load()) / static_cast<double>(std::max<int64_t>(1, n_bases.load())));
     }
     release(std::move(S));
@@ -629,10 +646,12 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.long_searches = n_long.load();
   res.stats.saturated_by_pivot = n_saturated.load();
   res.stats.visited = n_visited.load();
-  res.stats.bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 +
-                    P.lcomp.size() * 4 + start.size() * 4 + members.bytes() + claimed.size() * 8;
-  for (const auto& sc : pool) res.stats.bytes += sc->bytes();
-  // (The ring propagation's temporary `reached` array, 1 byte per object voxel, is freed before.)
+  // Peak of the two phases: the nearest-point transform (with L coordinates and the ring marks) and
+  // the searches (with components, buckets, claims and the workers' scratch).
+  uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.b.size() * 4 + P.lcomp.size() * 4 + start.size() * 4 +
+                          members.bytes() + claimed.size() * 8;
+  for (const auto& sc : pool) search_bytes += sc->bytes();
+  res.stats.bytes = std::max(P.prepare_bytes, search_bytes);
   opt.interrupter.check(1.0);
   return res;
 }
@@ -643,7 +662,7 @@ Result boundary_distance_reference(const VolumeU8& mask, const Options& opt) {
   Result res = empty_result(mask);
   if (mask.size() == 0) return res;
   Prepared P(mask.dims());
-  prepare(mask, P, 1, {});
+  prepare(mask, P, 1, {}, true);
   const Domain& D = P.dom;
   std::vector<int64_t> dist(static_cast<size_t>(P.nl));
   for (int64_t z = 0; z < D.nz; ++z)

@@ -33,16 +33,19 @@ background. Voxels outside the array count as background: the one-voxel ring aro
 to L where it touches the object.
 
 Implementation: object voxels are grouped by base point b(p); one breadth-first search per base point
-serves all its voxels and stops when all their targets are reached or at t (threshold mode). Distances
-use the range encoding of thesis fig. 2.37 (each search uses a fresh integer range; the array is
-initialised once and again only on overflow). When a search runs to t, it is extended to t + t/4 and
-settles, by the triangle inequality, the far targets of every base point within t/4 of it (a pivot),
-which saves most long searches on plates. Targets in another component of L are known to be infinite
-without searching. Results are identical for any thread count.
+serves all its voxels and stops when all their targets are reached or at t (threshold mode). Searches
+run level by level, so they need only a visited mark per boundary voxel, reset through the list of
+visited voxels (a search costs what it visits, never the size of L). When a search runs to t, it is
+extended to t + t/4 and settles, by the triangle inequality, the far targets of every base point within
+t/4 of it (a pivot), which saves most long searches on plates; voxels with a target so proved to
+saturate need no further search. Targets in another component of L are known to be infinite without
+searching. Results are identical for any thread count.
 
-Memory (beyond the input mask and the two outputs): 4 bits per voxel of the padded grid (two ranked
-bitmaps), per object voxel 4 bytes (b(p)) + 8 (bucket position) + 4 (value) + 1 temporary = 17 bytes,
-per boundary-layer voxel 6 + 4 + 4 + 1 bytes plus 8 bytes per worker thread.)");
+Memory (beyond the input mask and the two outputs; the larger of two phases): 4 bits per voxel of the
+padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 bytes per object voxel and
+6 per boundary-layer voxel, for the searches 4 (b(p)) + 4 (bucket position) bytes per object voxel
+and 4 + 4 bytes per boundary-layer voxel plus 2 (t <= 203) or 3 per boundary-layer voxel and worker
+thread.)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
