@@ -406,6 +406,20 @@ void GraphEditor::rollback() {
   in_step_ = false;
 }
 
+// One undo step: runs `run` inside begin()/commit(), rolling every partial change back if it throws;
+// `run` is kept as the step's redo.
+EditOp GraphEditor::perform(EditOp op, std::function<void()> run) {
+  begin();
+  try {
+    run();
+  } catch (...) {
+    rollback();
+    throw;
+  }
+  commit(op, std::move(run));
+  return op;
+}
+
 bool GraphEditor::undo() {
   if (undo_.empty()) return false;
   auto s = std::move(undo_.back());
@@ -797,15 +811,7 @@ EditOp GraphEditor::delete_edges(std::vector<int64_t> edges) {
     if (e < 0 || e >= graph_.edge_count()) throw Error("edge " + std::to_string(e) + " does not exist");
     op.at.push_back(edge_probe(e));
   }
-  begin();
-  try {
-    do_delete_edges(edges);
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, [this, edges] { do_delete_edges(edges); });
-  return op;
+  return perform(std::move(op), [this, edges] { do_delete_edges(edges); });
 }
 
 EditOp GraphEditor::delete_node(int64_t n) {
@@ -817,15 +823,7 @@ EditOp GraphEditor::delete_node(int64_t n) {
     do_delete_edges(inc);
     p_remove_node(n);
   };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, const std::string& route) {
@@ -843,15 +841,7 @@ EditOp GraphEditor::connect(int64_t from, int64_t to_node, int64_t to_edge, int6
     op.to = graph_.edges[to_edge].points[to_point];
   }
   auto run = [this, from, to_node, to_edge, to_point, route] { do_connect(from, to_node, to_edge, to_point, route); };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::split(int64_t edge, int64_t point) {
@@ -861,15 +851,7 @@ EditOp GraphEditor::split(int64_t edge, int64_t point) {
   EditOp op{"split"};
   op.at.push_back(graph_.edges[edge].points[point]);
   auto run = [this, edge, point] { do_split(edge, point); };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::merge(int64_t node) {
@@ -877,15 +859,7 @@ EditOp GraphEditor::merge(int64_t node) {
   EditOp op{"merge"};
   op.at.push_back(graph_.positions[node]);
   auto run = [this, node] { do_merge(node); };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::move_node(int64_t n, const Vec3& to) {
@@ -928,15 +902,7 @@ EditOp GraphEditor::move_node(int64_t n, const Vec3& to) {
       p_set_polyline(e, pts, vals);
     }
   };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::set_attribute(const std::string& level, const std::vector<int64_t>& ids, const std::string& name,
@@ -955,15 +921,7 @@ EditOp GraphEditor::set_attribute(const std::string& level, const std::vector<in
   auto run = [this, level, ids, name, value] {
     for (int64_t id : ids) p_set_value(level, name, id, value);
   };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::prune(double max_length) {
@@ -1016,15 +974,7 @@ EditOp GraphEditor::prune(double max_length) {
       }
     }
   };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::delete_components(double max_length) {
@@ -1049,15 +999,7 @@ EditOp GraphEditor::delete_components(double max_length) {
     do_delete_edges(edges);
     for (auto it = nodes.rbegin(); it != nodes.rend(); ++it) p_remove_node(*it);
   };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 EditOp GraphEditor::bridge_gaps(double max_distance, const std::string& route) {
@@ -1095,15 +1037,7 @@ EditOp GraphEditor::bridge_gaps(double max_distance, const std::string& route) {
       used.push_back(d.partner_position);
     }
   };
-  begin();
-  try {
-    run();
-  } catch (...) {
-    rollback();
-    throw;
-  }
-  commit(op, run);
-  return op;
+  return perform(std::move(op), std::move(run));
 }
 
 ApplyResult GraphEditor::apply(const EditOp& op, double tol) {

@@ -133,6 +133,7 @@ private:
   void begin();
   void commit(EditOp op, std::function<void()> redo);
   void rollback();
+  EditOp perform(EditOp op, std::function<void()> run);
   void record(Undo u) { log_.push_back(std::move(u)); }
   // Primitives (each records its inverse).
   int64_t p_add_node(const Vec3& p);
