@@ -572,3 +572,67 @@ TEST(GraphMatch, InvalidParametersAreInputErrors) {
   broken.edges[0].points.front()[0] += 1;  // end point no longer equals its node
   EXPECT_THROW((void)graph_match(g, broken, match_options()), InputError);
 }
+
+TEST(GraphMatch, CoverageAndEdgePairsEqualBruteForce) {
+  // Reference vs a jittered copy with some edges removed: every edge `coverage`, every point
+  // `covered` flag and every matched edge pair checked against brute-force sample distances.
+  const SpatialGraph g = lattice(5, 4, 3, 11);
+  SpatialGraph h = lattice(5, 4, 3, 11);
+  std::mt19937 rng(5);
+  auto j = [&] { return ((rng() % 1000) / 1000.0 - 0.5) * 2.4; };  // up to 1.2 per axis: some samples miss
+  for (auto& e : h.edges)
+    for (size_t i = 1; i + 1 < e.points.size(); ++i) e.points[i] = {e.points[i][0] + j(), e.points[i][1] + j(), e.points[i][2] + j()};
+  h.remove_edges({1, 7, 20});
+  const GraphMatchOptions o = match_options(2);
+  const auto r = graph_match(g, h, o);
+  auto samples = [&](const SpatialGraph& s) {
+    std::vector<std::vector<Vec3>> out;
+    std::vector<double> w;
+    for (const auto& e : s.edges) {
+      out.emplace_back();
+      resample_polyline(e.points, o.sample_spacing, out.back(), w);
+    }
+    return out;
+  };
+  const auto sg = samples(g), sh = samples(h);
+  auto near_any = [&](const Vec3& p, const std::vector<std::vector<Vec3>>& t, int64_t only) {
+    for (size_t f = 0; f < t.size(); ++f)
+      if (only < 0 || static_cast<int64_t>(f) == only)
+        for (const Vec3& q : t[f])
+          if (dist(p, q) <= o.edge_tolerance) return true;
+    return false;
+  };
+  auto fraction = [&](const std::vector<Vec3>& s, const std::vector<std::vector<Vec3>>& t, int64_t only) {
+    int64_t hit = 0;
+    for (const Vec3& p : s) hit += near_any(p, t, only);
+    return static_cast<double>(hit) / static_cast<double>(s.size());
+  };
+  int partial = 0, rejected = 0;
+  for (size_t e = 0; e < g.edges.size(); ++e) {
+    const double c = fraction(sg[e], sh, -1);
+    partial += c < 1.0;
+    EXPECT_FLOAT_EQ(r.reference.edge_attributes.at("coverage")[e], static_cast<float>(c)) << "edge " << e;
+    for (size_t i = 0; i < g.edges[e].points.size(); ++i)
+      EXPECT_EQ(r.reference.point_attributes.at("covered")[e][i], near_any(g.edges[e].points[i], sh, -1) ? 1.0f : 0.0f);
+    const int32_t f = r.reference.edge_labels.at("match")[e];
+    if (f >= 0) {
+      EXPECT_GE(fraction(sg[e], sh, f), o.overlap) << "edge " << e;
+      EXPECT_GE(fraction(sh[static_cast<size_t>(f)], sg, static_cast<int64_t>(e)), o.overlap) << "edge " << e;
+    } else {
+      // Unmatched: no other edge between the matched end nodes overlaps enough both ways.
+      const auto& nm = r.reference.node_labels.at("match");
+      const int32_t m0 = nm[static_cast<size_t>(g.edges[e].node0)], m1 = nm[static_cast<size_t>(g.edges[e].node1)];
+      for (size_t k = 0; k < h.edges.size(); ++k) {
+        const auto& hk = h.edges[k];
+        if (std::minmax(hk.node0, hk.node1) != std::minmax<int64_t>(m0, m1)) continue;
+        EXPECT_TRUE(fraction(sg[e], sh, static_cast<int64_t>(k)) < o.overlap ||
+                    fraction(sh[k], sg, static_cast<int64_t>(e)) < o.overlap)
+            << "edge " << e << " and " << k;
+        ++rejected;
+      }
+    }
+  }
+  EXPECT_GT(partial, 0);   // the jitter makes some coverage fractions non-trivial
+  EXPECT_GT(rejected, 0);  // and rejects some geometric candidates
+  EXPECT_GE(r.edges.fn, 3.0);
+}
