@@ -18,8 +18,8 @@ get() { sed -n "s/^$1=//p" "$2"; }
 
 echo "## Distance transforms"
 echo
-echo "Masks: \`synthetic.network\` (module defaults, size n³). Our runs use $threads threads (chamfer:"
-echo "a wavefront over z slices). EDT: both sides use the same border convention (voxels outside the array are object,"
+echo "Masks: \`synthetic.network\` (module defaults, size n³). Our runs use $threads threads (chamfer is"
+echo "sequential). EDT: both sides use the same border convention (voxels outside the array are object,"
 echo "as in SciPy); max |ours - scipy| is checked at 256³. Ratio = peer time / our time. Peak RSS is the"
 echo "peak of the whole process (input mask included)."
 echo
@@ -64,7 +64,7 @@ EOF
 done
 echo
 echo "EDT: separable exact lower envelopes (x rows, then y and z on 16-column blocks, only runs of"
-echo "non-zero values); chamfer: SSE4.1 uint16 raster scans skipping background blocks, one z-slice wavefront per thread. memcpy copies"
+echo "non-zero values); chamfer: SSE4.1 uint16 raster scans skipping background blocks. memcpy copies"
 echo "the chamfer output's bytes (2 per voxel): \"warm\" between two touched buffers, \"new\" into a freshly"
 echo "allocated buffer (page faults included, as for any function returning a new volume; same huge-page"
 echo "advice as our outputs). Machine: $(nproc) cores,"

@@ -3,17 +3,11 @@
 #include "distance/distance.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstring>
-#include <exception>
 #include <memory>
-#include <thread>
 #include <vector>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 #if defined(__SSE4_1__)
 #include <smmintrin.h>
 #endif
@@ -281,27 +275,6 @@ void backward_row_u16(uint16_t* r, const uint16_t* py, const uint16_t* zm, const
 }
 #endif
 
-// Waits until slice `zz` has finished `rows` rows of the current scan (release/acquire pairs with
-// the store after each row). Spins briefly, then yields: on a loaded machine the producer may not
-// be running. Returns false when the scan was stopped (another thread failed or was cancelled).
-bool wait_rows(const std::atomic<int64_t>& done, int64_t rows, const std::atomic<bool>& stop) {
-  for (int spin = 0; done.load(std::memory_order_acquire) < rows; ++spin) {
-    if (stop.load(std::memory_order_relaxed)) return false;
-    if (spin < 64) {
-#if defined(__SSE2__)
-      _mm_pause();
-#endif
-    } else {
-      std::this_thread::yield();
-    }
-  }
-  return true;
-}
-
-// The two raster scans, each run as a wavefront over z: thread t scans the slices z ≡ t (mod T) and
-// starts row y of slice z once slice z-1 has finished rows 0..y+1 (the rows its forward mask reads;
-// mirrored for the backward scan). Every row sees exactly the values of the sequential scan, so the
-// result is identical for any thread count.
 template <class T>
 Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOptions& o) {
   using A = Acc<T>;
@@ -311,7 +284,9 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
   const T INF = std::numeric_limits<T>::max();
   const A B = o.border_is_object ? A(INF) : A(0);
   std::vector<T> const_row(static_cast<size_t>(nx), static_cast<T>(B));
+  std::vector<A> tmp(static_cast<size_t>(nx));
 #if defined(__SSE4_1__)
+  std::vector<uint16_t> tmp16(static_cast<size_t>(nx));
   const SimdWeights sw = simd_weights(w);
 #endif
   const T* cr = const_row.data();
@@ -321,72 +296,32 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
   auto row = [&](int64_t y, int64_t z) -> const T* {
     return (y < 0 || y >= ny || z < 0 || z >= nz) ? cr : d + y * nx + z * plane;
   };
-  const int threads = static_cast<int>(std::clamp<int64_t>(effective_threads(o.threads), 1, nz));
-  const int64_t check_every = std::max<int64_t>(1, (int64_t{4} << 20) / std::max<int64_t>(1, plane) / threads);
-  std::vector<std::atomic<int64_t>> done(static_cast<size_t>(nz));
-
-  auto scan = [&](bool forward) {
-    for (auto& c : done) c.store(0, std::memory_order_relaxed);
-    std::atomic<bool> stop{false};
-    auto worker = [&](int t) {
-      std::vector<A> tmp(static_cast<size_t>(nx));
+  const int64_t check_every = std::max<int64_t>(1, (int64_t{4} << 20) / std::max<int64_t>(1, plane));
+  for (int64_t z = 0; z < nz; ++z) {
+    if (z % check_every == 0) o.interrupter.check(0.5 * static_cast<double>(z) / static_cast<double>(nz));
+    for (int64_t y = 0; y < ny; ++y)
 #if defined(__SSE4_1__)
-      std::vector<uint16_t> tmp16(static_cast<size_t>(nx));
+      if constexpr (std::is_same_v<T, uint16_t>)
+        forward_row_u16(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
+                        row(y, z - 1), row(y + 1, z - 1), nx, w, sw, B, tmp16.data());
+      else
 #endif
-      int64_t slices = 0;
-      for (int64_t k = t; k < nz; k += threads, ++slices) {
-        const int64_t z = forward ? k : nz - 1 - k;
-        if (t == 0 && slices % check_every == 0) {
-          const double f = static_cast<double>(k) / static_cast<double>(nz);
-          o.interrupter.check(forward ? 0.5 * f : 0.5 + 0.5 * f);
-        }
-        const int64_t prev = forward ? z - 1 : z + 1;
-        const bool has_prev = forward ? z > 0 : z < nz - 1;
-        for (int64_t i = 0; i < ny; ++i) {
-          if (has_prev && !wait_rows(done[static_cast<size_t>(prev)], std::min(i + 2, ny), stop)) return;
-          if (forward) {
-            const int64_t y = i;
+      forward_row<T>(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
+                     row(y, z - 1), row(y + 1, z - 1), nx, w, B, tmp.data());
+  }
+  for (int64_t z = nz - 1; z >= 0; --z) {
+    if (z % check_every == 0)
+      o.interrupter.check(0.5 + 0.5 * static_cast<double>(nz - 1 - z) / static_cast<double>(nz));
+    for (int64_t y = ny - 1; y >= 0; --y)
 #if defined(__SSE4_1__)
-            if constexpr (std::is_same_v<T, uint16_t>)
-              forward_row_u16(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
-                              row(y, z - 1), row(y + 1, z - 1), nx, w, sw, B, tmp16.data());
-            else
+      if constexpr (std::is_same_v<T, uint16_t>)
+        backward_row_u16(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
+                         nx, w, sw, B, tmp16.data());
+      else
 #endif
-              forward_row<T>(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
-                             row(y, z - 1), row(y + 1, z - 1), nx, w, B, tmp.data());
-          } else {
-            const int64_t y = ny - 1 - i;
-#if defined(__SSE4_1__)
-            if constexpr (std::is_same_v<T, uint16_t>)
-              backward_row_u16(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1),
-                               row(y - 1, z + 1), nx, w, sw, B, tmp16.data());
-            else
-#endif
-              backward_row<T>(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1),
-                              row(y - 1, z + 1), nx, w, B, tmp.data());
-          }
-          done[static_cast<size_t>(z)].store(i + 1, std::memory_order_release);
-        }
-      }
-    };
-    std::vector<std::exception_ptr> errors(static_cast<size_t>(threads));
-    auto guarded = [&](int t) {
-      try {
-        worker(t);
-      } catch (...) {
-        errors[static_cast<size_t>(t)] = std::current_exception();
-        stop.store(true);
-      }
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(guarded, t);
-    guarded(0);
-    for (auto& th : pool) th.join();
-    for (auto& e : errors)
-      if (e) std::rethrow_exception(e);
-  };
-  scan(true);
-  scan(false);
+      backward_row<T>(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
+                      nx, w, B, tmp.data());
+  }
   o.interrupter.check(1.0);
   return out;
 }

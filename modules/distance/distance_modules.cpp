@@ -55,10 +55,8 @@ values are never saturated. Voxels outside the array are background by default; 
 border_is_object a mask without any background voxel gives the type's maximum (65535 or 2^32-1)
 everywhere, above every real distance. An empty mask gives all zeros.
 
-Each raster scan runs as a wavefront over z with `threads` threads: a row starts once the rows of
-the previous slice that the chamfer mask reads are done, so the result is the sequential scan's,
-bit for bit, for any thread count. Memory: the output, 2 (or 4) bytes per voxel, plus one row of
-scratch per thread.)");
+The raster scans are sequential (each row depends on the previous one); `threads` is not used.
+Memory: the output, 2 (or 4) bytes per voxel, plus one row of scratch.)");
   }
   void run(RunContext& ctx) override {
     auto mask = mask_input(ctx, "mask");
