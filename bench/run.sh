@@ -2,6 +2,7 @@
 # Runs every benchmark family (bench/<family>/run.sh BUILD_DIR), each against its peers in the same
 # run, and writes bench/RESULTS.md with the machine's description.
 #   bench/run.sh [--build-dir DIR] [family...]
+#   bench/run.sh --collect      only rewrite RESULTS.md from bench/results/*.md (no benchmark runs)
 # Each family's run.sh prints a markdown section to stdout; it is also kept in
 # bench/results/<family>.md so that a partial run keeps the other families' last results.
 set -euo pipefail
@@ -9,21 +10,23 @@ here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
 build="$root/build"
 families=()
+collect_only=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) build=$(cd "$2" && pwd); shift ;;
+    --collect) collect_only=1 ;;
     *) families+=("$1") ;;
   esac
   shift
 done
-if [ ${#families[@]} -eq 0 ]; then
+if [ ${#families[@]} -eq 0 ] && [ $collect_only = 0 ]; then
   for d in "$here"/*/; do
     [ -x "$d/run.sh" ] && families+=("$(basename "$d")")
   done
 fi
 mkdir -p "$here/results"
 export SKEL_BENCH_PYTHON=/usr/bin/python3
-for f in "${families[@]}"; do
+for f in ${families[@]+"${families[@]}"}; do
   echo "== bench: $f" >&2
   tmp=$(mktemp)
   if bash "$here/$f/run.sh" "$build" >"$tmp"; then
