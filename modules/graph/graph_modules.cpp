@@ -73,19 +73,28 @@ public:
         .unit("µm")
         .param<int64_t>("max_iterations", 0, "rounds of pruning (0 = until nothing changes)")
         .min(0)
+        .param<double>("radius_factor", 0.0,
+                       "also remove terminal branches shorter than this times the radius at their junction (0 = off)")
+        .min(0)
+        .param<std::string>("radius", std::string("radius"), "point attribute holding the radius (for radius_factor)")
         .details(
             "A terminal branch is an edge with one end of degree 1 and the other of degree >= 3. Per round, "
             "at every junction the short terminal branches are removed shortest first, never leaving the "
             "junction with fewer than two edges; then the two edges at every node left with degree 2 are "
             "merged (polylines and point attributes concatenated, edge attributes length-weighted). Rounds "
             "repeat until nothing changes, so branches that become terminal are pruned too. Isolated edges "
-            "are kept. Lengths are polyline lengths in physical units. Memory: a copy of the graph.");
+            "are kept. With radius_factor f > 0 the limit of a branch is max(min_length, f * r), r = the `radius` "
+            "point attribute at its junction end (the local thickness from skeleton_to_graph's distance input): "
+            "a spur from a surface bump of a vessel of radius r is about r long, so f = 2 removes such spurs on "
+            "thick and thin vessels alike while real ends, many radii long, stay. Lengths are polyline lengths in physical units. Memory: a copy of the graph.");
   }
   void run(RunContext& ctx) override {
     SpatialGraph g = *ctx.input<SpatialGraph>("graph");
     PruneOptions o;
     o.min_length = ctx.param<double>("min_length");
     o.max_iterations = static_cast<int>(ctx.param<int64_t>("max_iterations"));
+    o.radius_factor = ctx.param<double>("radius_factor");
+    o.radius = ctx.param<std::string>("radius");
     o.interrupter = ctx.progress();
     auto s = prune(g, o);
     Table t;
@@ -144,6 +153,10 @@ public:
         .min(1)
         .max(180)
         .choice("axis", {"x", "y", "z"}, "z", "reference axis of the orientation histogram")
+        .param<double>("orientation_window", 0.0,
+                       "arc length over which segment directions are measured (0 = 10 x the median point step)")
+        .min(0)
+        .unit("µm")
         .details(
             "Thesis §6.1. Per segment: polyline length, chord (end-to-end distance), tortuosity = length / "
             "chord (NaN for loops), length-weighted mean, min and max radius, volume and lateral surface of "
@@ -152,7 +165,10 @@ public:
             "reference volume (mask volume, else the box of the graph's source grid, else the points' bounding "
             "box), length density = total length / reference volume, branch points (degree >= 3), end points "
             "(degree 1), loops = cyclomatic number E - N + C, total volume/surface, and orientation_k = length "
-            "of polyline steps whose angle to the axis falls in bin k. Units: µm (spacing units).");
+            "of the pieces whose direction makes an angle to the axis in bin k. Directions are chords of "
+            "consecutive pieces of arc length orientation_window cut along each edge (the last piece of an edge "
+            "may be shorter): single voxel steps of a skeleton only take the 13 lattice directions (0°, 45°, "
+            "54.7°, 90° to an axis), so a histogram of steps would show the grid instead of the network. Units: µm (spacing units).");
   }
   void run(RunContext& ctx) override {
     auto g = ctx.input<SpatialGraph>("graph");
@@ -161,6 +177,7 @@ public:
     o.orientation_bins = static_cast<int>(ctx.param<int64_t>("orientation_bins"));
     const std::string axis = ctx.param<std::string>("axis");
     o.axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
+    o.orientation_window = ctx.param<double>("orientation_window");
     if (auto m = ctx.optional_input<VolumeU8>("mask")) o.reference_volume = mask_volume(*m);
     auto st = network_statistics(*g, o);
     ctx.output("segments", std::move(st.segments));

@@ -65,6 +65,12 @@ int64_t merge_degree_two(SpatialGraph& g) {
 PruneStats prune(SpatialGraph& g, const PruneOptions& options) {
   if (!(options.min_length >= 0.0))
     throw InputError("parameter 'min_length': expected >= 0, got " + std::to_string(options.min_length));
+  if (!(options.radius_factor >= 0.0))
+    throw InputError("parameter 'radius_factor': expected >= 0, got " + std::to_string(options.radius_factor));
+  const bool relative = options.radius_factor > 0.0;
+  if (relative && !g.point_attributes.contains(options.radius))
+    throw InputError("input 'graph': radius_factor > 0 needs the point attribute '" + options.radius +
+                     "' (give skeleton_to_graph a distance input), but the graph has none");
   PruneStats stats;
   while (options.max_iterations <= 0 || stats.iterations < options.max_iterations) {
     options.interrupter.check();
@@ -82,7 +88,13 @@ PruneStats prune(SpatialGraph& g, const PruneOptions& options) {
         const int64_t other = ed.node0 == n ? ed.node1 : ed.node0;
         if (deg[other] != 1) continue;
         const double l = g.edge_length(e);
-        if (l < options.min_length) spurs.emplace_back(l, e);
+        double limit = options.min_length;
+        if (relative) {
+          // Points run from node0 to node1: the junction end is the first point when n is node0.
+          const auto& r = g.point_attributes.at(options.radius)[e];
+          if (!r.empty()) limit = std::max(limit, options.radius_factor * (ed.node0 == n ? r.front() : r.back()));
+        }
+        if (l < limit) spurs.emplace_back(l, e);
       }
       std::sort(spurs.begin(), spurs.end());
       int64_t left = deg[n];

@@ -20,6 +20,12 @@ struct PruneOptions {
   double min_length = 0.0;  // physical units; terminal branches shorter than this are removed
   int max_iterations = 0;   // 0 = until nothing changes
   Interrupter interrupter;
+  // Thickness-relative threshold: a terminal branch is also removed when it is shorter than
+  // radius_factor times the radius at its junction end (point attribute `radius`). A spur grown from
+  // a bump on the surface of a vessel of radius r is about r long, whatever r is, so one absolute
+  // length cannot remove spurs on thick vessels without removing real ends of thin ones. 0 = off.
+  double radius_factor = 0.0;
+  std::string radius = "radius";
 };
 struct PruneStats {
   int64_t removed_edges = 0;
@@ -27,7 +33,7 @@ struct PruneStats {
   int iterations = 0;
 };
 // Iteratively removes terminal edges (one end of degree 1, the other of degree >= 3) shorter than
-// min_length, shortest first per junction and never leaving a junction with fewer than two edges,
+// max(min_length, radius_factor * radius at the junction end), shortest first per junction and never leaving a junction with fewer than two edges,
 // then merges the edges at nodes left with degree 2. Isolated edges (both ends free) are kept.
 PruneStats prune(SpatialGraph& graph, const PruneOptions& options);
 

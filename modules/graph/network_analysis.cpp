@@ -44,6 +44,27 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
   std::vector<double> len(ne), chord(ne), tort(ne), mean_r(ne), min_r(ne), max_r(ne), vol(ne), surf(ne);
   std::vector<double> orient(bins, 0.0);
   double total_len = 0.0, total_vol = 0.0, total_surf = 0.0;
+  double window = options.orientation_window;
+  if (!(window > 0.0)) {
+    std::vector<double> steps;
+    for (const auto& ed : g.edges)
+      for (size_t i = 1; i < ed.points.size(); ++i)
+        if (double h = dist3(ed.points[i - 1], ed.points[i]); h > 0) steps.push_back(h);
+    window = 1.0;
+    if (!steps.empty()) {
+      std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+      window = 10.0 * steps[steps.size() / 2];
+    }
+  }
+  // A piece of arc length `arc` whose chord runs from a to b adds `arc` to the bin of the chord's
+  // angle to the axis (closed loops whose piece returns to its start have no direction: skipped).
+  const auto add_piece = [&](const Vec3& a, const Vec3& b, double arc) {
+    const double c = dist3(a, b);
+    if (!(c > 0)) return;
+    const double cosine = std::abs(b[options.axis] - a[options.axis]) / c;
+    const double angle = std::acos(std::min(1.0, cosine)) * 180.0 / pi;
+    orient[std::min(bins - 1, static_cast<int>(angle / (90.0 / bins)))] += arc;
+  };
   for (int64_t e = 0; e < ne; ++e) {
     const auto& ed = g.edges[e];
     const auto& p = ed.points;
@@ -51,6 +72,8 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
     n0[e] = ed.node0;
     n1[e] = ed.node1;
     double l = 0.0, wr = 0.0, v = 0.0, s = 0.0;
+    size_t piece_start = 0;
+    double piece = 0.0;
     double rmin = std::numeric_limits<double>::infinity(), rmax = -rmin;
     for (size_t i = 0; i < p.size(); ++i) {
       if (with_r) {
@@ -61,10 +84,11 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
       if (i == 0) continue;
       const double h = dist3(p[i - 1], p[i]);
       l += h;
-      if (h > 0) {
-        const double c = std::abs(p[i][options.axis] - p[i - 1][options.axis]) / h;
-        const double angle = std::acos(std::min(1.0, c)) * 180.0 / pi;
-        orient[std::min(bins - 1, static_cast<int>(angle / (90.0 / bins)))] += h;
+      piece += h;
+      if (piece >= window || i + 1 == p.size()) {
+        add_piece(p[piece_start], p[i], piece);
+        piece_start = i;
+        piece = 0.0;
       }
       if (with_r) {
         const double r1 = it->second[e][i - 1], r2 = it->second[e][i];
@@ -142,6 +166,7 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
     st.summary.add("total_volume", std::vector<double>{total_vol}, "µm³");
     st.summary.add("total_surface", std::vector<double>{total_surf}, "µm²");
   }
+  st.summary.add("orientation_window", std::vector<double>{window}, "µm");
   for (int b = 0; b < bins; ++b) st.summary.add("orientation_" + std::to_string(b), std::vector<double>{orient[b]}, "µm");
   return st;
 }

@@ -17,6 +17,10 @@ struct NetworkStatisticsOptions {
   std::string radius = "radius";  // point attribute with radii (optional; columns omitted without it)
   int orientation_bins = 9;       // bins of the angle to `axis`, 0..90°
   int axis = 2;                   // 0 = x, 1 = y, 2 = z
+  // Arc length over which the direction is measured (chords of consecutive pieces of this length);
+  // <= 0: 10 x the median point step of the graph. Single voxel steps only point along the 13
+  // lattice directions, so a histogram of steps shows the grid, not the vessels.
+  double orientation_window = 0.0;
   // Reference volume for densities, physical units³; <= 0: the bounding box of graph.source_grid,
   // or of the graph's points when the grid is unknown.
   double reference_volume = 0.0;
@@ -28,8 +32,9 @@ struct NetworkStatistics {
 // radii mean_radius (length-weighted), min_radius, max_radius, volume (frusta), surface (lateral
 // frusta areas). nodes: node, degree, x, y, z (+ radius). summary (one row): nodes, edges,
 // components, total_length, reference_volume, length_density, branch_points (degree >= 3),
-// end_points (degree 1), loops (cyclomatic number), total_volume, total_surface and orientation_k:
-// length of polyline steps whose angle to the axis lies in bin k.
+// end_points (degree 1), loops (cyclomatic number), total_volume, total_surface, orientation_window
+// and orientation_k: the length of polyline pieces (arc length ~ orientation_window, cut greedily
+// along each edge) whose chord makes an angle to the axis in bin k.
 NetworkStatistics network_statistics(const SpatialGraph& graph, const NetworkStatisticsOptions& options = {});
 
 // Volume of the non-zero voxels of `mask` in physical units³ (reference volume for densities).

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <string>
 
 #include "graph/graph_ops.hpp"
 #include "graph/network_analysis.hpp"
@@ -104,6 +105,65 @@ TEST(GraphOps, PruneIteratesOnSkeletonGraphs) {
   EXPECT_DOUBLE_EQ(g.edge_length(0), 29.0);
 }
 
+TEST(GraphOps, PruneRelativeToTheRadiusAtTheJunction) {
+  // y_with_spur: spur of length 2 (edge 2, stored junction -> end) and branch of length 9 (edge 3).
+  SpatialGraph g = y_with_spur();
+  auto& r = g.point_attributes.at("radius");
+  r[2] = {2.0f, 0.5f};  // limit 2 x 2 = 4 > 2: removed
+  r[3] = {4.0f, 1.0f};  // limit 8 < 9: kept
+  auto s = prune(g, {.min_length = 0.0, .max_iterations = 0, .interrupter = {}, .radius_factor = 2.0});
+  EXPECT_TRUE(g.check_invariants().empty());
+  EXPECT_EQ(s.removed_edges, 1);
+  EXPECT_EQ(g.edge_count(), 3);
+  // A thicker junction under the branch: limit 10 > 9, both terminal branches go, the trunk merges.
+  SpatialGraph h = y_with_spur();
+  auto& rh = h.point_attributes.at("radius");
+  rh[2] = {2.0f, 0.5f};
+  rh[3] = {5.0f, 1.0f};
+  s = prune(h, {.min_length = 0.0, .max_iterations = 0, .interrupter = {}, .radius_factor = 2.0});
+  EXPECT_EQ(s.removed_edges, 2);
+  ASSERT_EQ(h.edge_count(), 1);
+  EXPECT_DOUBLE_EQ(h.edge_length(0), 20.0);
+  // min_length still applies on its own: radius 0 at the junction, spur shorter than min_length.
+  SpatialGraph m = y_with_spur();
+  m.point_attributes.at("radius")[2] = {0.0f, 0.0f};
+  m.point_attributes.at("radius")[3] = {0.0f, 0.0f};
+  s = prune(m, {.min_length = 3.0, .max_iterations = 0, .interrupter = {}, .radius_factor = 2.0});
+  EXPECT_EQ(s.removed_edges, 1);
+
+  // The junction end is the last point when the branch is stored from its free end to the junction.
+  const auto reversed = [](float at_free_end, float at_junction) {
+    SpatialGraph k;
+    k.add_node({0, 0, 0});
+    k.add_node({10, 0, 0});  // junction
+    k.add_node({20, 0, 0});
+    k.add_node({10, 6, 0});  // free end, 6 away
+    k.add_edge(0, 1);
+    k.add_edge(1, 2);
+    k.add_edge(3, 1, {{10, 6, 0}, {10, 0, 0}});
+    auto& rk = k.ensure_point_attribute("radius");
+    rk[0] = {1.0f, 1.0f};
+    rk[1] = {1.0f, 1.0f};
+    rk[2] = {at_free_end, at_junction};
+    return prune(k, {.min_length = 0.0, .max_iterations = 0, .interrupter = {}, .radius_factor = 2.0}).removed_edges;
+  };
+  EXPECT_EQ(reversed(0.5f, 4.0f), 1);  // limit 8 > 6
+  EXPECT_EQ(reversed(4.0f, 0.5f), 0);  // limit 1 < 6: a thick free end does not count
+
+  SpatialGraph bare;
+  bare.add_node({0, 0, 0});
+  bare.add_node({1, 0, 0});
+  bare.add_edge(0, 1);
+  try {
+    prune(bare, {.min_length = 0.0, .max_iterations = 0, .interrupter = {}, .radius_factor = 1.0});
+    ADD_FAILURE() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'radius'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(prune(bare, {.min_length = 0.0, .max_iterations = 0, .interrupter = {}, .radius_factor = -1.0}),
+               InputError);
+}
+
 TEST(GraphOps, FilterByLengthAndPointAttribute) {
   SpatialGraph g = y_with_spur();
   FilterOptions o;
@@ -157,6 +217,27 @@ TEST(NetworkStatistics, SegmentsNodesSummary) {
   auto sx = network_statistics(g, o);
   EXPECT_DOUBLE_EQ(sx.summary.reals("orientation_0")[0], 20.0);
   EXPECT_DOUBLE_EQ(sx.summary.reals("orientation_1")[0], 11.0);
+}
+
+TEST(NetworkStatistics, OrientationFollowsVoxelPathsNotTheGrid) {
+  // A digital line at atan(15 / 60) = 14.0° to z: its voxel steps point at 0° or 45° only.
+  VolumeU8 v({20, 3, 64}, 0);
+  skel::test::draw_line(v, {1, 1, 1}, {16, 1, 61});
+  auto g = skeleton_to_graph(v, nullptr, {}).graph;
+  ASSERT_EQ(g.edge_count(), 1);
+  auto st = network_statistics(g);
+  const double total = st.summary.reals("total_length")[0];
+  EXPECT_GT(st.summary.reals("orientation_window")[0], 9.9);  // 10 x the median step (1 voxel)
+  EXPECT_GT(st.summary.reals("orientation_1")[0], 0.9 * total);  // 10..20°
+  double sum = 0.0;
+  for (int b = 0; b < 9; ++b) sum += st.summary.reals("orientation_" + std::to_string(b))[0];
+  EXPECT_NEAR(sum, total, 1e-9);  // every piece is counted once
+  // A window below one step measures single steps: the grid directions, nothing near 14°.
+  NetworkStatisticsOptions o;
+  o.orientation_window = 0.5;
+  auto steps = network_statistics(g, o);
+  EXPECT_EQ(steps.summary.reals("orientation_1")[0], 0.0);
+  EXPECT_GT(steps.summary.reals("orientation_0")[0], 0.5 * total);
 }
 
 TEST(NetworkStatistics, TorusLoop) {
