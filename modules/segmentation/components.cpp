@@ -19,7 +19,9 @@ struct Runs {
   std::vector<int32_t> x0, x1;     // [x0, x1)
 };
 
-Runs extract_runs(const VolumeU8& mask, int threads) {
+// Runs of object voxels, or of background voxels (value 0) when `background`.
+Runs extract_runs(const VolumeU8& mask, int threads, bool background = false) {
+  const uint8_t flip = background ? 1 : 0;
   const int64_t nx = mask.nx(), rows = mask.ny() * mask.nz();
   Runs r;
   r.row_start.assign(static_cast<size_t>(rows + 1), 0);
@@ -29,7 +31,7 @@ Runs extract_runs(const VolumeU8& mask, int threads) {
       int64_t c = 0;
       uint8_t prev = 0;
       for (int64_t x = 0; x < nx; ++x) {
-        const uint8_t cur = p[x] != 0;
+        const uint8_t cur = static_cast<uint8_t>((p[x] != 0) ^ flip);
         c += cur & (prev ^ 1);
         prev = cur;
       }
@@ -46,10 +48,10 @@ Runs extract_runs(const VolumeU8& mask, int threads) {
       auto k = static_cast<size_t>(r.row_start[static_cast<size_t>(row)]);
       int64_t x = 0;
       while (x < nx) {
-        while (x < nx && !p[x]) ++x;
+        while (x < nx && ((p[x] != 0) ^ flip) == 0) ++x;
         if (x == nx) break;
         const int64_t s = x;
-        while (x < nx && p[x]) ++x;
+        while (x < nx && ((p[x] != 0) ^ flip) != 0) ++x;
         r.x0[k] = static_cast<int32_t>(s);
         r.x1[k] = static_cast<int32_t>(x);
         ++k;
@@ -101,24 +103,18 @@ struct RowStep {
   int32_t ext;
 };
 
-}  // namespace
-
-ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& o) {
-  if (o.connectivity != 6 && o.connectivity != 18 && o.connectivity != 26)
-    throw InputError("connectivity must be 6, 18 or 26, got " + std::to_string(o.connectivity));
-  if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("connected_components: nx must be < 2^31 - 1");
-  const int64_t ny = mask.ny(), nz = mask.nz();
-  const Runs r = extract_runs(mask, o.threads);
-  o.interrupter.check(0.2);
+// Unites the runs of neighbouring rows (connectivity 6, 18 or 26); parent[i] <= i afterwards.
+std::vector<int64_t> union_runs(const Runs& r, int64_t ny, int64_t nz, int connectivity, int threads,
+                                const Interrupter& interrupter) {
   const auto nruns = static_cast<int64_t>(r.x0.size());
   std::vector<int64_t> parent(static_cast<size_t>(nruns));
   std::iota(parent.begin(), parent.end(), int64_t{0});
 
   // Backward neighbour rows of row (y, z).
   std::vector<RowStep> steps;
-  if (o.connectivity == 6) {
+  if (connectivity == 6) {
     steps = {{-1, 0, 0}, {0, -1, 0}};
-  } else if (o.connectivity == 18) {
+  } else if (connectivity == 18) {
     steps = {{-1, 0, 1}, {0, -1, 1}, {-1, -1, 0}, {1, -1, 0}};
   } else {
     steps = {{-1, 0, 1}, {0, -1, 1}, {-1, -1, 1}, {1, -1, 1}};
@@ -135,19 +131,37 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   };
   // Slabs of planes merged in parallel (each slab touches only its own run ids), then the first
   // plane of every slab with the plane before it.
-  const int64_t slabs = std::max<int64_t>(1, std::min<int64_t>(nz, 4 * effective_threads(o.threads)));
+  const int64_t slabs = std::max<int64_t>(1, std::min<int64_t>(nz, 4 * effective_threads(threads)));
   std::vector<int64_t> slab_start(static_cast<size_t>(slabs), -1);
-  parallel_chunks(0, nz, slabs, o.threads, [&](int64_t c, int64_t z0, int64_t z1) {
+  parallel_chunks(0, nz, slabs, threads, [&](int64_t c, int64_t z0, int64_t z1) {
     if (z0 >= z1) return;
     slab_start[static_cast<size_t>(c)] = z0;
     for (int64_t z = z0; z < z1; ++z) {
       for (int64_t y = 0; y < ny; ++y) merge_row(y, z, z > z0 ? 2 : 0);
-      if (((z - z0) & 31) == 31) o.interrupter.check();
+      if (((z - z0) & 31) == 31) interrupter.check();
     }
   });
   for (int64_t z0 : slab_start)
     if (z0 > 0)
       for (int64_t y = 0; y < ny; ++y) merge_row(y, z0, 1);
+  return parent;
+}
+
+void check_connectivity(int connectivity) {
+  if (connectivity != 6 && connectivity != 18 && connectivity != 26)
+    throw InputError("connectivity must be 6, 18 or 26, got " + std::to_string(connectivity));
+}
+
+}  // namespace
+
+ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& o) {
+  check_connectivity(o.connectivity);
+  if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("connected_components: nx must be < 2^31 - 1");
+  const int64_t ny = mask.ny(), nz = mask.nz();
+  const Runs r = extract_runs(mask, o.threads);
+  o.interrupter.check(0.2);
+  const auto nruns = static_cast<int64_t>(r.x0.size());
+  std::vector<int64_t> parent = union_runs(r, ny, nz, o.connectivity, o.threads, o.interrupter);
   o.interrupter.check(0.5);
   // parent[i] <= i, so one forward pass resolves every run to its root (the component's first run).
   std::vector<int64_t> comp(static_cast<size_t>(nruns));
@@ -245,6 +259,36 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   res.table.add("centroid_x", cen[0], "µm").add("centroid_y", cen[1], "µm").add("centroid_z", cen[2], "µm");
   o.interrupter.check(1.0);
   return res;
+}
+
+ComponentCount count_components(const VolumeU8& mask, int connectivity, bool background, int threads,
+                                const Interrupter& interrupter) {
+  check_connectivity(connectivity);
+  if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("count_components: nx must be < 2^31 - 1");
+  const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
+  ComponentCount c;
+  if (mask.size() == 0) return c;
+  const Runs r = extract_runs(mask, threads, background);
+  interrupter.check(0.3);
+  std::vector<int64_t> parent = union_runs(r, ny, nz, connectivity, threads, interrupter);
+  interrupter.check(0.8);
+  // parent[i] <= i: one forward pass takes every run to its root; a root collects the border flag.
+  const auto nruns = static_cast<int64_t>(r.x0.size());
+  std::vector<uint8_t> border(static_cast<size_t>(nruns), 0);
+  for (int64_t row = 0; row < ny * nz; ++row) {
+    const int64_t y = row % ny, z = row / ny;
+    const bool face_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
+    for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
+      const auto si = static_cast<size_t>(i);
+      const int64_t root = parent[static_cast<size_t>(parent[si])];
+      parent[si] = root;
+      if (root == i) ++c.components;
+      if (face_row || r.x0[si] == 0 || r.x1[si] == nx) border[static_cast<size_t>(root)] = 1;
+    }
+  }
+  for (int64_t i = 0; i < nruns; ++i) c.touching_border += parent[static_cast<size_t>(i)] == i && border[static_cast<size_t>(i)];
+  interrupter.check(1.0);
+  return c;
 }
 
 }  // namespace skel::segmentation

@@ -44,6 +44,16 @@ struct ComponentsResult {
 };
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
 
+// Counts components without labelling: of the object (non-zero) voxels, or of the background (zero)
+// voxels when `background`; touching_border = those with a voxel on an array face. Union-find over
+// x-runs as connected_components; memory ~ 24 bytes per run, no label volume.
+struct ComponentCount {
+  int64_t components = 0;
+  int64_t touching_border = 0;
+};
+ComponentCount count_components(const VolumeU8& mask, int connectivity, bool background, int threads = 0,
+                                const Interrupter& interrupter = {});
+
 // Background components not 6-connected to the volume border become object (thesis §6.2).
 VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr);
 

@@ -119,8 +119,10 @@ not reach the outside of the array (the outside counts as one unbounded componen
 euler: Euler characteristic of the grid cell complex X(P), counted over all 2x2x2 windows (each grid
 vertex owns itself and the edges, faces and cube towards +x, +y, +z; 256-entry table).
 tunnels: first Betti number b1 = components + cavities - euler (Euler-Poincaré: chi = b0 - b1 + b2).
-Results are identical for any thread count. Memory: 1 byte per voxel of the padded grid plus a
-flood-fill stack of 8 bytes per stacked voxel.)");
+Components and cavities are counted by union-find over x-runs of the object and of the background (no
+labels, no flood fill). Results are identical for any thread count. Memory: 1 byte per voxel of the
+padded grid for the Euler count (freed before the component counts), then about 24 bytes per run.
+512³ rods, 2 threads: 0.97 s.)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");

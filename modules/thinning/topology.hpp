@@ -56,7 +56,8 @@ struct TopologyOptions {
 // Topology numbers of `mask` (voxel != 0 is object). Voxels outside the array are background.
 // The Euler characteristic is counted over 2x2x2 cells: chi = V - E + F - C of the grid cell complex
 // X(P) (thesis §2.3, grid cell model), which is the Euler characteristic of the 26-connected object.
-// Memory: 1 byte per voxel of the padded grid plus a flood-fill stack (8 bytes per stacked voxel).
+// Components and cavities: union-find over x-runs (segmentation::count_components). Memory: 1 byte
+// per voxel of the padded grid (Euler count, freed afterwards), then ~24 bytes per run.
 TopologyNumbers topology(const VolumeU8& mask, const TopologyOptions& options = {});
 
 // The 26-bit neighbourhood word of voxel (x, y, z) in `mask` (outside the array = background).

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <random>
+#include <set>
 
 #include "segmentation/segmentation.hpp"
 #include "skel/run_module.hpp"
@@ -80,6 +81,38 @@ TEST(ConnectedComponents, EqualBfsPartitionsFor6_18_26) {
       for (uint32_t l = 2; l <= static_cast<uint32_t>(r.count); ++l) EXPECT_GE(sizes[l - 1], sizes[l]);
       EXPECT_EQ(r.table.rows(), r.count);
     }
+}
+
+TEST(CountComponents, EqualsBfsForObjectAndBackgroundWithBorderContacts) {
+  for (uint64_t seed = 1; seed <= 20; ++seed)
+    for (int conn : {6, 18, 26})
+      for (double p : {0.3, 0.6}) {
+        const VolumeU8 m = random_mask(Dims{13, 11, 9}, seed, p);
+        for (bool background : {false, true}) {
+          VolumeU8 sel = m;
+          if (background)
+            for (auto& v : sel) v = v ? 0 : 1;
+          const auto ref = bfs_labels(sel, conn);
+          std::set<int64_t> all, border;
+          for (int64_t z = 0; z < m.nz(); ++z)
+            for (int64_t y = 0; y < m.ny(); ++y)
+              for (int64_t x = 0; x < m.nx(); ++x) {
+                const int64_t l = ref[static_cast<size_t>(m.index(x, y, z))];
+                if (l < 0) continue;
+                all.insert(l);
+                if (x == 0 || y == 0 || z == 0 || x == m.nx() - 1 || y == m.ny() - 1 || z == m.nz() - 1)
+                  border.insert(l);
+              }
+          for (int threads : {1, 3}) {
+            const auto c = count_components(m, conn, background, threads);
+            EXPECT_EQ(c.components, static_cast<int64_t>(all.size())) << seed << " " << conn << " " << background;
+            EXPECT_EQ(c.touching_border, static_cast<int64_t>(border.size())) << seed << " " << conn << " " << background;
+          }
+        }
+      }
+  EXPECT_EQ(count_components(VolumeU8(Dims{4, 4, 4}, 0), 26, false).components, 0);
+  EXPECT_EQ(count_components(VolumeU8(Dims{4, 4, 4}, 0), 6, true).touching_border, 1);
+  EXPECT_THROW(count_components(VolumeU8(Dims{4, 4, 4}, 0), 8, false), InputError);
 }
 
 TEST(ConnectedComponents, KeepLargestAndMinSize) {
