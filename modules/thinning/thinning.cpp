@@ -13,6 +13,7 @@
 #include <unordered_set>
 #include <vector>
 
+#include "skel/big_vector.hpp"
 #include "skel/parallel.hpp"
 #include "thinning/topology.hpp"
 
@@ -345,7 +346,7 @@ public:
 
 // Bucket queue over dense levels; FIFO inside a bucket.
 struct BucketQueue {
-  std::vector<std::vector<int64_t>> bucket;
+  std::vector<BigVector<int64_t>> bucket;
   std::vector<size_t> head;
   int64_t lowest = 0;
   int64_t size = 0, peak = 0;
@@ -459,32 +460,55 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
     Levels<T> levels(pv, std::move(all_keys));
     stats.priority_levels = levels.count();
     Thinner th(st, mask.dims(), opt.end_point_length);
-    // Initial queue: boundary voxels in raster order within each level; buckets sized exactly.
-    std::vector<std::vector<uint32_t>> plane_levels(static_cast<size_t>(nz));
-    parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
-      for (int64_t z = z0; z < z1; ++z) {
-        const auto& b = planes[static_cast<size_t>(z)].boundary;
-        auto& l = plane_levels[static_cast<size_t>(z)];
-        l.resize(b.size());
-        for (size_t j = 0; j < b.size(); ++j) {
-          st[b[j]] |= kQueued;
-          l[j] = levels.level(b[j]);
-        }
-      }
-    });
+    // Initial queue: boundary voxels in raster order within each level, buckets sized exactly. Fixed
+    // chunks of planes (independent of the thread count) count their boundary voxels per level; each
+    // chunk then writes its entries at its offset in every level, in the same order a sequential
+    // push in raster order would give. The per-chunk histograms cost chunks x levels counters, so
+    // with very many distinct priorities fewer chunks are used (one = the sequential order).
     BucketQueue q(levels.count());
     {
-      std::vector<int64_t> count(static_cast<size_t>(levels.count()), 0);
-      for (const auto& l : plane_levels)
-        for (uint32_t v : l) ++count[v];
-      for (size_t v = 0; v < count.size(); ++v) q.bucket[v].reserve(static_cast<size_t>(count[v]));
-    }
-    for (int64_t z = 0; z < nz; ++z) {
-      auto& b = planes[static_cast<size_t>(z)].boundary;
-      auto& l = plane_levels[static_cast<size_t>(z)];
-      for (size_t j = 0; j < b.size(); ++j) q.push(l[j], b[j]);
-      std::vector<int64_t>().swap(b);
-      std::vector<uint32_t>().swap(l);
+      int64_t boundary_total = 0;
+      for (const Plane& pl : planes) boundary_total += static_cast<int64_t>(pl.boundary.size());
+      const int64_t nlev = levels.count();
+      int64_t chunks = std::min<int64_t>(nz, 4 * effective_threads(threads));
+      while (chunks > 1 && chunks * nlev > std::max<int64_t>(boundary_total, int64_t{1} << 16)) chunks /= 2;
+      std::vector<std::vector<int64_t>> hist(static_cast<size_t>(chunks));
+      std::vector<std::vector<uint32_t>> plane_levels(static_cast<size_t>(nz));
+      parallel_chunks(0, nz, chunks, threads, [&](int64_t c, int64_t z0, int64_t z1) {
+        auto& h = hist[static_cast<size_t>(c)];
+        h.assign(static_cast<size_t>(nlev), 0);
+        for (int64_t z = z0; z < z1; ++z) {
+          const auto& b = planes[static_cast<size_t>(z)].boundary;
+          auto& l = plane_levels[static_cast<size_t>(z)];
+          l.resize(b.size());
+          for (size_t j = 0; j < b.size(); ++j) {
+            st[b[j]] |= kQueued;
+            l[j] = levels.level(b[j]);
+            ++h[l[j]];
+          }
+        }
+      });
+      // hist[c][v] becomes chunk c's write offset in level v.
+      for (int64_t v = 0; v < nlev; ++v) {
+        int64_t sum = 0;
+        for (auto& h : hist) {
+          const int64_t n = h[static_cast<size_t>(v)];
+          h[static_cast<size_t>(v)] = sum;
+          sum += n;
+        }
+        q.bucket[static_cast<size_t>(v)].resize(static_cast<size_t>(sum));
+      }
+      parallel_chunks(0, nz, chunks, threads, [&](int64_t c, int64_t z0, int64_t z1) {
+        auto& h = hist[static_cast<size_t>(c)];
+        for (int64_t z = z0; z < z1; ++z) {
+          auto& b = planes[static_cast<size_t>(z)].boundary;
+          auto& l = plane_levels[static_cast<size_t>(z)];
+          for (size_t j = 0; j < b.size(); ++j) q.bucket[l[j]][static_cast<size_t>(h[l[j]]++)] = b[j];
+          std::vector<int64_t>().swap(b);
+          std::vector<uint32_t>().swap(l);
+        }
+      });
+      q.size = q.peak = boundary_total;
     }
     q.lowest = 0;
     irq.check(0.08);
@@ -524,8 +548,8 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
       }
     } else {
       const DirectionMasks& dm = direction_masks();
-      std::vector<int64_t> tv;
-      std::vector<uint8_t> dirs;
+      BigVector<int64_t> tv;
+      BigVector<uint8_t> dirs;
       int64_t iteration = 0;
       while (true) {
         ++iteration;
