@@ -515,15 +515,24 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
 
     int64_t nbr[26];
     auto remove = [&](int64_t t) {
+      const bool border = st[t] & kBorder;
       st[t] &= kBorder;
       ++stats.removed;
-      const int c = th.neighbours(t, nbr);
-      for (int k = 0; k < c; ++k) {
-        const int64_t s = nbr[k];
-        st[s] |= kDirty;
-        if (st[s] & (kQueued | kLocked)) continue;
-        st[s] |= kQueued;
+      auto touch = [&](int64_t s) {
+        const uint8_t b = st[s];
+        if (!(b & kObject)) return;
+        if (b & (kQueued | kLocked)) {
+          st[s] = b | kDirty;
+          return;
+        }
+        st[s] = b | kDirty | kQueued;
         q.push(levels.level(s), s);
+      };
+      if (border) {
+        const int c = th.neighbours(t, nbr);
+        for (int k = 0; k < c; ++k) touch(nbr[k]);
+      } else {
+        for (const int64_t o : th.off_) touch(t + o);  // same order as neighbours()
       }
     };
     const double total = static_cast<double>(stats.object_voxels);
