@@ -297,9 +297,31 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
     return (y < 0 || y >= ny || z < 0 || z >= nz) ? cr : d + y * nx + z * plane;
   };
   const int64_t check_every = std::max<int64_t>(1, (int64_t{4} << 20) / std::max<int64_t>(1, plane));
+  // Rows without object voxels are 0 after the forward scan and stay 0 in the backward scan (it only
+  // lowers values): the forward scan writes them with one memset, the backward scan skips them.
+  std::vector<uint8_t> has_object(static_cast<size_t>(ny * nz), 0);
+  auto row_has_object = [nx](const uint8_t* mr) {
+    int64_t x = 0;
+    for (; x + 32 <= nx; x += 32) {
+      uint64_t a, b, c, e;
+      std::memcpy(&a, mr + x, 8);
+      std::memcpy(&b, mr + x + 8, 8);
+      std::memcpy(&c, mr + x + 16, 8);
+      std::memcpy(&e, mr + x + 24, 8);
+      if ((a | b | c | e) != 0) return true;
+    }
+    for (; x < nx; ++x)
+      if (mr[x]) return true;
+    return false;
+  };
   for (int64_t z = 0; z < nz; ++z) {
     if (z % check_every == 0) o.interrupter.check(0.5 * static_cast<double>(z) / static_cast<double>(nz));
-    for (int64_t y = 0; y < ny; ++y)
+    for (int64_t y = 0; y < ny; ++y) {
+      if (!row_has_object(m + y * nx + z * plane)) {
+        std::memset(d + y * nx + z * plane, 0, static_cast<size_t>(nx) * sizeof(T));
+        continue;
+      }
+      has_object[static_cast<size_t>(y + ny * z)] = 1;
 #if defined(__SSE4_1__)
       if constexpr (std::is_same_v<T, uint16_t>)
         forward_row_u16(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
@@ -308,11 +330,13 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
 #endif
       forward_row<T>(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
                      row(y, z - 1), row(y + 1, z - 1), nx, w, B, tmp.data());
+    }
   }
   for (int64_t z = nz - 1; z >= 0; --z) {
     if (z % check_every == 0)
       o.interrupter.check(0.5 + 0.5 * static_cast<double>(nz - 1 - z) / static_cast<double>(nz));
-    for (int64_t y = ny - 1; y >= 0; --y)
+    for (int64_t y = ny - 1; y >= 0; --y) {
+      if (!has_object[static_cast<size_t>(y + ny * z)]) continue;
 #if defined(__SSE4_1__)
       if constexpr (std::is_same_v<T, uint16_t>)
         backward_row_u16(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
@@ -321,6 +345,7 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
 #endif
       backward_row<T>(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
                       nx, w, B, tmp.data());
+    }
   }
   o.interrupter.check(1.0);
   return out;

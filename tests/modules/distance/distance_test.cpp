@@ -227,6 +227,27 @@ TEST(Chamfer, EqualsDijkstra345) {
   }
 }
 
+TEST(Chamfer, EqualsDijkstraOnSparseMasksWithEmptyRows) {
+  // Few object voxels: most rows are empty (written by the row fast path, skipped backwards), rows
+  // of 33..70 voxels take the 32-byte row test and its tail; uint16 and uint32 outputs.
+  std::mt19937 rng(12);
+  std::uniform_int_distribution<int64_t> len(33, 70), side(2, 9);
+  for (int trial = 0; trial < 40; ++trial) {
+    ChamferOptions o;
+    o.border_is_object = trial % 2 == 1;
+    const VolumeU8 m = random_mask(rng, {len(rng), side(rng), side(rng)}, 0.01 + 0.01 * (trial % 5));
+    auto c = std::dynamic_pointer_cast<const VolumeU16>(chamfer(m, o));
+    ASSERT_TRUE(c);
+    expect_chamfer_equals_dijkstra(m, o, *c);
+    o.weights = ChamferWeights::isotropic(6000, 8400, 10200);
+    if (chamfer_output_bits(m.grid(), o) == 32) {
+      auto c32 = std::dynamic_pointer_cast<const VolumeU32>(chamfer(m, o));
+      ASSERT_TRUE(c32);
+      expect_chamfer_equals_dijkstra(m, o, *c32);
+    }
+  }
+}
+
 TEST(Chamfer, EqualsDijkstraAnisotropicDerivedWeights) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> sp(0.5, 3.0);
