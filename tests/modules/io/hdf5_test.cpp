@@ -16,9 +16,13 @@ namespace fs = std::filesystem;
 using namespace skel;
 
 namespace {
+// One folder per test: ctest runs the tests of this binary as parallel processes, and a shared
+// folder wiped by one process's first call removed files another was about to read.
 fs::path scratch() {
   static fs::path d = [] {
-    fs::path p = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "io";
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "io";
+    fs::path p = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "io" / name;
     fs::remove_all(p);
     fs::create_directories(p);
     return p;
