@@ -332,10 +332,18 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
                      row(y, z - 1), row(y + 1, z - 1), nx, w, B, tmp.data());
     }
   }
+  constexpr int64_t kAheadRows = 4;  // measured at 512³: 2, 8, 16 rows ahead were slower
   for (int64_t z = nz - 1; z >= 0; --z) {
     if (z % check_every == 0)
       o.interrupter.check(0.5 + 0.5 * static_cast<double>(nz - 1 - z) / static_cast<double>(nz));
     for (int64_t y = ny - 1; y >= 0; --y) {
+      // The backward scan walks the rows in descending order, which the hardware prefetchers follow
+      // poorly: fetch the row kAheadRows ahead (reading the current row was the scan's main stall).
+      const int64_t ahead = y + ny * z - kAheadRows;
+      if (ahead >= 0 && has_object[static_cast<size_t>(ahead)]) {
+        const char* a = reinterpret_cast<const char*>(d + ahead * nx);
+        for (int64_t b = 0; b < nx * static_cast<int64_t>(sizeof(T)); b += 64) __builtin_prefetch(a + b, 1);
+      }
       if (!has_object[static_cast<size_t>(y + ny * z)]) continue;
 #if defined(__SSE4_1__)
       if constexpr (std::is_same_v<T, uint16_t>)
