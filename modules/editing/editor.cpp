@@ -172,6 +172,7 @@ std::string EditOp::to_yaml() const {
   if (op == "connect" || op == "bridge_gaps") s += ", route: " + route;
   if (op == "set") s += ", level: " + level + ", attribute: " + attribute + ", value: " + fmt(value);
   if (op == "prune" || op == "delete_components") s += ", max_length: " + fmt(length);
+  if (op == "prune" && radius_factor > 0) s += ", radius_factor: " + fmt(radius_factor);
   if (op == "bridge_gaps") s += ", max_distance: " + fmt(length);
   return s + "}";
 }
@@ -228,6 +229,7 @@ Journal parse_journal(const std::string& text, const std::string& name) {
       if (n["attribute"]) o.attribute = n["attribute"].as<std::string>();
       if (n["value"]) o.value = n["value"].as<double>();
       if (n["max_length"]) o.length = n["max_length"].as<double>();
+      if (n["radius_factor"]) o.radius_factor = n["radius_factor"].as<double>();
       if (n["max_distance"]) o.length = n["max_distance"].as<double>();
     } catch (const YAML::Exception& e) {
       throw InputError(where(n) + ": " + e.msg);
@@ -241,6 +243,7 @@ Journal parse_journal(const std::string& text, const std::string& name) {
     if (o.op == "connect" || o.op == "move_node") need(o.from && o.to, "'from' and 'to'");
     if (o.op == "set") need(!o.attribute.empty(), "'attribute'");
     if (o.op == "prune" || o.op == "delete_components") need(n["max_length"].IsDefined(), "'max_length'");
+    if (!(o.radius_factor >= 0)) throw InputError(where(n) + ": radius_factor must be >= 0");
     if (o.op == "bridge_gaps") need(n["max_distance"].IsDefined(), "'max_distance'");
     j.ops.push_back(std::move(o));
   }
@@ -924,10 +927,14 @@ EditOp GraphEditor::set_attribute(const std::string& level, const std::vector<in
   return perform(std::move(op), std::move(run));
 }
 
-EditOp GraphEditor::prune(double max_length) {
+EditOp GraphEditor::prune(double max_length, double radius_factor) {
+  if (!(radius_factor >= 0)) throw InputError("prune: radius_factor must be >= 0");
+  if (radius_factor > 0 && !graph_.point_attributes.contains("radius"))
+    throw InputError("prune: radius_factor needs the point attribute 'radius', which this graph does not have");
   EditOp op{"prune"};
   op.length = max_length;
-  auto run = [this, max_length] {
+  op.radius_factor = radius_factor;
+  auto run = [this, max_length, radius_factor] {
     for (;;) {
       const auto deg = graph_.degrees();
       std::vector<int64_t> spurs;
@@ -938,7 +945,12 @@ EditOp GraphEditor::prune(double max_length) {
         const bool t0 = deg[ed.node0] == 1, t1 = deg[ed.node1] == 1;
         if (t0 == t1) continue;  // not terminal, or an isolated segment (delete_components handles it)
         if (deg[t0 ? ed.node1 : ed.node0] < 3) continue;
-        if (graph_.edge_length(e) >= max_length) continue;
+        double limit = max_length;
+        if (radius_factor > 0) {  // radius at the junction end (points run from node0 to node1)
+          const auto& r = graph_.point_attributes.at("radius")[e];
+          if (!r.empty()) limit = std::max(limit, radius_factor * (t0 ? r.back() : r.front()));
+        }
+        if (graph_.edge_length(e) >= limit) continue;
         spurs.push_back(e);
         ends.push_back(t0 ? ed.node0 : ed.node1);
       }
@@ -1095,7 +1107,7 @@ ApplyResult GraphEditor::apply(const EditOp& op, double tol) {
       }
       set_attribute(op.level, ids, op.attribute, op.value);
     } else if (op.op == "prune") {
-      prune(op.length);
+      prune(op.length, op.radius_factor);
     } else if (op.op == "delete_components") {
       delete_components(op.length);
     } else if (op.op == "bridge_gaps") {

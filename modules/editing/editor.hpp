@@ -19,7 +19,7 @@ namespace skel::editing {
 // One journal entry. Positions are physical (the graph's units). Ops:
 //   delete_edge {at | at_list}      delete_node {at}          split {at}           merge {at}
 //   connect {from, to, route}       move_node {from, to}      set {at, level, attribute, value}
-//   prune {max_length}              delete_components {max_length}   bridge_gaps {max_distance, route}
+//   prune {max_length, radius_factor}   delete_components {max_length}   bridge_gaps {max_distance, route}
 //   undo                            redo
 struct EditOp {
   EditOp() = default;
@@ -32,6 +32,7 @@ struct EditOp {
   std::string attribute;            // set
   double value = 0.0;               // set
   double length = 0.0;              // prune / delete_components: max_length; bridge_gaps: max_distance
+  double radius_factor = 0.0;       // prune: also spurs shorter than this x the radius at their junction
   // One line of YAML flow style, e.g. `{op: delete_edge, at: [1.5, 2, 3]}`.
   [[nodiscard]] std::string to_yaml() const;
 };
@@ -108,7 +109,9 @@ public:
   // else an edge label if one exists, else a float edge attribute. level "node": label or attribute.
   EditOp set_attribute(const std::string& level, const std::vector<int64_t>& ids, const std::string& name,
                        double value);
-  EditOp prune(double max_length);             // terminal branches shorter than max_length, iterated
+  // Terminal branches shorter than max(max_length, radius_factor x the point attribute `radius` at
+  // their junction end), iterated (the rule of graph.prune; radius_factor > 0 needs `radius`).
+  EditOp prune(double max_length, double radius_factor = 0.0);
   EditOp delete_components(double max_length);  // components with total length < max_length
   EditOp bridge_gaps(double max_distance, const std::string& route = "straight");
 

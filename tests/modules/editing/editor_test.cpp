@@ -254,6 +254,57 @@ TEST(GraphEditor, JournalIsAppendedAndReplaysOnAPerturbedGraph) {
   EXPECT_NE(msg.find("no edge within 0.5"), std::string::npos) << msg;
 }
 
+TEST(GraphEditor, PruneRelativeToTheRadiusAtTheJunctionAndInTheJournal) {
+  // Trunk (0,0,0)-(10,0,0)-(20,0,0) of radius 4 with two spurs at the junction: 6 long (stored from
+  // its free end to the junction) and 12 long.
+  SpatialGraph g;
+  g.add_node({0, 0, 0});
+  g.add_node({10, 0, 0});
+  g.add_node({20, 0, 0});
+  g.add_node({10, 6, 0});
+  g.add_node({10, -12, 0});
+  g.add_edge(0, 1);
+  g.add_edge(1, 2);
+  g.add_edge(3, 1, {{10, 6, 0}, {10, 0, 0}});
+  g.add_edge(1, 4, {{10, 0, 0}, {10, -12, 0}});
+  auto& r = g.ensure_point_attribute("radius");
+  r[0] = {4.0f, 4.0f};
+  r[1] = {4.0f, 4.0f};
+  r[2] = {1.0f, 4.0f};  // 4 at the junction end
+  r[3] = {4.0f, 1.0f};
+  {
+    GraphEditor ed{SpatialGraph(g)};
+    ed.prune(5.0);  // absolute length only: both spurs stay
+    EXPECT_EQ(ed.graph().edge_count(), 4);
+  }
+  GraphEditor ed{SpatialGraph(g)};
+  const EditOp op = ed.prune(5.0, 2.0);  // limit 8: the 6-long spur goes, the 12-long one stays
+  expect_valid(ed);
+  EXPECT_EQ(ed.node_at({10, 6, 0}, 0.1), -1);
+  EXPECT_GE(ed.node_at({10, -12, 0}, 0.1), 0);
+  EXPECT_EQ(ed.graph().edge_count(), 3);
+  ed.undo();
+  EXPECT_EQ(ed.graph().edge_count(), 4);
+  // The journal line carries the factor and replays the same way.
+  EXPECT_EQ(op.to_yaml(), "{op: prune, max_length: 5, radius_factor: 2}");
+  const Journal j = parse_journal("skelflow_edits: 1\nops:\n- " + op.to_yaml() + "\n");
+  ASSERT_EQ(j.ops.size(), 1u);
+  EXPECT_DOUBLE_EQ(j.ops[0].radius_factor, 2.0);
+  GraphEditor replay{SpatialGraph(g)};
+  EXPECT_TRUE(replay.apply(j.ops[0], 1.0).applied);
+  EXPECT_EQ(replay.graph().edge_count(), 3);
+  // Without radii the factor is an error, reported by replay instead of applied.
+  SpatialGraph bare = g;
+  bare.point_attributes.clear();
+  GraphEditor nr{std::move(bare)};
+  EXPECT_THROW(nr.prune(5.0, 2.0), InputError);
+  const ApplyResult res = nr.apply(j.ops[0], 1.0);
+  EXPECT_FALSE(res.applied);
+  EXPECT_NE(res.message.find("'radius'"), std::string::npos) << res.message;
+  EXPECT_THROW(parse_journal("skelflow_edits: 1\nops:\n- {op: prune, max_length: 1, radius_factor: -1}\n"),
+               InputError);
+}
+
 TEST(GraphEditor, MalformedJournalNamesLine) {
   try {
     parse_journal("skelflow_edits: 1\nops:\n- {op: delete_edge}\n", "j.yaml");
