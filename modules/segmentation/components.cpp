@@ -261,34 +261,82 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   return res;
 }
 
-ComponentCount count_components(const VolumeU8& mask, int connectivity, bool background, int threads,
-                                const Interrupter& interrupter) {
+namespace {
+
+// Runs of the object (or background) united with `connectivity`; every run points at its root
+// (parent[i] = root) and border[root] = 1 when the component has a voxel on an array face.
+struct RootedRuns {
+  Runs runs;
+  std::vector<int64_t> root;
+  std::vector<uint8_t> border;
+};
+RootedRuns rooted_runs(const VolumeU8& mask, int connectivity, bool background, int threads,
+                       const Interrupter& interrupter) {
   check_connectivity(connectivity);
-  if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("count_components: nx must be < 2^31 - 1");
+  if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("components: nx must be < 2^31 - 1");
   const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
-  ComponentCount c;
-  if (mask.size() == 0) return c;
-  const Runs r = extract_runs(mask, threads, background);
+  RootedRuns rr;
+  rr.runs = extract_runs(mask, threads, background);
   interrupter.check(0.3);
-  std::vector<int64_t> parent = union_runs(r, ny, nz, connectivity, threads, interrupter);
+  rr.root = union_runs(rr.runs, ny, nz, connectivity, threads, interrupter);
   interrupter.check(0.8);
   // parent[i] <= i: one forward pass takes every run to its root; a root collects the border flag.
-  const auto nruns = static_cast<int64_t>(r.x0.size());
-  std::vector<uint8_t> border(static_cast<size_t>(nruns), 0);
+  const Runs& r = rr.runs;
+  rr.border.assign(r.x0.size(), 0);
   for (int64_t row = 0; row < ny * nz; ++row) {
     const int64_t y = row % ny, z = row / ny;
     const bool face_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
     for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
       const auto si = static_cast<size_t>(i);
-      const int64_t root = parent[static_cast<size_t>(parent[si])];
-      parent[si] = root;
-      if (root == i) ++c.components;
-      if (face_row || r.x0[si] == 0 || r.x1[si] == nx) border[static_cast<size_t>(root)] = 1;
+      const int64_t root = rr.root[static_cast<size_t>(rr.root[si])];
+      rr.root[si] = root;
+      if (face_row || r.x0[si] == 0 || r.x1[si] == nx) rr.border[static_cast<size_t>(root)] = 1;
     }
   }
-  for (int64_t i = 0; i < nruns; ++i) c.touching_border += parent[static_cast<size_t>(i)] == i && border[static_cast<size_t>(i)];
+  return rr;
+}
+
+}  // namespace
+
+ComponentCount count_components(const VolumeU8& mask, int connectivity, bool background, int threads,
+                                const Interrupter& interrupter) {
+  ComponentCount c;
+  const RootedRuns rr = rooted_runs(mask, connectivity, background, threads, interrupter);
+  for (size_t i = 0; i < rr.root.size(); ++i) {
+    if (rr.root[i] != static_cast<int64_t>(i)) continue;
+    ++c.components;
+    c.touching_border += rr.border[i];
+  }
   interrupter.check(1.0);
   return c;
+}
+
+VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled, int threads) {
+  // Background 6-components without a voxel on an array face are cavities: their runs become object.
+  const RootedRuns rr = rooted_runs(mask, 6, true, threads, {});
+  VolumeU8 out(mask.grid(), 0);
+  const uint8_t* m = mask.data();
+  const int64_t nx = mask.nx(), rows = mask.ny() * mask.nz();
+  std::vector<int64_t> row_filled(static_cast<size_t>(rows), 0);
+  parallel_for(0, rows, threads, [&](int64_t b, int64_t e) {
+    for (int64_t row = b; row < e; ++row) {
+      uint8_t* o = out.data() + row * nx;
+      for (int64_t x = 0; x < nx; ++x) o[x] = m[row * nx + x] != 0;
+      const Runs& r = rr.runs;
+      for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
+        const auto si = static_cast<size_t>(i);
+        if (rr.border[static_cast<size_t>(rr.root[si])]) continue;
+        std::fill(o + r.x0[si], o + r.x1[si], uint8_t{1});
+        row_filled[static_cast<size_t>(row)] += r.x1[si] - r.x0[si];
+      }
+    }
+  }, 64);
+  if (filled) {
+    int64_t f = 0;
+    for (int64_t v : row_filled) f += v;
+    *filled = f;
+  }
+  return out;
 }
 
 }  // namespace skel::segmentation

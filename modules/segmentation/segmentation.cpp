@@ -96,44 +96,4 @@ VolumeU8 threshold(const DataObject& image, double low, double high, int threads
   });
 }
 
-VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled) {
-  const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
-  // 2 = background reached from the border (6-connected).
-  VolumeU8 out(mask.grid(), 0);
-  std::vector<int64_t> stack;
-  auto seed = [&](int64_t x, int64_t y, int64_t z) {
-    const int64_t i = mask.index(x, y, z);
-    if (!mask[i] && !out[i]) {
-      out[i] = 2;
-      stack.push_back(i);
-    }
-  };
-  for (int64_t z = 0; z < nz; ++z)
-    for (int64_t y = 0; y < ny; ++y)
-      for (int64_t x = 0; x < nx; ++x)
-        if (x == 0 || y == 0 || z == 0 || x == nx - 1 || y == ny - 1 || z == nz - 1) seed(x, y, z);
-  while (!stack.empty()) {
-    const int64_t i = stack.back();
-    stack.pop_back();
-    const int64_t x = i % nx, y = (i / nx) % ny, z = i / (nx * ny);
-    if (x > 0) seed(x - 1, y, z);
-    if (x + 1 < nx) seed(x + 1, y, z);
-    if (y > 0) seed(x, y - 1, z);
-    if (y + 1 < ny) seed(x, y + 1, z);
-    if (z > 0) seed(x, y, z - 1);
-    if (z + 1 < nz) seed(x, y, z + 1);
-  }
-  int64_t f = 0;
-  for (int64_t i = 0; i < mask.size(); ++i) {
-    if (out[i] == 2) {
-      out[i] = 0;
-    } else {
-      if (!mask[i]) ++f;
-      out[i] = 1;
-    }
-  }
-  if (filled) *filled = f;
-  return out;
-}
-
 }  // namespace skel::segmentation

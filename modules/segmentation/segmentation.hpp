@@ -54,8 +54,9 @@ struct ComponentCount {
 ComponentCount count_components(const VolumeU8& mask, int connectivity, bool background, int threads = 0,
                                 const Interrupter& interrupter = {});
 
-// Background components not 6-connected to the volume border become object (thesis §6.2).
-VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr);
+// Background components not 6-connected to the volume border become object (thesis §6.2). Union-find
+// over background x-runs (as count_components); `filled` receives the number of filled voxels.
+VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr, int threads = 0);
 
 // Median over the (2·radius+1)³ cube around each voxel; voxels outside the volume take the value of
 // the nearest border voxel (replicated border, SciPy mode "nearest"). Output has the input's type.

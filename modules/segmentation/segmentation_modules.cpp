@@ -220,11 +220,13 @@ public:
 the border of the volume become object, so the object has no cavities (the outside counts as connected
 to the border). Mask rule: voxel > 0 is object for any integer volume; a float volume is an error
 naming the port. Empty mask: unchanged (all background touches the border); full volume: unchanged.
-A flood fill from the border voxels; memory: 1 byte per voxel plus the fill stack.)");
+Union-find over the x-runs of the background (6-connected), on the node's threads; memory: the output
+plus about 24 bytes per background run.)");
   }
   void run(RunContext& ctx) override {
     int64_t filled = 0;
-    VolumeU8 m = segmentation::fill_cavities(segmentation::as_mask(*ctx.input_data("mask"), "mask"), &filled);
+    VolumeU8 m = segmentation::fill_cavities(segmentation::as_mask(*ctx.input_data("mask"), "mask"), &filled,
+                                              ctx.threads());
     if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
     ctx.output("mask", std::move(m));
   }
