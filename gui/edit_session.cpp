@@ -8,9 +8,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "graph/graph_io.hpp"
+#include "io/graph_io.hpp"
 #include "pipeline_document.hpp"
 #include "skel/error.hpp"
+
+using namespace skel::io;
 
 namespace skel::gui {
 
@@ -51,10 +53,10 @@ private:
   bool first_ = true;
 };
 
-GraphEditSession::GraphEditSession(const QString& name, const SpatialGraph& graph, editing::EditContext context,
+GraphEditSession::GraphEditSession(const QString& name, const SpatialGraph& graph, graph::EditContext context,
                                    QObject* parent)
     : QObject(parent), name_(name), context_(context),
-      editor_(std::make_unique<editing::GraphEditor>(SpatialGraph(graph), std::move(context))) {}
+      editor_(std::make_unique<graph::GraphEditor>(SpatialGraph(graph), std::move(context))) {}
 
 GraphEditSession::~GraphEditSession() {
   // Commands refer to the editor: drop them first.
@@ -68,7 +70,7 @@ DataPtr GraphEditSession::graph_ptr() const {
 int GraphEditSession::journal_entries(const QString& path) {
   if (!QFileInfo::exists(path)) return 0;
   try {
-    return static_cast<int>(editing::read_journal(str(path)).ops.size());
+    return static_cast<int>(graph::read_journal(str(path)).ops.size());
   } catch (const std::exception&) {
     return 0;
   }
@@ -81,7 +83,7 @@ void GraphEditSession::open_journal(const QString& path, Resume resume, QStringL
     if (!QFile::rename(path, bak)) throw Error("cannot move the old journal " + str(path) + " to " + str(bak));
     if (report) report->append("previous journal kept as " + bak);
   } else if (entries > 0) {
-    const editing::Journal j = editing::read_journal(str(path));
+    const graph::Journal j = graph::read_journal(str(path));
     // Replay without journaling (the entries are in the file already); mirror the resulting undo
     // history on the QUndoStack so Ctrl+Z continues where the last session stopped.
     std::vector<QString> done, undone;
@@ -173,9 +175,9 @@ std::vector<int64_t> GraphEditSession::selected_nodes() const {
 }
 
 // ---------------------------------------------------------------- operations
-bool GraphEditSession::run_op(const std::function<editing::EditOp()>& op) {
+bool GraphEditSession::run_op(const std::function<graph::EditOp()>& op) {
   try {
-    const editing::EditOp done = op();
+    const graph::EditOp done = op();
     undo_.push(new EditorCommand(this, qstr(done.to_yaml())));
     emit message("edit: " + qstr(done.to_yaml()), false);
     after_change();
@@ -287,14 +289,14 @@ bool GraphEditSession::merge_selected() {
 }
 
 // ---------------------------------------------------------------- dangling-end tour
-void GraphEditSession::set_dangling_options(const editing::DanglingOptions& o) {
+void GraphEditSession::set_dangling_options(const graph::DanglingOptions& o) {
   dangling_options_ = o;
   ends_version_ = ~uint64_t{0};
 }
 
 void GraphEditSession::refresh_dangling() {
   if (ends_version_ == version_) return;
-  ends_ = editing::find_dangling_ends(editor_->graph(), dangling_options_);
+  ends_ = graph::find_dangling_ends(editor_->graph(), dangling_options_);
   ends_version_ = version_;
   current_ = -1;
 }
@@ -349,7 +351,7 @@ bool GraphEditSession::next_dangling() {
   return false;
 }
 
-const editing::DanglingEnd* GraphEditSession::current_dangling() const {
+const graph::DanglingEnd* GraphEditSession::current_dangling() const {
   if (ends_version_ != version_ || current_ < 0 || current_ >= static_cast<int>(ends_.size())) return nullptr;
   return &ends_[current_];
 }
@@ -362,7 +364,7 @@ int GraphEditSession::dangling_remaining() {
 }
 
 bool GraphEditSession::accept_dangling() {
-  const editing::DanglingEnd* d = current_dangling();
+  const graph::DanglingEnd* d = current_dangling();
   if (!d) {
     emit message("Accept: no current dangling end (press N)", true);
     return false;
@@ -371,7 +373,7 @@ bool GraphEditSession::accept_dangling() {
     emit message("Accept: this end has no proposed partner; select a point and press C, or skip", true);
     return false;
   }
-  const editing::DanglingEnd e = *d;
+  const graph::DanglingEnd e = *d;
   const bool ok = run_op([&] {
     return editor_->connect(e.node, e.partner_is_node ? e.partner_node : -1, e.partner_edge, e.partner_point,
                             str(route_));
@@ -381,7 +383,7 @@ bool GraphEditSession::accept_dangling() {
 }
 
 bool GraphEditSession::skip_dangling() {
-  const editing::DanglingEnd* d = current_dangling();
+  const graph::DanglingEnd* d = current_dangling();
   if (d) skipped_.insert(key(d->position));
   return next_dangling();
 }

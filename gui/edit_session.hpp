@@ -18,7 +18,7 @@
 #include <tuple>
 #include <vector>
 
-#include "editing/editor.hpp"
+#include "graph/editor.hpp"
 #include "graph_pick.hpp"
 #include "skel/spatial_graph.hpp"
 
@@ -42,7 +42,7 @@ public:
   enum class Resume { Replay, StartOver };
 
   // `name` is the graph's output ("node.port"); the graph is copied once.
-  GraphEditSession(const QString& name, const SpatialGraph& graph, editing::EditContext context = {},
+  GraphEditSession(const QString& name, const SpatialGraph& graph, graph::EditContext context = {},
                    QObject* parent = nullptr);
   ~GraphEditSession() override;
 
@@ -51,7 +51,7 @@ public:
   // The graph as a DataPtr for the 3D view: aliases the editor's graph (valid until the next edit;
   // valid as long as this session lives).
   [[nodiscard]] DataPtr graph_ptr() const;
-  [[nodiscard]] editing::GraphEditor& editor() { return *editor_; }
+  [[nodiscard]] graph::GraphEditor& editor() { return *editor_; }
   [[nodiscard]] QUndoStack* undo_stack() { return &undo_; }
   [[nodiscard]] bool has_mask() const { return static_cast<bool>(context_.mask); }
 
@@ -83,7 +83,7 @@ public:
   [[nodiscard]] const QString& route() const { return route_; }
 
   // ---- dangling-end tour (analysis.dangling_ends on the current graph)
-  void set_dangling_options(const editing::DanglingOptions& o);
+  void set_dangling_options(const graph::DanglingOptions& o);
   // Goes to the next end not skipped (ends with a proposed partner first, by score). Selects the end
   // node and its partner. False when no end is left.
   bool next_dangling();
@@ -91,7 +91,7 @@ public:
   bool accept_dangling();
   // Skip: remember the current end as skipped and go to the next one.
   bool skip_dangling();
-  [[nodiscard]] const editing::DanglingEnd* current_dangling() const;
+  [[nodiscard]] const graph::DanglingEnd* current_dangling() const;
   [[nodiscard]] int dangling_remaining();  // ends not skipped, on the current graph
 
   // ---- saving: writes `<base>.am` and `<base>.vtp` (graph IO of modules/graph) and syncs the
@@ -116,21 +116,21 @@ signals:
 private:
   friend class EditorCommand;
   // Runs one editor operation and pushes its bridge command. Catches skel::Error -> message().
-  bool run_op(const std::function<editing::EditOp()>& op);
+  bool run_op(const std::function<graph::EditOp()>& op);
   void after_change();  // graph changed: bump version, drop the selection
   void refresh_dangling();
 
   QString name_;
-  editing::EditContext context_;
-  std::unique_ptr<editing::GraphEditor> editor_;
+  graph::EditContext context_;
+  std::unique_ptr<graph::GraphEditor> editor_;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);
   QUndoStack undo_;
   std::vector<EditSelectionItem> selection_;
   QString route_ = "straight";
   uint64_t version_ = 0;
   // Tour state.
-  editing::DanglingOptions dangling_options_;
-  std::vector<editing::DanglingEnd> ends_;
+  graph::DanglingOptions dangling_options_;
+  std::vector<graph::DanglingEnd> ends_;
   uint64_t ends_version_ = ~uint64_t{0};
   int current_ = -1;
   std::set<std::tuple<double, double, double>> skipped_;

@@ -114,7 +114,7 @@ bool GraphEditMode::start(const QString& node, const QString& port, const QStrin
   }
   // Image data of the same pipeline: the original image (first non-binary volume upstream) under the
   // graph, the mask for routed connections and the distance map for radii.
-  editing::EditContext context;
+  graph::EditContext context;
   const Pipeline& p = window_->document()->pipeline();
   background_.clear();
   mask_port_.clear();

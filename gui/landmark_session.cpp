@@ -12,8 +12,10 @@
 #include <limits>
 
 #include "pipeline_document.hpp"
-#include "registration/landmark_io.hpp"
+#include "io/landmark_io.hpp"
 #include "skel/error.hpp"
+
+using namespace skel::io;
 
 namespace skel::gui {
 
@@ -214,12 +216,12 @@ LandmarkSet LandmarkSession::landmark_set() const {
 }
 
 void LandmarkSession::save(const QString& path) {
-  registration::write_landmarks(str(path), landmark_set());
+  io::write_landmarks(str(path), landmark_set());
   undo_.setClean();
 }
 
 void LandmarkSession::load(const QString& path) {
-  const LandmarkSet lm = registration::read_landmarks(str(path));
+  const LandmarkSet lm = io::read_landmarks(str(path));
   if (lm.set_count() == 0 || lm.point_count() == 0) throw InputError(str(path) + ": holds no landmarks");
   set_landmarks(lm, "Load " + QDir::toNativeSeparators(path));
   undo_.setClean();

@@ -12,8 +12,10 @@
 #include <vector>
 
 #include "common/bench_util.hpp"
-#include "editing/editor.hpp"
+#include "graph/editor.hpp"
 #include "graph_pick.hpp"
+
+using namespace skel::graph;
 
 using namespace skel;
 using skel::bench::now_seconds;
@@ -114,8 +116,8 @@ int main(int argc, char** argv) {
   std::mt19937_64 rng(11);
   auto rnd = [&](int64_t k) { return static_cast<int64_t>(rng() % static_cast<uint64_t>(k)); };
 
-  editing::GraphEditor plain{SpatialGraph(g0)};
-  editing::GraphEditor journaled{SpatialGraph(g0)};
+  graph::GraphEditor plain{SpatialGraph(g0)};
+  graph::GraphEditor journaled{SpatialGraph(g0)};
   journaled.set_journal(work + "/bench.edits.yaml", 1.0);
   const int64_t nodes = g0.node_count();
   auto grid_node = [&](int64_t x, int64_t y, int64_t z) { return x + n * (y + n * z); };
@@ -124,20 +126,20 @@ int main(int argc, char** argv) {
   // graph returns to the lattice after every repetition.
   struct Case {
     const char* name;
-    std::function<void(editing::GraphEditor&)> op;
-    std::function<void(editing::GraphEditor&)> before;  // untimed set-up step (undone afterwards)
+    std::function<void(graph::GraphEditor&)> op;
+    std::function<void(graph::GraphEditor&)> before;  // untimed set-up step (undone afterwards)
   };
   int64_t a = 0, b = 0, e = 0;
   std::vector<Case> cases = {
-      {"delete_edge", [&](editing::GraphEditor& ed) { ed.delete_edges({e}); }, nullptr},
-      {"delete_node", [&](editing::GraphEditor& ed) { ed.delete_node(a); }, nullptr},
-      {"connect node-node (straight)", [&](editing::GraphEditor& ed) { ed.connect(a, b); }, nullptr},
-      {"connect node-edge point", [&](editing::GraphEditor& ed) { ed.connect(a, -1, e, 1); }, nullptr},
-      {"split", [&](editing::GraphEditor& ed) { ed.split(e, 1); }, nullptr},
-      {"merge", [&](editing::GraphEditor& ed) { ed.merge(ed.graph().node_count() - 1); },
-       [&](editing::GraphEditor& ed) { ed.split(e, 1); }},
-      {"move_node", [&](editing::GraphEditor& ed) { ed.move_node(a, {ed.graph().positions[a][0] + 2, ed.graph().positions[a][1] + 1, ed.graph().positions[a][2]}); }, nullptr},
-      {"set radius (edge points)", [&](editing::GraphEditor& ed) { ed.set_attribute("edge", {e}, "radius", 2.5); }, nullptr},
+      {"delete_edge", [&](graph::GraphEditor& ed) { ed.delete_edges({e}); }, nullptr},
+      {"delete_node", [&](graph::GraphEditor& ed) { ed.delete_node(a); }, nullptr},
+      {"connect node-node (straight)", [&](graph::GraphEditor& ed) { ed.connect(a, b); }, nullptr},
+      {"connect node-edge point", [&](graph::GraphEditor& ed) { ed.connect(a, -1, e, 1); }, nullptr},
+      {"split", [&](graph::GraphEditor& ed) { ed.split(e, 1); }, nullptr},
+      {"merge", [&](graph::GraphEditor& ed) { ed.merge(ed.graph().node_count() - 1); },
+       [&](graph::GraphEditor& ed) { ed.split(e, 1); }},
+      {"move_node", [&](graph::GraphEditor& ed) { ed.move_node(a, {ed.graph().positions[a][0] + 2, ed.graph().positions[a][1] + 1, ed.graph().positions[a][2]}); }, nullptr},
+      {"set radius (edge points)", [&](graph::GraphEditor& ed) { ed.set_attribute("edge", {e}, "radius", 2.5); }, nullptr},
   };
   for (const auto& c : cases) {
     std::vector<double> t_op, t_undo, t_journal;
@@ -146,7 +148,7 @@ int main(int argc, char** argv) {
       a = grid_node(x, y, z);
       b = grid_node(x + 2, y, z);
       e = rnd(g0.edge_count());
-      for (editing::GraphEditor* ed : {&plain, &journaled}) {
+      for (graph::GraphEditor* ed : {&plain, &journaled}) {
         if (c.before) c.before(*ed);
         double s = now_seconds();
         c.op(*ed);
@@ -167,7 +169,7 @@ int main(int argc, char** argv) {
     std::printf("| %s | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f |\n", c.name, so.median, so.max, su.median, su.max,
                 sj.median, sj.max);
   }
-  const bool same = editing::same_graph(plain.graph(), g0) && editing::same_graph(journaled.graph(), g0);
+  const bool same = graph::same_graph(plain.graph(), g0) && graph::same_graph(journaled.graph(), g0);
   std::printf("\nAfter %d × %zu ops and undos both graphs are %s the lattice.\n\n", reps, cases.size(),
               same ? "identical to" : "DIFFERENT from");
 
@@ -176,13 +178,13 @@ int main(int argc, char** argv) {
     std::vector<double> t_node, t_edge;
     for (int r = 0; r < std::min(reps, 20); ++r) {
       const int64_t k = grid_node(1 + rnd(n - 3), 1 + rnd(n - 3), 1 + rnd(n - 3));
-      editing::EditOp op("delete_node");
+      graph::EditOp op("delete_node");
       op.at.push_back(plain.graph().positions[k]);
       double s = now_seconds();
       plain.apply(op, 0.5);
       t_node.push_back(now_seconds() - s);
       plain.undo();
-      editing::EditOp op2("delete_edge");
+      graph::EditOp op2("delete_edge");
       op2.at.push_back(plain.graph().edges[rnd(plain.graph().edge_count())].points[1]);
       s = now_seconds();
       plain.apply(op2, 0.5);
@@ -198,7 +200,7 @@ int main(int argc, char** argv) {
   // Batch operations (one undo step each; not interactive single edits).
   {
     std::printf("| batch op | op ms | undo ms | changed |\n|---|---|---|---|\n");
-    editing::GraphEditor ed{SpatialGraph(g0)};
+    graph::GraphEditor ed{SpatialGraph(g0)};
     // Make 1000 dangling ends first (untimed): a random node keeps one of its 6 lattice edges, so it
     // ends a 10-long spur pointing at the next lattice node — prune {15} removes the spurs,
     // bridge_gaps {12} (on the state before the prune, which is undone) reconnects them.

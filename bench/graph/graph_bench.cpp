@@ -8,8 +8,11 @@
 #include <string>
 
 #include "common/bench_util.hpp"
-#include "graph/network_analysis.hpp"
-#include "graph/skeleton_to_graph.hpp"
+#include "analysis/network_analysis.hpp"
+#include "geometry/skeleton_to_graph.hpp"
+
+using namespace skel::analysis;
+using namespace skel::geometry;
 
 using namespace skel;
 

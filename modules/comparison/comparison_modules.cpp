@@ -2,7 +2,7 @@
 #include "comparison/comparison.hpp"
 #include "skel/module.hpp"
 
-namespace skel {
+namespace skel::comparison {
 namespace {
 
 std::vector<std::string> skeleton_or_graph_types() {
@@ -143,4 +143,4 @@ Memory: ~100 B per sample and per node. Deterministic for any thread count.)");
 SKEL_REGISTER_MODULE(GraphMatchModule);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::comparison

@@ -5,7 +5,7 @@
 #include "distance/distance.hpp"
 #include "skel/module.hpp"
 
-namespace skel {
+namespace skel::distance {
 namespace {
 
 // The mask input as a VolumeU8 (voxel > 0 is object): uint8 masks are used as they are, other integer
@@ -202,4 +202,4 @@ Memory: the output, 4 bytes per voxel (plus 1 byte per voxel if seeds or mask ar
 SKEL_REGISTER_MODULE(SeededModule);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::distance

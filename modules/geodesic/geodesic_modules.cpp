@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-namespace skel {
+namespace skel::geodesic {
 namespace {
 
 class BoundaryDistance final : public Module {
@@ -197,4 +197,4 @@ in the distance input's unit) and the plate-to-rod volume ratio. Memory: 1 byte 
 SKEL_REGISTER_MODULE(RodsPlates);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::geodesic

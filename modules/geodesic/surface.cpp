@@ -7,7 +7,7 @@
 #include "distance/distance.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
-#include "thinning/topology.hpp"
+#include "thinning/local_topology.hpp"
 
 namespace skel::geodesic {
 
@@ -42,7 +42,7 @@ ThinSurfaceResult thin_surface(const VolumeU8& surface, const ThinSurfaceOptions
       const int* u = kDir[2 * a];
       if (!in(x + u[0], y + u[1], z + u[2]) && !in(x - u[0], y - u[1], z - u[2])) return false;
     }
-    return is_simple(neighbourhood_at(s, x, y, z));
+    return thinning::is_simple(thinning::neighbourhood_at(s, x, y, z));
   };
   for (r.passes = 0; r.passes < o.max_passes; ++r.passes) {
     int64_t removed_this_pass = 0;

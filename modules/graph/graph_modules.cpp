@@ -1,65 +1,12 @@
-// Modules of the graph family: skeleton → graph (geometry.*), graph operations (graph.*), network
-// analysis (analysis.*) and graph files (io.read_graph / io.write_graph).
-#include "graph/graph_io.hpp"
+// Modules of the graph family: graph-to-graph operations (graph.prune, graph.filter) and replaying
+// manual edits (graph.apply_edits).
+#include "graph/editor.hpp"
 #include "graph/graph_ops.hpp"
-#include "graph/network_analysis.hpp"
-#include "graph/skeleton_to_graph.hpp"
 #include "skel/module.hpp"
+#include "skel/table.hpp"
 
-namespace skel {
+namespace skel::graph {
 namespace {
-
-class SkeletonToGraphModule final : public Module {
-public:
-  static ModuleSpec spec() {
-    return ModuleSpec("geometry.skeleton_to_graph", "Voxel skeleton to a spatial graph by dual cubes")
-        .input<VolumeU8>("skeleton", "voxel skeleton (non-zero = skeleton voxel)")
-        .optional_input<AnyVolume>("distance", "distance volume on the same grid; gives the point attribute radius")
-        .output<SpatialGraph>("graph", "nodes at junctions/ends, edges with polylines (µm), radius per point")
-        .output<VolumeU8>("manifold", "manifold type per voxel (only when with_manifold is true)")
-        .param<int64_t>("smooth_passes", 0, "Gaussian smoothing passes over edge points (0 = off)")
-        .min(0)
-        .param<int64_t>("smooth_kernel", 5, "smoothing window in points (>= 3)")
-        .min(3)
-        .param<double>("radius_scale", 1.0, "radius = distance value × radius_scale (1 for distances in µm)")
-        .min(0)
-        .param<bool>("with_manifold", false, "also output the manifold type volume")
-        .details(
-            "Thesis §3.1. Each object voxel is a 0-cell; 1-cells join 6-adjacent voxels always, 18-adjacent "
-            "voxels when the other two voxels of their face are background, 26-adjacent voxels when they are "
-            "the only two object voxels of their dual cube (fig. 3.6). In each dual cube, 2-cells fill the "
-            "shortest cycles (all independent cycles of one length at once) until the cycle space is spanned; "
-            "a 3-cell is added when χ = 2. Voxels are classified by their incident cells (fig. 3.9); codes of "
-            "`manifold`: 0 background, 1 0-manifold (isolated voxel), 2 1-manifold, 3 1-boundary, 4 2-manifold, "
-            "5 2-boundary, 6 junction, 7 1-x-junction (junction with a bare 1-cell). §3.1.2: a 2^8 table gives "
-            "the 1-cells of each reduced dual cube, so every edge is generated once; connected voxels that "
-            "are not 1-manifold/1-boundary collapse to one node at their centroid (node label `kind` = highest "
-            "manifold code of its voxels); a tunnel inside such a component (a cycle of its 1-cells that does "
-            "not bound its 2-cells, e.g. junction voxels around a hole) is kept as a loop edge on its node "
-            "drawn along the cycle (the thesis collapses it; components with > 4096 internal 1-cells are "
-            "collapsed as in the thesis); chains of 1-manifold voxels become edge polylines that start and end "
-            "at their nodes; an isolated ring becomes one loop edge on a node (degree 2) at its first voxel "
-            "(x-fastest order). Smoothing: Gaussian weights, sigma = kernel/4, end points fixed. Radius "
-            "(§6.1 local thickness): point attribute `radius` = distance × radius_scale at each voxel; at a "
-            "node the maximum over its voxels (also node attribute `radius`). Memory: the skeleton (1 B/voxel), "
-            "~60 B per skeleton voxel, plus 1 B/voxel for `manifold`. Deterministic for any thread count.");
-  }
-  void run(RunContext& ctx) override {
-    auto skel_in = ctx.input<VolumeU8>("skeleton");
-    DataPtr dist = ctx.input_data("distance");
-    SkeletonToGraphOptions o;
-    o.smooth_passes = static_cast<int>(ctx.param<int64_t>("smooth_passes"));
-    o.smooth_kernel = static_cast<int>(ctx.param<int64_t>("smooth_kernel"));
-    o.radius_scale = ctx.param<double>("radius_scale");
-    o.want_manifold = ctx.param<bool>("with_manifold");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    auto r = skeleton_to_graph(*skel_in, dist.get(), o);
-    ctx.output("graph", std::move(r.graph));
-    if (o.want_manifold) ctx.output("manifold", std::move(r.manifold));
-  }
-};
-SKEL_REGISTER_MODULE(SkeletonToGraphModule);
 
 class PruneModule final : public Module {
 public:
@@ -139,206 +86,63 @@ public:
 };
 SKEL_REGISTER_MODULE(FilterModule);
 
-class NetworkStatisticsModule final : public Module {
+class ApplyEdits final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("analysis.network_statistics", "Segment, node and network statistics of a graph")
-        .input<SpatialGraph>("graph", "spatial graph (point attribute radius optional)")
-        .optional_input<VolumeU8>("mask", "region for the length density (default: the graph's source grid box)")
-        .output<Table>("segments", "per edge: length, chord, tortuosity, radius stats, volume, surface")
-        .output<Table>("nodes", "per node: degree, position")
-        .output<Table>("summary", "one row: totals, densities, branch/end points, loops, orientation histogram")
-        .param<std::string>("radius", std::string("radius"), "point attribute holding radii")
-        .param<int64_t>("orientation_bins", 9, "bins of the angle between segments and the axis (0..90°)")
-        .min(1)
-        .max(180)
-        .choice("axis", {"x", "y", "z"}, "z", "reference axis of the orientation histogram")
-        .param<double>("orientation_window", 0.0,
-                       "arc length over which segment directions are measured (0 = 10 x the median point step)")
-        .min(0)
-        .unit("µm")
-        .details(
-            "Thesis §6.1. Per segment: polyline length, chord (end-to-end distance), tortuosity = length / "
-            "chord (NaN for loops), length-weighted mean, min and max radius, volume and lateral surface of "
-            "the truncated cones between consecutive points (π r² integrated along the edge). Per node: "
-            "degree (a loop counts twice) and position. Summary: nodes, edges, components, total length, "
-            "reference volume (mask volume, else the box of the graph's source grid, else the points' bounding "
-            "box), length density = total length / reference volume, branch points (degree >= 3), end points "
-            "(degree 1), loops = cyclomatic number E - N + C, total volume/surface, and orientation_k = length "
-            "of the pieces whose direction makes an angle to the axis in bin k. Directions are chords of "
-            "consecutive pieces of arc length orientation_window cut along each edge (the last piece of an edge "
-            "may be shorter): single voxel steps of a skeleton only take the 13 lattice directions (0°, 45°, "
-            "54.7°, 90° to an axis), so a histogram of steps would show the grid instead of the network. Units: µm (spacing units).");
+    return ModuleSpec("graph.apply_edits", "Replays a manual edit journal on a graph (keeps manual work across re-runs)")
+        .input<SpatialGraph>("graph", "graph to edit (e.g. from geometry.skeleton_to_graph)")
+        .optional_input<VolumeU8>("mask", "object mask, for connections routed through the mask")
+        .optional_input<VolumeF32>("distance", "distance map (physical units), for the radius of new points")
+        .output<SpatialGraph>("graph", "edited graph")
+        .output<Table>("table", "one row per journal entry: index, op, status (applied | not matched | failed), message")
+        .path("journal", "", PathRole::Input, "edit journal (YAML) written by skelflow-gui or by hand")
+        .param<double>("tolerance", 0.0, "match distance for addressing elements by position; 0 = the journal's own")
+        .min(0).unit("µm")
+        .param<bool>("strict", false, "fail when an entry no longer matches (default: report it in the table)")
+        .details(R"(The journal (docs/editing.md) lists operations that address nodes and edges by
+physical position ("node at [x, y, z]", "edge through [x, y, z]") within a tolerance, not by internal
+ids, so that a journal recorded on one reconstruction can be replayed on a graph recomputed by the
+upstream pipeline (with a slightly different parameter, say). Every entry is tried in order; one whose
+target no longer exists is reported in the table as "not matched" and never silently skipped. `undo`
+and `redo` entries undo/redo the previous steps exactly as in the editor. Memory: one copy of the graph
+plus the undo records of the journal's steps.)");
   }
   void run(RunContext& ctx) override {
-    auto g = ctx.input<SpatialGraph>("graph");
-    NetworkStatisticsOptions o;
-    o.radius = ctx.param<std::string>("radius");
-    o.orientation_bins = static_cast<int>(ctx.param<int64_t>("orientation_bins"));
-    const std::string axis = ctx.param<std::string>("axis");
-    o.axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
-    o.orientation_window = ctx.param<double>("orientation_window");
-    if (auto m = ctx.optional_input<VolumeU8>("mask")) o.reference_volume = mask_volume(*m);
-    auto st = network_statistics(*g, o);
-    ctx.output("segments", std::move(st.segments));
-    ctx.output("nodes", std::move(st.nodes));
-    ctx.output("summary", std::move(st.summary));
-  }
-};
-SKEL_REGISTER_MODULE(NetworkStatisticsModule);
-
-class TreesModule final : public Module {
-public:
-  static ModuleSpec spec() {
-    return ModuleSpec("analysis.trees", "Vessel trees from root points and a minimum diameter")
-        .input<SpatialGraph>("graph", "spatial graph (point attribute radius needed when min_diameter > 0)")
-        .output<SpatialGraph>("graph", "graph with edge labels tree and branch_order")
-        .output<Table>("trees", "per tree: root node, edges, total length")
-        .param<std::vector<int64_t>>("roots", {}, "root node ids")
-        .optional_value()
-        .param<std::vector<double>>("root_points", {}, "root positions x y z, x y z ... (nearest node)")
-        .optional_value()
-        .unit("µm")
-        .param<double>("min_diameter", 0.0, "edges thinner than this (2 × mean radius) are capillaries")
-        .min(0)
-        .unit("µm")
-        .param<std::string>("radius", std::string("radius"), "point attribute holding radii")
-        .details(
-            "Thesis §6.1 (fig. 6.3): main vessel trees are separated from the capillary bed by diameter and "
-            "root points. From all roots at once, a Dijkstra search along polyline lengths walks only edges "
-            "whose diameter (2 × length-weighted mean radius) is >= min_diameter; each reached edge gets "
-            "`tree` = 1-based index of its nearest root (ties: lower index) and `branch_order` = 1 at the "
-            "root, +1 after each node of degree >= 3. All other edges: tree 0 (capillary), branch_order 0. "
-            "Memory: a copy of the graph plus O(nodes).");
-  }
-  void run(RunContext& ctx) override {
-    SpatialGraph g = *ctx.input<SpatialGraph>("graph");
-    TreeOptions o;
-    o.roots = ctx.param<std::vector<int64_t>>("roots");
-    const auto rp = ctx.param<std::vector<double>>("root_points");
-    if (rp.size() % 3 != 0)
-      throw InputError("parameter 'root_points': expected x y z triples, got " + std::to_string(rp.size()) + " numbers");
-    for (size_t i = 0; i < rp.size(); i += 3) o.root_points.push_back({rp[i], rp[i + 1], rp[i + 2]});
-    o.min_diameter = ctx.param<double>("min_diameter");
-    o.radius = ctx.param<std::string>("radius");
-    auto s = extract_trees(g, o);
-    const auto& tree = g.edge_labels.at("tree");
-    std::vector<int64_t> id, root, edges(s.root_nodes.size(), 0);
-    std::vector<double> len(s.root_nodes.size(), 0.0);
-    for (int64_t e = 0; e < g.edge_count(); ++e)
-      if (tree[e] > 0) {
-        ++edges[tree[e] - 1];
-        len[tree[e] - 1] += g.edge_length(e);
+    auto in = ctx.input<SpatialGraph>("graph");
+    graph::Journal j = graph::read_journal(ctx.input_path("journal"));
+    double tol = ctx.param<double>("tolerance");
+    if (tol <= 0) tol = j.tolerance;
+    graph::EditContext ec;
+    ec.mask = ctx.optional_input<VolumeU8>("mask");
+    ec.distance = ctx.optional_input<VolumeF32>("distance");
+    graph::GraphEditor ed(*in, ec);
+    std::vector<int64_t> index;
+    std::vector<std::string> ops, status, message;
+    int64_t missed = 0;
+    for (size_t i = 0; i < j.ops.size(); ++i) {
+      ctx.progress().check(static_cast<double>(i) / static_cast<double>(std::max<size_t>(1, j.ops.size())));
+      const auto r = ed.apply(j.ops[i], tol);
+      index.push_back(static_cast<int64_t>(i));
+      ops.push_back(j.ops[i].op);
+      status.push_back(r.applied ? "applied" : (r.message.rfind("no ", 0) == 0 || r.message.rfind("nothing", 0) == 0 ? "not matched" : "failed"));
+      message.push_back(r.message);
+      if (!r.applied) {
+        ++missed;
+        if (ctx.param<bool>("strict"))
+          throw InputError("journal entry " + std::to_string(i) + " (" + j.ops[i].to_yaml() + "): " + r.message);
       }
-    for (size_t r = 0; r < s.root_nodes.size(); ++r) {
-      id.push_back(static_cast<int64_t>(r) + 1);
-      root.push_back(s.root_nodes[r]);
     }
+    if (missed) ctx.warn(std::to_string(missed) + " of " + std::to_string(j.ops.size()) + " journal entries were not applied (see the table)");
     Table t;
-    t.add("tree", id).add("root_node", root).add("edges", edges).add("length", len, "µm");
-    ctx.output("graph", std::move(g));
-    ctx.output("trees", std::move(t));
+    t.add("index", index);
+    t.add("op", ops);
+    t.add("status", status);
+    t.add("message", message);
+    ctx.output("graph", SpatialGraph(ed.graph()));
+    ctx.output("table", std::move(t));
   }
 };
-SKEL_REGISTER_MODULE(TreesModule);
-
-class LabelPropagationModule final : public Module {
-public:
-  static ModuleSpec spec() {
-    return ModuleSpec("analysis.label_propagation", "Colour the object by its nearest skeleton edge")
-        .input<VolumeU8>("mask", "object (non-zero = object)")
-        .optional_input<SpatialGraph>("graph", "graph whose edges colour the object")
-        .optional_input<VolumeU32>("seeds", "instead of a graph: label volume (non-zero voxels are seeds)")
-        .output<VolumeU32>("labels", "label per object voxel (0 = background or not reached)")
-        .param<std::string>("label", std::string(""), "edge label to paint (value + 1); empty: edge id + 1")
-        .optional_value()
-        .choice("metric", {"euclidean", "geodesic"}, "euclidean",
-                "nearest seed by Euclidean distance (physical units) or along the object (26-neighbour wave)")
-        .details(
-            "Thesis §6.2, fig. 6.14 (rods/plates decomposition): a skeleton cut at its branching points, each "
-            "edge coloured, colours propagated so every object voxel takes the colour of the nearest skeleton "
-            "point. Edges are drawn into the mask's grid (polylines sampled at <= 1/2 voxel; where edges "
-            "overlap the lower id wins). euclidean: every object voxel takes the label of its nearest seed "
-            "voxel in physical distance (exact Euclidean feature transform, anisotropic spacing; ties: smallest "
-            "z, y, x); memory 4 B/voxel output + ~13 B/voxel while computing. geodesic: a breadth-first wave "
-            "through the object's 26-neighbourhood (equal arrival: earlier seed; unreached voxels stay 0); "
-            "memory 4 B/voxel + 8 B per object voxel. Labels: edge id + 1, or the chosen edge label + 1 (so 0 "
-            "stays 'unlabelled').");
-  }
-  void run(RunContext& ctx) override {
-    auto mask = ctx.input<VolumeU8>("mask");
-    LabelPropagationOptions o;
-    o.label = ctx.param<std::string>("label");
-    o.metric = ctx.param<std::string>("metric") == "geodesic" ? PropagationMetric::geodesic : PropagationMetric::euclidean;
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    if (auto g = ctx.optional_input<SpatialGraph>("graph")) {
-      ctx.output("labels", propagate_edge_labels(*mask, *g, o));
-    } else if (auto s = ctx.optional_input<VolumeU32>("seeds")) {
-      ctx.output("labels", propagate_labels(*mask, *s, o));
-    } else {
-      throw InputError("inputs 'graph' / 'seeds': connect one of them");
-    }
-  }
-};
-SKEL_REGISTER_MODULE(LabelPropagationModule);
-
-constexpr const char* kGraphFormats =
-    "By extension: .am Amira SpatialGraph (ASCII; radius = thickness), .vtp VTK XML PolyData (ASCII; "
-    "nodes as vertex cells, edges as polylines, attributes as point/cell data), .swc (trees only), "
-    ".graphml, .csv (edge points; the nodes table goes to nodes_path). Attributes and labels are kept in "
-    "every format except SWC (radius and swc_type only).";
-
-class ReadGraphModule final : public Module {
-public:
-  static ModuleSpec spec() {
-    return ModuleSpec("io.read_graph", "Read a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
-        .output<SpatialGraph>("graph", "the graph")
-        .path("path", "", PathRole::Input, "graph file")
-        .path("nodes_path", "", PathRole::Input, "CSV only: nodes table (default: <stem>_nodes.csv)")
-        .optional_value()
-        .details(std::string(kGraphFormats) +
-                 " Polyline end points are set to their nodes' positions. Malformed files are input errors "
-                 "naming the file and what is wrong. Memory: the file text plus the graph.");
-  }
-  void run(RunContext& ctx) override {
-    const auto p = ctx.input_path("path");
-    const std::string np = ctx.param<std::string>("nodes_path");
-    ctx.output("graph", read_graph(p, graph_format_from_path(p), np.empty() ? std::filesystem::path() : ctx.input_path("nodes_path")));
-  }
-};
-SKEL_REGISTER_MODULE(ReadGraphModule);
-
-class WriteGraphModule final : public Module {
-public:
-  static ModuleSpec spec() {
-    return ModuleSpec("io.write_graph", "Write a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
-        .input<SpatialGraph>("graph", "the graph")
-        .path("path", "", PathRole::Output, "graph file; the format follows the extension")
-        .path("nodes_path", "", PathRole::Output, "CSV only (required there): nodes table file")
-        .optional_value()
-        .details(std::string(kGraphFormats) +
-                 " Files appear only when the whole run succeeds (temporary file + rename). Coordinates: "
-                 "float in .am (Amira's layout), 17 significant digits elsewhere.");
-  }
-  void run(RunContext& ctx) override {
-    auto g = ctx.input<SpatialGraph>("graph");
-    const auto fin = ctx.final_output_path("path");
-    const auto f = graph_format_from_path(fin);
-    std::filesystem::path np;
-    if (f == GraphFormat::csv) {
-      if (ctx.param<std::string>("nodes_path").empty())
-        throw InputError("parameter 'nodes_path': required when writing a .csv graph");
-      np = ctx.output_path("nodes_path");
-    }
-    write_graph(*g, ctx.output_path("path"), f, np);
-  }
-};
-SKEL_REGISTER_MODULE(WriteGraphModule);
-
-SKEL_REGISTER_INSPECTOR("spatial graph", {".am", ".vtp", ".swc", ".graphml"}, [](const std::filesystem::path& p) {
-  return read_graph(p, graph_format_from_path(p)).describe();
-});
+SKEL_REGISTER_MODULE(ApplyEdits);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::graph

@@ -5,7 +5,7 @@
 
 #include "skel/error.hpp"
 
-namespace skel {
+namespace skel::graph {
 
 namespace {
 
@@ -173,4 +173,4 @@ int64_t filter_edges(SpatialGraph& g, const FilterOptions& options) {
   return static_cast<int64_t>(drop.size());
 }
 
-}  // namespace skel
+}  // namespace skel::graph

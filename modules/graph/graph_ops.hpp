@@ -8,7 +8,7 @@
 #include "skel/interrupter.hpp"
 #include "skel/spatial_graph.hpp"
 
-namespace skel {
+namespace skel::graph {
 
 // Joins the two edges at every node of degree 2 (two distinct edges) into one edge and removes the
 // node; polylines and point attributes are concatenated, edge attributes become the length-weighted
@@ -52,4 +52,4 @@ struct FilterOptions {
 // Keeps the edges whose value lies in [min, max]; returns the number of edges removed.
 int64_t filter_edges(SpatialGraph& graph, const FilterOptions& options);
 
-}  // namespace skel
+}  // namespace skel::graph

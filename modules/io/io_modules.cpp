@@ -6,7 +6,7 @@
 #include "skel/table.hpp"
 #include "volume/convert.hpp"
 
-namespace skel {
+namespace skel::io {
 namespace {
 
 class ReadVolume final : public Module {
@@ -31,10 +31,10 @@ with a 256 MiB chunk cache.)");
     DataPtr v = io::read_volume(path, ctx.param<std::string>("dataset"));
     const std::string dt = ctx.param<std::string>("dtype");
     if (dt != "keep") {
-      ConvertOptions o;
+      volume::ConvertOptions o;
       o.dtype = dt;
       o.threads = ctx.threads();
-      v = convert_volume_type(*v, o);
+      v = volume::convert_volume_type(*v, o);
     }
     ctx.output("volume", v);
   }
@@ -89,4 +89,4 @@ SKEL_REGISTER_INSPECTOR("HDF5 file", {".h5", ".hdf5", ".he5"},
                         [](const std::filesystem::path& p) { return io::describe_file(p); });
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::io

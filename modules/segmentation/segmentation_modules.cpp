@@ -6,7 +6,7 @@
 #include "segmentation/segmentation.hpp"
 #include "skel/module.hpp"
 
-namespace skel {
+namespace skel::segmentation {
 namespace {
 
 class Threshold final : public Module {
@@ -234,4 +234,4 @@ plus about 24 bytes per background run.)");
 SKEL_REGISTER_MODULE(FillCavities);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::segmentation

@@ -5,7 +5,7 @@
 #include "skel/module.hpp"
 #include "synthetic/altered.hpp"
 
-namespace skel {
+namespace skel::synthetic {
 namespace {
 
 class AlteredNetwork final : public Module {
@@ -94,4 +94,4 @@ two float drawings on the padded box (8 B/voxel). Identical for any thread count
 SKEL_REGISTER_MODULE(AlteredNetwork);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::synthetic

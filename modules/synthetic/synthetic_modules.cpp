@@ -3,7 +3,7 @@
 #include "synthetic/network.hpp"
 #include "synthetic/vessel_tree.hpp"
 
-namespace skel {
+namespace skel::synthetic {
 namespace {
 
 Dims dims_param(const RunContext& ctx) {
@@ -127,4 +127,4 @@ Ground truth (graph and tables) in physical units (radius × mean spacing). Memo
 SKEL_REGISTER_MODULE(VesselTree);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::synthetic

@@ -15,9 +15,10 @@
 
 #include "skel/big_vector.hpp"
 #include "skel/parallel.hpp"
-#include "thinning/topology.hpp"
+#include "analysis/topology.hpp"
+#include "thinning/local_topology.hpp"
 
-namespace skel {
+namespace skel::thinning {
 namespace {
 
 // Voxel state bits, kept in the output volume while thinning runs. kQueued: in the queue or a
@@ -729,7 +730,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
         th.decode(i, p[0], p[1], p[2]);
         sub(p[0] - lo[0], p[1] - lo[1], p[2] - lo[2]) = 1;
       }
-      const TopologyNumbers tn = topology(sub, {.threads = 1, .interrupter = {}});
+      const analysis::TopologyNumbers tn = analysis::topology(sub, {.threads = 1, .interrupter = {}});
       if (tn.components == 1 && tn.cavities == 0 && tn.tunnels == 0) {
         ++stats.stuck_components;
         stats.stuck_voxels += static_cast<int64_t>(comp.size());
@@ -794,4 +795,4 @@ ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const
                       [&](const auto& pv) { return thin_impl(mask, pv, locked, options); });
 }
 
-}  // namespace skel
+}  // namespace skel::thinning

@@ -11,7 +11,7 @@
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
-namespace skel {
+namespace skel::thinning {
 
 enum class ThinningVariant {
   Basic,  // Algorithm 1 (BASICDOHT): one bucket priority queue, sequential removal in queue order
@@ -76,4 +76,4 @@ uint32_t thinning_directions(uint32_t neighbourhood26);
 // Number of object voxels in the 26-neighbourhood word.
 inline int neighbour_count(uint32_t neighbourhood26) { return __builtin_popcount(neighbourhood26); }
 
-}  // namespace skel
+}  // namespace skel::thinning

@@ -5,9 +5,9 @@
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 #include "thinning/thinning.hpp"
-#include "thinning/topology.hpp"
+#include "thinning/local_topology.hpp"
 
-namespace skel {
+namespace skel::thinning {
 namespace {
 
 class DohtModule final : public Module {
@@ -106,37 +106,5 @@ the priority levels when there are at most 65536 of them; the input mask and pri
 };
 SKEL_REGISTER_MODULE(DohtModule);
 
-class TopologyModule final : public Module {
-public:
-  static ModuleSpec spec() {
-    return ModuleSpec("analysis.topology",
-                      "Topology numbers of a binary volume: components, cavities, Euler characteristic, tunnels")
-        .input<VolumeU8>("mask", "binary object (voxel > 0 is object)")
-        .output<Table>("table", "one row: object_voxels, components, cavities, euler, tunnels")
-        .details(R"(Grid point model with (26, 6) adjacency (thesis §2.3); voxels outside the array are
-background. components: 26-components of the object. cavities: 6-components of the background that do
-not reach the outside of the array (the outside counts as one unbounded component and is not a cavity).
-euler: Euler characteristic of the grid cell complex X(P), counted over all 2x2x2 windows (each grid
-vertex owns itself and the edges, faces and cube towards +x, +y, +z; 256-entry table).
-tunnels: first Betti number b1 = components + cavities - euler (Euler-Poincaré: chi = b0 - b1 + b2).
-Components and cavities are counted by union-find over x-runs of the object and of the background (no
-labels, no flood fill). Results are identical for any thread count. Memory: 1 byte per voxel of the
-padded grid for the Euler count (freed before the component counts), then about 24 bytes per run.
-512³ rods, 2 threads: 0.97 s.)");
-  }
-  void run(RunContext& ctx) override {
-    auto mask = ctx.input<VolumeU8>("mask");
-    const TopologyNumbers tn = topology(*mask, {.threads = ctx.threads(), .interrupter = ctx.progress()});
-    Table t;
-    t.add("object_voxels", std::vector<int64_t>{tn.object_voxels});
-    t.add("components", std::vector<int64_t>{tn.components});
-    t.add("cavities", std::vector<int64_t>{tn.cavities});
-    t.add("euler", std::vector<int64_t>{tn.euler});
-    t.add("tunnels", std::vector<int64_t>{tn.tunnels});
-    ctx.output("table", std::move(t));
-  }
-};
-SKEL_REGISTER_MODULE(TopologyModule);
-
 }  // namespace
-}  // namespace skel
+}  // namespace skel::thinning

@@ -6,7 +6,7 @@
 
 #include "skel/parallel.hpp"
 
-namespace skel {
+namespace skel::volume {
 
 namespace {
 
@@ -102,4 +102,4 @@ DataPtr crop_volume(const DataObject& input, const Dims& begin, const Dims& size
   });
 }
 
-}  // namespace skel
+}  // namespace skel::volume

@@ -6,7 +6,7 @@
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
-namespace skel {
+namespace skel::volume {
 
 enum class ConvertMode {
   Clamp,    // value cast to the target type, clamped to its range (NaN → 0)
@@ -29,4 +29,4 @@ DataPtr convert_volume_type(const DataObject& input, const ConvertOptions& optio
 // empty after clipping.
 DataPtr crop_volume(const DataObject& input, const Dims& begin, const Dims& size);
 
-}  // namespace skel
+}  // namespace skel::volume

@@ -2,7 +2,7 @@
 #include "skel/module.hpp"
 #include "volume/convert.hpp"
 
-namespace skel {
+namespace skel::volume {
 namespace {
 
 class ConvertModule final : public Module {
@@ -58,4 +58,4 @@ public:
 SKEL_REGISTER_MODULE(CropModule);
 
 }  // namespace
-}  // namespace skel
+}  // namespace skel::volume

@@ -26,11 +26,13 @@
 
 #include "edit_session.hpp"
 #include "edit_test_util.hpp"
-#include "graph/graph_io.hpp"
+#include "io/graph_io.hpp"
 #include "graph_edit_mode.hpp"
 #include "main_window.hpp"
 #include "skel/table.hpp"
 #include "view3d.hpp"
+
+using namespace skel::io;
 
 using namespace skel;
 using namespace skel::gui;
@@ -66,7 +68,7 @@ bool run_and_wait(MainWindow& w, int ms) {
   return ok;
 }
 
-int count_ops(const editing::Journal& j, const std::string& op) {
+int count_ops(const graph::Journal& j, const std::string& op) {
   return static_cast<int>(std::count_if(j.ops.begin(), j.ops.end(), [&](const auto& o) { return o.op == op; }));
 }
 
@@ -134,11 +136,11 @@ TEST(EditMode, TourConnectUndoRedoSaveAndReRun) {
   QTest::keyClick(vtk, Qt::Key_Escape);
 
   // Tour: N goes to the best-scored dangling end and selects it with its proposed partner.
-  auto ends = editing::find_dangling_ends(s->graph());
+  auto ends = graph::find_dangling_ends(s->graph());
   const bool natural_gap = std::any_of(ends.begin(), ends.end(), [](const auto& d) { return d.has_partner; });
   ASSERT_TRUE(natural_gap) << "the small vessel phantom has no gap with a proposed partner";
   QTest::keyClick(vtk, Qt::Key_N);
-  const editing::DanglingEnd* d = s->current_dangling();
+  const graph::DanglingEnd* d = s->current_dangling();
   ASSERT_NE(d, nullptr);
   ASSERT_TRUE(d->has_partner);
   EXPECT_EQ(d->node, ends.front().node);
@@ -178,7 +180,7 @@ TEST(EditMode, TourConnectUndoRedoSaveAndReRun) {
     EXPECT_EQ(saved.edge_count(), e0 + added) << path;
     EXPECT_EQ(saved.node_count(), s->graph().node_count()) << path;
   }
-  const editing::Journal j = editing::read_journal(journal.toStdString());
+  const graph::Journal j = graph::read_journal(journal.toStdString());
   ASSERT_EQ(j.ops.size(), 3u);
   EXPECT_EQ(j.ops[0].op, "connect");
   EXPECT_EQ(j.ops[1].op, "undo");
@@ -214,7 +216,7 @@ TEST(EditMode, TourConnectUndoRedoSaveAndReRun) {
   EXPECT_EQ(em->session()->undo_stack()->count(), 1);
   em->session()->undo_stack()->undo();
   EXPECT_EQ(em->session()->graph().edge_count(), e0);
-  EXPECT_EQ(editing::read_journal(journal.toStdString()).ops.size(), 4u);
+  EXPECT_EQ(graph::read_journal(journal.toStdString()).ops.size(), 4u);
 }
 
 // The edits of a killed process are all in the journal.
@@ -246,7 +248,7 @@ TEST(EditMode, JournalSurvivesSigkill) {
     if (line.startsWith("OP ")) expected << QString::fromUtf8(line.mid(3));
   }
   ASSERT_GE(expected.size(), 5);
-  const editing::Journal j = editing::read_journal(QDir(tmp.path()).filePath("pruned.graph.edits.yaml").toStdString());
+  const graph::Journal j = graph::read_journal(QDir(tmp.path()).filePath("pruned.graph.edits.yaml").toStdString());
   ASSERT_EQ(j.ops.size(), static_cast<size_t>(expected.size()));
   for (int i = 0; i < expected.size(); ++i) EXPECT_EQ(QString::fromStdString(j.ops[i].to_yaml()), expected[i]) << i;
   EXPECT_GE(count_ops(j, "connect"), 1);

@@ -17,10 +17,12 @@
 
 #include "landmark_session.hpp"
 #include "pipeline_document.hpp"
-#include "registration/landmark_io.hpp"
+#include "io/landmark_io.hpp"
 #include "run_controller.hpp"
 #include "skel/error.hpp"
 #include "skel/table.hpp"
+
+using namespace skel::io;
 
 using namespace skel;
 using namespace skel::gui;
@@ -210,7 +212,7 @@ TEST(LandmarkSession, LandmarkAsciiRoundTripAndPipelineNodes) {
   EXPECT_TRUE(text.startsWith("# AmiraMesh 3D ASCII 2.0")) << text.toStdString();
   EXPECT_TRUE(text.contains("define Markers 5")) << text.toStdString();
   EXPECT_TRUE(text.contains("NumSets 2")) << text.toStdString();
-  const LandmarkSet read = registration::read_landmarks(path.toStdString());
+  const LandmarkSet read = io::read_landmarks(path.toStdString());
   ASSERT_EQ(read.set_count(), 2);
   for (size_t i = 0; i < 5; ++i) {
     EXPECT_LT(dist(read.sets[0][i], fixed[i]), 1e-12);

@@ -33,9 +33,11 @@
 #include "landmark_mode.hpp"
 #include "landmark_session.hpp"
 #include "main_window.hpp"
-#include "registration/landmark_io.hpp"
+#include "io/landmark_io.hpp"
 #include "skel/table.hpp"
 #include "view3d.hpp"
+
+using namespace skel::io;
 
 using namespace skel;
 using namespace skel::gui;
@@ -270,7 +272,7 @@ TEST(LandmarkMode, PlaceDragUndoSaveReload) {
   const QString file = QDir(tmp.path()).filePath("landmarks.landmarkAscii");
   EXPECT_EQ(lm->default_path(), file);
   ASSERT_TRUE(lm->save()) << w.log_text().toStdString();
-  const LandmarkSet saved = registration::read_landmarks(file.toStdString());
+  const LandmarkSet saved = io::read_landmarks(file.toStdString());
   ASSERT_EQ(saved.set_count(), 2);
   ASSERT_EQ(saved.point_count(), 4);
   for (size_t i = 0; i < 4; ++i) {

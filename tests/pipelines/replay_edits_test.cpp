@@ -12,12 +12,14 @@
 #include <filesystem>
 #include <fstream>
 
-#include "editing/editor.hpp"
+#include "graph/editor.hpp"
 #include "skel/executor.hpp"
 #include "skel/pipeline.hpp"
 #include "skel/run_module.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
+
+using namespace skel::graph;
 
 namespace fs = std::filesystem;
 using namespace skel;
@@ -92,7 +94,7 @@ TEST(ReplayEdits, JournalFromOneReconstructionReplaysOnAnotherAndReportsWhatIsGo
   fs::create_directories(dir);
   const double tol = 0.5;
   {
-    editing::GraphEditor ed{SpatialGraph(a)};
+    graph::GraphEditor ed{SpatialGraph(a)};
     ed.set_journal(dir / "edits.yaml", tol);
     const auto deg = a.degrees();
     std::vector<char> used(static_cast<size_t>(a.node_count()), 0);
@@ -131,12 +133,12 @@ TEST(ReplayEdits, JournalFromOneReconstructionReplaysOnAnotherAndReportsWhatIsGo
     ASSERT_GT(spurs, 0) << "no short spur to vanish";
     ASSERT_GT(long_deleted, 0);
     for (const Vec3& p : delete_at) {
-      editing::EditOp op("delete_edge");
+      graph::EditOp op("delete_edge");
       op.at.push_back(p);
       ASSERT_TRUE(ed.apply(op, tol).applied);
     }
     for (const Vec3& p : label_at) {
-      editing::EditOp op("set");
+      graph::EditOp op("set");
       op.at.push_back(p);
       op.level = "edge";
       op.attribute = "vessel_type";
@@ -144,14 +146,14 @@ TEST(ReplayEdits, JournalFromOneReconstructionReplaysOnAnotherAndReportsWhatIsGo
       ASSERT_TRUE(ed.apply(op, tol).applied);
     }
     for (const Vec3& p : node_at) {
-      editing::EditOp op("delete_node");
+      graph::EditOp op("delete_node");
       op.at.push_back(p);
       ASSERT_TRUE(ed.apply(op, tol).applied);
     }
   }
 
   // Replay on B through the module, as a saved pipeline does.
-  const editing::Journal j = editing::read_journal(dir / "edits.yaml");
+  const graph::Journal j = graph::read_journal(dir / "edits.yaml");
   auto r = run_module("graph.apply_edits", {{"graph", std::make_shared<SpatialGraph>(b)}},
                       {{"journal", std::string("edits.yaml")}}, {.threads = 1, .base_dir = dir});
   auto t = r.get<Table>("table");

@@ -12,7 +12,11 @@
 #include "geodesic/geodesic.hpp"
 #include "geodesic/surface.hpp"
 #include "thinning/thinning.hpp"
-#include "thinning/topology.hpp"
+#include "analysis/topology.hpp"
+#include "thinning/local_topology.hpp"
+
+using namespace skel::thinning;
+using namespace skel::analysis;
 
 using namespace skel;
 using namespace skel::geodesic;

@@ -6,9 +6,13 @@
 #include <string>
 
 #include "graph/graph_ops.hpp"
-#include "graph/network_analysis.hpp"
-#include "graph/skeleton_to_graph.hpp"
+#include "analysis/network_analysis.hpp"
+#include "geometry/skeleton_to_graph.hpp"
 #include "graph_test_util.hpp"
+
+using namespace skel::analysis;
+using namespace skel::geometry;
+using namespace skel::graph;
 
 using namespace skel;
 

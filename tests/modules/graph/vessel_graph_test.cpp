@@ -7,11 +7,16 @@
 
 #include "distance/distance.hpp"
 #include "graph/graph_ops.hpp"
-#include "graph/network_analysis.hpp"
-#include "graph/skeleton_to_graph.hpp"
+#include "analysis/network_analysis.hpp"
+#include "geometry/skeleton_to_graph.hpp"
 #include "graph_test_util.hpp"
 #include "synthetic/vessel_tree.hpp"
 #include "thinning/thinning.hpp"
+
+using namespace skel::thinning;
+using namespace skel::analysis;
+using namespace skel::geometry;
+using namespace skel::graph;
 
 using namespace skel;
 

@@ -7,7 +7,11 @@
 #include "skel/run_module.hpp"
 #include "skel/table.hpp"
 #include "thinning/thinning.hpp"
-#include "thinning/topology.hpp"
+#include "analysis/topology.hpp"
+#include "thinning/local_topology.hpp"
+
+using namespace skel::thinning;
+using namespace skel::analysis;
 
 namespace skel {
 namespace {

@@ -27,7 +27,7 @@
 
 #include "skel/spatial_graph.hpp"
 
-namespace skel {
+namespace skel::io {
 
 enum class GraphFormat { amira, vtp, swc, graphml, csv };
 
@@ -47,4 +47,4 @@ std::string graph_to_text(const SpatialGraph& graph, GraphFormat format, std::st
 SpatialGraph graph_from_text(const std::string& text, GraphFormat format, const std::string& nodes_text = {},
                              const std::string& source = "graph");
 
-}  // namespace skel
+}  // namespace skel::io

@@ -14,7 +14,7 @@
 #include "skel/spatial_graph.hpp"
 #include "skel/volume.hpp"
 
-namespace skel::editing {
+namespace skel::graph {
 
 // One journal entry. Positions are physical (the graph's units). Ops:
 //   delete_edge {at | at_list}      delete_node {at}          split {at}           merge {at}
@@ -168,4 +168,4 @@ private:
 // Exact equality of two graphs (positions, polylines, all attributes and labels).
 bool same_graph(const SpatialGraph& a, const SpatialGraph& b);
 
-}  // namespace skel::editing
+}  // namespace skel::graph

@@ -14,7 +14,7 @@
 #include "skel/spatial_graph.hpp"
 #include "skel/volume.hpp"
 
-namespace skel {
+namespace skel::geometry {
 
 // Manifold type of a skeleton voxel (values of the `manifold` output volume; 0 = background).
 enum class ManifoldType : uint8_t {
@@ -73,4 +73,4 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
 // points (truncated symmetrically near the ends), sigma = kernel / 4.
 void smooth_edges(SpatialGraph& graph, int passes, int kernel);
 
-}  // namespace skel
+}  // namespace skel::geometry

@@ -1,4 +1,4 @@
-#include "graph/skeleton_to_graph.hpp"
+#include "geometry/skeleton_to_graph.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -11,7 +11,7 @@
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
-namespace skel {
+namespace skel::geometry {
 
 namespace {
 
@@ -703,4 +703,4 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
   return result;
 }
 
-}  // namespace skel
+}  // namespace skel::geometry

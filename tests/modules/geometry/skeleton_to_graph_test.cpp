@@ -1,4 +1,4 @@
-#include "graph/skeleton_to_graph.hpp"
+#include "geometry/skeleton_to_graph.hpp"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,9 @@
 #include <random>
 #include <set>
 
-#include "graph_test_util.hpp"
+#include "../graph/graph_test_util.hpp"
+
+using namespace skel::geometry;
 
 using namespace skel;
 using skel::test::draw_line;

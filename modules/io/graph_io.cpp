@@ -1,4 +1,4 @@
-#include "graph/graph_io.hpp"
+#include "io/graph_io.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -17,7 +17,7 @@
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 
-namespace skel {
+namespace skel::io {
 
 namespace {
 
@@ -1156,4 +1156,4 @@ SpatialGraph read_graph(const std::filesystem::path& path, GraphFormat f, const 
   return graph_from_text(read_text(path), f, nodes, path.string());
 }
 
-}  // namespace skel
+}  // namespace skel::io

@@ -4,9 +4,11 @@
 
 #include <fstream>
 
-#include "registration/landmark_io.hpp"
+#include "io/landmark_io.hpp"
 #include "registration/registration.hpp"
-#include "test_util.hpp"
+#include "../registration/test_util.hpp"
+
+using namespace skel::io;
 
 using namespace skel;
 using namespace skel::registration;

@@ -11,7 +11,7 @@
 #include "skel/table.hpp"
 #include "skel/volume.hpp"
 
-namespace skel {
+namespace skel::analysis {
 
 struct NetworkStatisticsOptions {
   std::string radius = "radius";  // point attribute with radii (optional; columns omitted without it)
@@ -79,4 +79,4 @@ VolumeU32 propagate_edge_labels(const VolumeU8& mask, const SpatialGraph& graph,
 // Same wave from a label volume (non-zero voxels are seeds, e.g. a labelled skeleton).
 VolumeU32 propagate_labels(const VolumeU8& mask, const VolumeU32& seeds, const LabelPropagationOptions& options = {});
 
-}  // namespace skel
+}  // namespace skel::analysis

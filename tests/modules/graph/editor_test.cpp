@@ -6,10 +6,10 @@
 #include <fstream>
 #include <random>
 
-#include "editing/editor.hpp"
+#include "graph/editor.hpp"
 
 using namespace skel;
-using namespace skel::editing;
+using namespace skel::graph;
 namespace fs = std::filesystem;
 
 namespace {

@@ -1,4 +1,4 @@
-#include "editing/editor.hpp"
+#include "graph/editor.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -19,7 +19,7 @@
 
 #include "skel/error.hpp"
 
-namespace skel::editing {
+namespace skel::graph {
 
 namespace {
 
@@ -1142,4 +1142,4 @@ bool same_graph(const SpatialGraph& a, const SpatialGraph& b) {
          same_map(a.point_attributes, b.point_attributes);
 }
 
-}  // namespace skel::editing
+}  // namespace skel::graph

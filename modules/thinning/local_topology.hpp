@@ -1,7 +1,7 @@
 #pragma once
-// Digital topology in the grid point model with (26, 6) adjacency (thesis §2.3): the simple-voxel
-// test (Characterization 2 of Bertrand and Malandain), and global topology numbers of a binary
-// volume (components, cavities, Euler characteristic, tunnels).
+// Local digital topology in the grid point model with (26, 6) adjacency (thesis §2.3): the
+// simple-voxel test (Characterization 2 of Bertrand and Malandain). Global topology numbers are in
+// analysis/topology.hpp.
 //
 // Neighbourhood encoding used by every local test here: bit k (0 <= k < 26) of a 26-bit word is the
 // k-th voxel of the 3x3x3 cube around the centre in x-fastest order with the centre skipped, i.e. the
@@ -12,7 +12,7 @@
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
-namespace skel {
+namespace skel::thinning {
 
 // Bit index of neighbour offset (dx, dy, dz) in {-1, 0, 1}^3 \ {0}.
 constexpr int neighbour_bit(int dx, int dy, int dz) {
@@ -38,29 +38,7 @@ bool is_simple_direct(uint32_t neighbourhood26);
 int object_components26(uint32_t neighbourhood26);
 int background_components6(uint32_t neighbourhood26);
 
-struct TopologyNumbers {
-  int64_t object_voxels = 0;
-  int64_t components = 0;  // 26-components of the object
-  int64_t cavities = 0;    // bounded 6-components of the background (the outside, i.e. everything
-                           // connected to the region beyond the array, is not a cavity)
-  int64_t euler = 0;       // Euler characteristic of the (26, 6) object (cell complex X(P))
-  int64_t tunnels = 0;     // first Betti number: components + cavities - euler
-  bool operator==(const TopologyNumbers&) const = default;
-};
-
-struct TopologyOptions {
-  int threads = 0;  // 0 = all hardware threads; results do not depend on it
-  Interrupter interrupter;
-};
-
-// Topology numbers of `mask` (voxel != 0 is object). Voxels outside the array are background.
-// The Euler characteristic is counted over 2x2x2 cells: chi = V - E + F - C of the grid cell complex
-// X(P) (thesis §2.3, grid cell model), which is the Euler characteristic of the 26-connected object.
-// Components and cavities: union-find over x-runs (segmentation::count_components). Memory: 1 byte
-// per voxel of the padded grid (Euler count, freed afterwards), then ~24 bytes per run.
-TopologyNumbers topology(const VolumeU8& mask, const TopologyOptions& options = {});
-
 // The 26-bit neighbourhood word of voxel (x, y, z) in `mask` (outside the array = background).
 uint32_t neighbourhood_at(const VolumeU8& mask, int64_t x, int64_t y, int64_t z);
 
-}  // namespace skel
+}  // namespace skel::thinning

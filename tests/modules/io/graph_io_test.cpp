@@ -1,13 +1,16 @@
-#include "graph/graph_io.hpp"
+#include "io/graph_io.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <filesystem>
 
-#include "graph/skeleton_to_graph.hpp"
-#include "graph_test_util.hpp"
+#include "geometry/skeleton_to_graph.hpp"
+#include "../graph/graph_test_util.hpp"
 #include "skel/error.hpp"
+
+using namespace skel::geometry;
+using namespace skel::io;
 
 using namespace skel;
 

@@ -1,4 +1,4 @@
-#include "registration/landmark_io.hpp"
+#include "io/landmark_io.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -12,7 +12,7 @@
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 
-namespace skel::registration {
+namespace skel::io {
 namespace {
 
 std::string lower(std::string s) {
@@ -409,7 +409,7 @@ Transform parse_matrix(const std::string& text, const std::string& name) {
   }
   Matrix4 m{{{0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 1}}};
   for (size_t k = 0; k < v.size(); ++k) m[k / 4][k % 4] = v[k];
-  const TransformKind kind = kind_text.empty() ? classify_transform(m) : parse_transform_kind(kind_text, name + ": kind");
+  const TransformKind kind = kind_text.empty() ? registration::classify_transform(m) : parse_transform_kind(kind_text, name + ": kind");
   try {
     return Transform(m, kind);
   } catch (const InputError& e) {
@@ -474,7 +474,7 @@ Transform parse_itk(const std::string& text, const std::string& name) {
   try {
     const Transform fixed_to_moving(a, offset);
     Transform t = fixed_to_moving.inverse();
-    t.set_kind(classify_transform(t.matrix()));
+    t.set_kind(registration::classify_transform(t.matrix()));
     return t;
   } catch (const InputError& e) {
     throw InputError(name + ": " + e.what());
@@ -571,4 +571,4 @@ void write_transform(const std::filesystem::path& path, const Transform& transfo
   write_file(path, format_transform(transform, resolve_transform_format(format, path)));
 }
 
-}  // namespace skel::registration
+}  // namespace skel::io

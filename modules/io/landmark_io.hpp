@@ -28,7 +28,7 @@
 #include "skel/landmarks.hpp"
 #include "skel/transform.hpp"
 
-namespace skel::registration {
+namespace skel::io {
 
 enum class LandmarkFormat { Auto, Amira, Fcsv, Csv };
 enum class TransformFormat { Auto, Matrix, Itk };
@@ -59,4 +59,4 @@ std::string format_landmarks(const LandmarkSet& landmarks, LandmarkFormat format
 Transform parse_transform(const std::string& text, TransformFormat format, const std::string& name);
 std::string format_transform(const Transform& transform, TransformFormat format);
 
-}  // namespace skel::registration
+}  // namespace skel::io

@@ -1,4 +1,4 @@
-#include "graph/network_analysis.hpp"
+#include "analysis/network_analysis.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +11,7 @@
 #include "graph/graph_ops.hpp"
 #include "skel/error.hpp"
 
-namespace skel {
+namespace skel::analysis {
 
 namespace {
 
@@ -195,7 +195,7 @@ TreeStats extract_trees(SpatialGraph& g, const TreeOptions& options) {
   if (stats.root_nodes.empty()) throw InputError("parameters 'roots' / 'root_points': give at least one root");
   std::vector<double> diam(g.edges.size(), std::numeric_limits<double>::infinity());
   if (options.min_diameter > 0) {
-    diam = edge_values(g, options.radius, "parameter 'radius'");
+    diam = graph::edge_values(g, options.radius, "parameter 'radius'");
     for (auto& d : diam) d *= 2.0;
   }
   const auto deg = g.degrees();
@@ -355,4 +355,4 @@ VolumeU32 propagate_labels(const VolumeU8& mask, const VolumeU32& seeds, const L
   return wave(mask, std::move(lab), std::move(queue), options.interrupter);
 }
 
-}  // namespace skel
+}  // namespace skel::analysis

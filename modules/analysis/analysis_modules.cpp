@@ -1,0 +1,259 @@
+// Modules of the analysis family: topology numbers, network statistics, trees, label propagation,
+// dangling ends.
+#include "analysis/network_analysis.hpp"
+#include "analysis/topology.hpp"
+#include "graph/editor.hpp"
+#include "skel/module.hpp"
+#include "skel/table.hpp"
+
+namespace skel::analysis {
+namespace {
+
+class TopologyModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("analysis.topology",
+                      "Topology numbers of a binary volume: components, cavities, Euler characteristic, tunnels")
+        .input<VolumeU8>("mask", "binary object (voxel > 0 is object)")
+        .output<Table>("table", "one row: object_voxels, components, cavities, euler, tunnels")
+        .details(R"(Grid point model with (26, 6) adjacency (thesis §2.3); voxels outside the array are
+background. components: 26-components of the object. cavities: 6-components of the background that do
+not reach the outside of the array (the outside counts as one unbounded component and is not a cavity).
+euler: Euler characteristic of the grid cell complex X(P), counted over all 2x2x2 windows (each grid
+vertex owns itself and the edges, faces and cube towards +x, +y, +z; 256-entry table).
+tunnels: first Betti number b1 = components + cavities - euler (Euler-Poincaré: chi = b0 - b1 + b2).
+Components and cavities are counted by union-find over x-runs of the object and of the background (no
+labels, no flood fill). Results are identical for any thread count. Memory: 1 byte per voxel of the
+padded grid for the Euler count (freed before the component counts), then about 24 bytes per run.
+512³ rods, 2 threads: 0.97 s.)");
+  }
+  void run(RunContext& ctx) override {
+    auto mask = ctx.input<VolumeU8>("mask");
+    const TopologyNumbers tn = topology(*mask, {.threads = ctx.threads(), .interrupter = ctx.progress()});
+    Table t;
+    t.add("object_voxels", std::vector<int64_t>{tn.object_voxels});
+    t.add("components", std::vector<int64_t>{tn.components});
+    t.add("cavities", std::vector<int64_t>{tn.cavities});
+    t.add("euler", std::vector<int64_t>{tn.euler});
+    t.add("tunnels", std::vector<int64_t>{tn.tunnels});
+    ctx.output("table", std::move(t));
+  }
+};
+SKEL_REGISTER_MODULE(TopologyModule);
+
+class NetworkStatisticsModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("analysis.network_statistics", "Segment, node and network statistics of a graph")
+        .input<SpatialGraph>("graph", "spatial graph (point attribute radius optional)")
+        .optional_input<VolumeU8>("mask", "region for the length density (default: the graph's source grid box)")
+        .output<Table>("segments", "per edge: length, chord, tortuosity, radius stats, volume, surface")
+        .output<Table>("nodes", "per node: degree, position")
+        .output<Table>("summary", "one row: totals, densities, branch/end points, loops, orientation histogram")
+        .param<std::string>("radius", std::string("radius"), "point attribute holding radii")
+        .param<int64_t>("orientation_bins", 9, "bins of the angle between segments and the axis (0..90°)")
+        .min(1)
+        .max(180)
+        .choice("axis", {"x", "y", "z"}, "z", "reference axis of the orientation histogram")
+        .param<double>("orientation_window", 0.0,
+                       "arc length over which segment directions are measured (0 = 10 x the median point step)")
+        .min(0)
+        .unit("µm")
+        .details(
+            "Thesis §6.1. Per segment: polyline length, chord (end-to-end distance), tortuosity = length / "
+            "chord (NaN for loops), length-weighted mean, min and max radius, volume and lateral surface of "
+            "the truncated cones between consecutive points (π r² integrated along the edge). Per node: "
+            "degree (a loop counts twice) and position. Summary: nodes, edges, components, total length, "
+            "reference volume (mask volume, else the box of the graph's source grid, else the points' bounding "
+            "box), length density = total length / reference volume, branch points (degree >= 3), end points "
+            "(degree 1), loops = cyclomatic number E - N + C, total volume/surface, and orientation_k = length "
+            "of the pieces whose direction makes an angle to the axis in bin k. Directions are chords of "
+            "consecutive pieces of arc length orientation_window cut along each edge (the last piece of an edge "
+            "may be shorter): single voxel steps of a skeleton only take the 13 lattice directions (0°, 45°, "
+            "54.7°, 90° to an axis), so a histogram of steps would show the grid instead of the network. Units: µm (spacing units).");
+  }
+  void run(RunContext& ctx) override {
+    auto g = ctx.input<SpatialGraph>("graph");
+    NetworkStatisticsOptions o;
+    o.radius = ctx.param<std::string>("radius");
+    o.orientation_bins = static_cast<int>(ctx.param<int64_t>("orientation_bins"));
+    const std::string axis = ctx.param<std::string>("axis");
+    o.axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
+    o.orientation_window = ctx.param<double>("orientation_window");
+    if (auto m = ctx.optional_input<VolumeU8>("mask")) o.reference_volume = mask_volume(*m);
+    auto st = network_statistics(*g, o);
+    ctx.output("segments", std::move(st.segments));
+    ctx.output("nodes", std::move(st.nodes));
+    ctx.output("summary", std::move(st.summary));
+  }
+};
+SKEL_REGISTER_MODULE(NetworkStatisticsModule);
+
+class TreesModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("analysis.trees", "Vessel trees from root points and a minimum diameter")
+        .input<SpatialGraph>("graph", "spatial graph (point attribute radius needed when min_diameter > 0)")
+        .output<SpatialGraph>("graph", "graph with edge labels tree and branch_order")
+        .output<Table>("trees", "per tree: root node, edges, total length")
+        .param<std::vector<int64_t>>("roots", {}, "root node ids")
+        .optional_value()
+        .param<std::vector<double>>("root_points", {}, "root positions x y z, x y z ... (nearest node)")
+        .optional_value()
+        .unit("µm")
+        .param<double>("min_diameter", 0.0, "edges thinner than this (2 × mean radius) are capillaries")
+        .min(0)
+        .unit("µm")
+        .param<std::string>("radius", std::string("radius"), "point attribute holding radii")
+        .details(
+            "Thesis §6.1 (fig. 6.3): main vessel trees are separated from the capillary bed by diameter and "
+            "root points. From all roots at once, a Dijkstra search along polyline lengths walks only edges "
+            "whose diameter (2 × length-weighted mean radius) is >= min_diameter; each reached edge gets "
+            "`tree` = 1-based index of its nearest root (ties: lower index) and `branch_order` = 1 at the "
+            "root, +1 after each node of degree >= 3. All other edges: tree 0 (capillary), branch_order 0. "
+            "Memory: a copy of the graph plus O(nodes).");
+  }
+  void run(RunContext& ctx) override {
+    SpatialGraph g = *ctx.input<SpatialGraph>("graph");
+    TreeOptions o;
+    o.roots = ctx.param<std::vector<int64_t>>("roots");
+    const auto rp = ctx.param<std::vector<double>>("root_points");
+    if (rp.size() % 3 != 0)
+      throw InputError("parameter 'root_points': expected x y z triples, got " + std::to_string(rp.size()) + " numbers");
+    for (size_t i = 0; i < rp.size(); i += 3) o.root_points.push_back({rp[i], rp[i + 1], rp[i + 2]});
+    o.min_diameter = ctx.param<double>("min_diameter");
+    o.radius = ctx.param<std::string>("radius");
+    auto s = extract_trees(g, o);
+    const auto& tree = g.edge_labels.at("tree");
+    std::vector<int64_t> id, root, edges(s.root_nodes.size(), 0);
+    std::vector<double> len(s.root_nodes.size(), 0.0);
+    for (int64_t e = 0; e < g.edge_count(); ++e)
+      if (tree[e] > 0) {
+        ++edges[tree[e] - 1];
+        len[tree[e] - 1] += g.edge_length(e);
+      }
+    for (size_t r = 0; r < s.root_nodes.size(); ++r) {
+      id.push_back(static_cast<int64_t>(r) + 1);
+      root.push_back(s.root_nodes[r]);
+    }
+    Table t;
+    t.add("tree", id).add("root_node", root).add("edges", edges).add("length", len, "µm");
+    ctx.output("graph", std::move(g));
+    ctx.output("trees", std::move(t));
+  }
+};
+SKEL_REGISTER_MODULE(TreesModule);
+
+class LabelPropagationModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("analysis.label_propagation", "Colour the object by its nearest skeleton edge")
+        .input<VolumeU8>("mask", "object (non-zero = object)")
+        .optional_input<SpatialGraph>("graph", "graph whose edges colour the object")
+        .optional_input<VolumeU32>("seeds", "instead of a graph: label volume (non-zero voxels are seeds)")
+        .output<VolumeU32>("labels", "label per object voxel (0 = background or not reached)")
+        .param<std::string>("label", std::string(""), "edge label to paint (value + 1); empty: edge id + 1")
+        .optional_value()
+        .choice("metric", {"euclidean", "geodesic"}, "euclidean",
+                "nearest seed by Euclidean distance (physical units) or along the object (26-neighbour wave)")
+        .details(
+            "Thesis §6.2, fig. 6.14 (rods/plates decomposition): a skeleton cut at its branching points, each "
+            "edge coloured, colours propagated so every object voxel takes the colour of the nearest skeleton "
+            "point. Edges are drawn into the mask's grid (polylines sampled at <= 1/2 voxel; where edges "
+            "overlap the lower id wins). euclidean: every object voxel takes the label of its nearest seed "
+            "voxel in physical distance (exact Euclidean feature transform, anisotropic spacing; ties: smallest "
+            "z, y, x); memory 4 B/voxel output + ~13 B/voxel while computing. geodesic: a breadth-first wave "
+            "through the object's 26-neighbourhood (equal arrival: earlier seed; unreached voxels stay 0); "
+            "memory 4 B/voxel + 8 B per object voxel. Labels: edge id + 1, or the chosen edge label + 1 (so 0 "
+            "stays 'unlabelled').");
+  }
+  void run(RunContext& ctx) override {
+    auto mask = ctx.input<VolumeU8>("mask");
+    LabelPropagationOptions o;
+    o.label = ctx.param<std::string>("label");
+    o.metric = ctx.param<std::string>("metric") == "geodesic" ? PropagationMetric::geodesic : PropagationMetric::euclidean;
+    o.threads = ctx.threads();
+    o.interrupter = ctx.progress();
+    if (auto g = ctx.optional_input<SpatialGraph>("graph")) {
+      ctx.output("labels", propagate_edge_labels(*mask, *g, o));
+    } else if (auto s = ctx.optional_input<VolumeU32>("seeds")) {
+      ctx.output("labels", propagate_labels(*mask, *s, o));
+    } else {
+      throw InputError("inputs 'graph' / 'seeds': connect one of them");
+    }
+  }
+};
+SKEL_REGISTER_MODULE(LabelPropagationModule);
+
+class DanglingEnds final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("analysis.dangling_ends", "End points of a network with their most likely partner across a gap")
+        .input<SpatialGraph>("graph", "network graph")
+        .output<Table>("table", "one row per end point: position, partner (node or edge point), distance, angle, score")
+        .output<SpatialGraph>("graph", "the input with node attribute `gap_score` (0 = no partner) and label `dangling` (1 at end points)")
+        .param<double>("max_distance", 20.0, "largest gap to bridge").min(0).unit("µm")
+        .param<double>("max_angle", 60.0, "largest angle between the segment's direction and the gap").range(0, 180).unit("degrees")
+        .param<double>("direction_length", 5.0, "how far back along the segment its direction is measured").min(0).unit("µm")
+        .details(R"(Thesis §6.1: about 4 % of the segments end unconnected because vessels were not filled
+completely; the user is guided to these ends and connects them. For every node of degree 1 the
+direction of its segment is measured over `direction_length`; candidates are the points of all other
+edges (including their end nodes) within `max_distance` whose direction from the end lies within
+`max_angle`. Score = distance × (1 + (1 − cos angle)), × 0.8 when the partner is itself an end point
+(two ends facing each other is the typical gap); the lowest score wins. Rows are sorted by score,
+ends without a partner last. A k-d tree (nanoflann) over all polyline points keeps this O(P log P).)");
+  }
+  void run(RunContext& ctx) override {
+    auto g = ctx.input<SpatialGraph>("graph");
+    graph::DanglingOptions o;
+    o.max_distance = ctx.param<double>("max_distance");
+    o.max_angle_deg = ctx.param<double>("max_angle");
+    o.direction_length = ctx.param<double>("direction_length");
+    const auto ends = graph::find_dangling_ends(*g, o);
+    std::vector<int64_t> node, partner_node, partner_edge, partner_point;
+    std::vector<double> x, y, z, px, py, pz, dist, angle, score;
+    std::vector<std::string> kind;
+    SpatialGraph out(*g);
+    auto& gs = out.ensure_node_attribute("gap_score");
+    auto& dl = out.ensure_node_label("dangling");
+    for (const auto& d : ends) {
+      node.push_back(d.node);
+      x.push_back(d.position[0]);
+      y.push_back(d.position[1]);
+      z.push_back(d.position[2]);
+      kind.push_back(!d.has_partner ? "none" : d.partner_is_node ? "node" : "edge");
+      partner_node.push_back(d.partner_node);
+      partner_edge.push_back(d.partner_edge);
+      partner_point.push_back(d.partner_point);
+      px.push_back(d.partner_position[0]);
+      py.push_back(d.partner_position[1]);
+      pz.push_back(d.partner_position[2]);
+      dist.push_back(d.distance);
+      angle.push_back(d.angle_deg);
+      score.push_back(d.score);
+      dl[d.node] = 1;
+      gs[d.node] = d.has_partner ? static_cast<float>(d.score) : 0.0f;
+    }
+    Table t;
+    t.add("node", node);
+    t.add("x", x, "µm");
+    t.add("y", y, "µm");
+    t.add("z", z, "µm");
+    t.add("partner", kind);
+    t.add("partner_node", partner_node);
+    t.add("partner_edge", partner_edge);
+    t.add("partner_point", partner_point);
+    t.add("partner_x", px, "µm");
+    t.add("partner_y", py, "µm");
+    t.add("partner_z", pz, "µm");
+    t.add("distance", dist, "µm");
+    t.add("angle", angle, "degrees");
+    t.add("score", score);
+    ctx.output("table", std::move(t));
+    ctx.output("graph", std::move(out));
+  }
+};
+SKEL_REGISTER_MODULE(DanglingEnds);
+
+}  // namespace
+}  // namespace skel::analysis

@@ -1,0 +1,66 @@
+// Graph file modules: io.read_graph and io.write_graph (with the `skelflow info` inspector).
+#include "io/graph_io.hpp"
+#include "skel/module.hpp"
+
+namespace skel::io {
+namespace {
+
+constexpr const char* kGraphFormats =
+    "By extension: .am Amira SpatialGraph (ASCII; radius = thickness), .vtp VTK XML PolyData (ASCII; "
+    "nodes as vertex cells, edges as polylines, attributes as point/cell data), .swc (trees only), "
+    ".graphml, .csv (edge points; the nodes table goes to nodes_path). Attributes and labels are kept in "
+    "every format except SWC (radius and swc_type only).";
+
+class ReadGraphModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("io.read_graph", "Read a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
+        .output<SpatialGraph>("graph", "the graph")
+        .path("path", "", PathRole::Input, "graph file")
+        .path("nodes_path", "", PathRole::Input, "CSV only: nodes table (default: <stem>_nodes.csv)")
+        .optional_value()
+        .details(std::string(kGraphFormats) +
+                 " Polyline end points are set to their nodes' positions. Malformed files are input errors "
+                 "naming the file and what is wrong. Memory: the file text plus the graph.");
+  }
+  void run(RunContext& ctx) override {
+    const auto p = ctx.input_path("path");
+    const std::string np = ctx.param<std::string>("nodes_path");
+    ctx.output("graph", read_graph(p, graph_format_from_path(p), np.empty() ? std::filesystem::path() : ctx.input_path("nodes_path")));
+  }
+};
+SKEL_REGISTER_MODULE(ReadGraphModule);
+
+class WriteGraphModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("io.write_graph", "Write a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
+        .input<SpatialGraph>("graph", "the graph")
+        .path("path", "", PathRole::Output, "graph file; the format follows the extension")
+        .path("nodes_path", "", PathRole::Output, "CSV only (required there): nodes table file")
+        .optional_value()
+        .details(std::string(kGraphFormats) +
+                 " Files appear only when the whole run succeeds (temporary file + rename). Coordinates: "
+                 "float in .am (Amira's layout), 17 significant digits elsewhere.");
+  }
+  void run(RunContext& ctx) override {
+    auto g = ctx.input<SpatialGraph>("graph");
+    const auto fin = ctx.final_output_path("path");
+    const auto f = graph_format_from_path(fin);
+    std::filesystem::path np;
+    if (f == GraphFormat::csv) {
+      if (ctx.param<std::string>("nodes_path").empty())
+        throw InputError("parameter 'nodes_path': required when writing a .csv graph");
+      np = ctx.output_path("nodes_path");
+    }
+    write_graph(*g, ctx.output_path("path"), f, np);
+  }
+};
+SKEL_REGISTER_MODULE(WriteGraphModule);
+
+SKEL_REGISTER_INSPECTOR("spatial graph", {".am", ".vtp", ".swc", ".graphml"}, [](const std::filesystem::path& p) {
+  return read_graph(p, graph_format_from_path(p)).describe();
+});
+
+}  // namespace
+}  // namespace skel::io
