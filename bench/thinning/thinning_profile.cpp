@@ -25,7 +25,7 @@ int main(int argc, char** argv) {
   }
   const int64_t n = std::stoll(argv[1]);
   const std::string shape = argc > 2 ? argv[2] : "rods";
-  const ThinningVariant variant = parse_thinning_variant(argc > 3 ? argv[3] : "smooth");
+  const ThinningVariant variant = parse_enum<ThinningVariant>(argc > 3 ? argv[3] : "smooth", "variant");
   const int threads = argc > 4 ? std::stoi(argv[4]) : hardware_threads();
   const int repeats = argc > 5 ? std::stoi(argv[5]) : 1;
 

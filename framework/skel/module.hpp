@@ -1,7 +1,11 @@
 #pragma once
 // Module API: a module declares ports and parameters once, in a ModuleSpec (which feeds the YAML
 // validator, the CLI docs and the GUI panel), and implements run(RunContext&).
+#include <array>
 #include <atomic>
+#include <concepts>
+#include <utility>
+#include <limits>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -10,6 +14,7 @@
 #include <vector>
 
 #include "skel/data.hpp"
+#include "skel/enum_names.hpp"
 #include "skel/error.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/param.hpp"
@@ -45,6 +50,97 @@ template <> struct ParamTypeOf<double> { static constexpr ParamType value = Para
 template <> struct ParamTypeOf<std::string> { static constexpr ParamType value = ParamType::String; };
 template <> struct ParamTypeOf<std::vector<int64_t>> { static constexpr ParamType value = ParamType::IntList; };
 template <> struct ParamTypeOf<std::vector<double>> { static constexpr ParamType value = ParamType::FloatList; };
+
+
+namespace detail {
+template <class T> struct IsStdVector : std::false_type {};
+template <class T, class A> struct IsStdVector<std::vector<T, A>> : std::true_type {};
+template <class T> struct IsStdArray : std::false_type {};
+template <class T, size_t N> struct IsStdArray<std::array<T, N>> : std::true_type {};
+
+// Converts one scalar parameter value to a member of type M (the value already passed
+// ParamSpec::check). Integers that do not fit M are input errors naming the parameter.
+template <class M>
+M scalar_from(const ParamValue& v, const std::string& name) {
+  if constexpr (std::is_same_v<M, bool>) {
+    return std::get<bool>(v);
+  } else if constexpr (NamedEnum<M>) {
+    return parse_enum<M>(std::get<std::string>(v), "parameter '" + name + "'");
+  } else if constexpr (std::is_integral_v<M>) {
+    const int64_t x = std::get<int64_t>(v);
+    if (!std::in_range<M>(x))
+      throw InputError("parameter '" + name + "': value " + std::to_string(x) + " is out of range");
+    return static_cast<M>(x);
+  } else if constexpr (std::is_floating_point_v<M>) {
+    if (auto* i = std::get_if<int64_t>(&v)) return static_cast<M>(*i);
+    return static_cast<M>(std::get<double>(v));
+  } else {
+    static_assert(std::is_same_v<M, std::string>, "unsupported parameter member type");
+    return std::get<std::string>(v);
+  }
+}
+
+// Converts a list parameter value to std::vector<E> (E integral or floating point).
+template <class E>
+std::vector<E> list_from(const ParamValue& v, const std::string& name) {
+  std::vector<E> r;
+  if (auto* iv = std::get_if<std::vector<int64_t>>(&v)) {
+    for (int64_t x : *iv) r.push_back(scalar_from<E>(ParamValue(x), name));
+  } else {
+    for (double x : std::get<std::vector<double>>(v)) r.push_back(scalar_from<E>(ParamValue(x), name));
+  }
+  return r;
+}
+
+template <class M>
+void assign_member(M& member, const ParamValue& v, const std::string& name) {
+  if constexpr (IsStdVector<M>::value) {
+    member = list_from<typename M::value_type>(v, name);
+  } else if constexpr (IsStdArray<M>::value) {
+    const auto xs = list_from<typename M::value_type>(v, name);
+    if (xs.size() != member.size())
+      throw InputError("parameter '" + name + "': expected a list of " + std::to_string(member.size()) + " values");
+    std::copy(xs.begin(), xs.end(), member.begin());
+  } else {
+    member = scalar_from<M>(v, name);
+  }
+}
+
+// Type, default value, choices and list length of a parameter bound to a member of type M whose
+// default (the options struct's default member initialiser) is `def`.
+template <class M>
+void describe_member(ParamSpec& p, const M& def) {
+  if constexpr (IsStdVector<M>::value || IsStdArray<M>::value) {
+    using E = typename M::value_type;
+    static_assert(std::is_arithmetic_v<E> && !std::is_same_v<E, bool>, "lists hold numbers");
+    if constexpr (std::is_integral_v<E>) {
+      p.type = ParamType::IntList;
+      p.default_value = std::vector<int64_t>(def.begin(), def.end());
+    } else {
+      p.type = ParamType::FloatList;
+      p.default_value = std::vector<double>(def.begin(), def.end());
+    }
+    if constexpr (IsStdArray<M>::value) p.list_length = static_cast<int>(std::tuple_size_v<M>);
+  } else if constexpr (std::is_same_v<M, bool>) {
+    p.type = ParamType::Bool;
+    p.default_value = def;
+  } else if constexpr (NamedEnum<M>) {
+    p.type = ParamType::Choice;
+    p.choices = enum_choices<M>();
+    p.default_value = std::string(enum_name(def));
+  } else if constexpr (std::is_integral_v<M>) {
+    p.type = ParamType::Int;
+    p.default_value = static_cast<int64_t>(def);
+  } else if constexpr (std::is_floating_point_v<M>) {
+    p.type = ParamType::Float;
+    p.default_value = static_cast<double>(def);
+  } else {
+    static_assert(std::is_same_v<M, std::string>, "unsupported parameter member type");
+    p.type = ParamType::String;
+    p.default_value = def;
+  }
+}
+}  // namespace detail
 
 class ModuleSpec {
 public:
@@ -82,6 +178,23 @@ public:
   ModuleSpec& param(std::string name, const char* default_value, std::string doc) {
     return param<std::string>(std::move(name), std::string(default_value), std::move(doc));
   }
+  // A parameter bound to a member of an algorithm's options struct: its type, default (the
+  // struct's default member initialiser), choices (enums with enum_names) and list length (arrays)
+  // come from the member; ctx.options<Opt>() fills the struct. Declare ranges, units and docs here,
+  // and nowhere else.
+  template <class Opt, class M>
+    requires std::is_class_v<Opt>
+  ModuleSpec& param(std::string name, M Opt::*member, std::string doc) {
+    ParamSpec p;
+    p.name = std::move(name);
+    p.doc = std::move(doc);
+    detail::describe_member<M>(p, Opt{}.*member);
+    p.bound_to = typeid(Opt);
+    p.assign = [member, n = p.name](void* options, const ParamValue& v) {
+      detail::assign_member(static_cast<Opt*>(options)->*member, v, n);
+    };
+    return add_param(std::move(p));
+  }
   ModuleSpec& choice(std::string name, std::vector<std::string> choices, std::string default_value,
                      std::string doc);
   ModuleSpec& path(std::string name, std::string default_value, PathRole role, std::string doc);
@@ -92,6 +205,9 @@ public:
   ModuleSpec& length(int n);          // lists: exact length
   ModuleSpec& optional_value();       // empty string / empty list means "not given"
   ModuleSpec& renamed_from(std::string old_name);
+  // Overrides the default of the last parameter (a bound parameter whose module default differs
+  // from the algorithm's, e.g. a pipeline-friendly default).
+  ModuleSpec& default_value(ParamValue value);
   ModuleSpec& add_param(ParamSpec p);
 
   // Long documentation (markdown): algorithm, memory per voxel, conventions, references.
@@ -156,6 +272,24 @@ public:
       throw Error("parameter '" + name + "' requested with the wrong C++ type");
     }
   }
+
+  // The options struct Opt filled from every parameter bound to it in the spec (see
+  // ModuleSpec::param(name, &Opt::member, doc)), plus `threads` and `interrupter` when Opt has them.
+  template <class Opt>
+  [[nodiscard]] Opt options() const {
+    Opt o{};
+    fill(o);
+    return o;
+  }
+  template <class Opt>
+  void fill(Opt& o) const {
+    for (const ParamSpec& p : spec().params())
+      if (p.bound_to == typeid(Opt)) p.assign(&o, param_value(p.name));
+    if constexpr (requires { o.threads = 1; }) o.threads = threads();
+    if constexpr (requires { o.interrupter = progress(); }) o.interrupter = progress();
+  }
+  // The specification of the running module.
+  [[nodiscard]] virtual const ModuleSpec& spec() const = 0;
 
   virtual void output(const std::string& port, DataPtr data) = 0;
   template <class T>

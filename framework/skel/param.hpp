@@ -1,8 +1,11 @@
 #pragma once
 // Parameter values and their specifications (type, default, range, choices, unit, doc).
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
+#include <typeindex>
+#include <typeinfo>
 #include <variant>
 #include <vector>
 
@@ -32,6 +35,11 @@ struct ParamSpec {
   PathRole path_role = PathRole::None;   // for Path
   bool optional_value = false;           // an empty string / list means "not given"
   std::vector<std::string> old_names;    // renamed parameters still accepted when loading YAML
+  // Binding to a member of an algorithm's options struct (ModuleSpec::param(name, &Opt::member, doc)):
+  // the struct's type and a function that stores a checked value into that member of an Opt object.
+  // RunContext::options<Opt>() fills a struct from every parameter bound to Opt.
+  std::type_index bound_to = typeid(void);
+  std::function<void(void* options, const ParamValue& value)> assign;
 
   // Checks type, range, choices, length; returns an error message or empty if `v` is acceptable.
   [[nodiscard]] std::string check(const ParamValue& v) const;

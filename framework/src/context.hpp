@@ -40,6 +40,7 @@ public:
   [[nodiscard]] const Interrupter& progress() const override { return progress_; }
   [[nodiscard]] int threads() const override { return threads_; }
   [[nodiscard]] const std::string& node_id() const override { return node_id_; }
+  [[nodiscard]] const ModuleSpec& spec() const override { return spec_; }
   void warn(const std::string& message) override;
   [[nodiscard]] std::filesystem::path input_path(const std::string& param_name) const override;
   [[nodiscard]] std::filesystem::path output_path(const std::string& param_name) override;

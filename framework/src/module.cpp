@@ -165,6 +165,10 @@ ModuleSpec& ModuleSpec::renamed_from(std::string old_name) {
   last(params_, "renamed_from").old_names.push_back(std::move(old_name));
   return *this;
 }
+ModuleSpec& ModuleSpec::default_value(ParamValue value) {
+  last(params_, "default_value").default_value = std::move(value);
+  return *this;
+}
 ModuleSpec& ModuleSpec::details(std::string text) {
   details_ = std::move(text);
   return *this;

@@ -772,12 +772,6 @@ uint32_t thinning_directions(uint32_t nb) {
   return d;
 }
 
-ThinningVariant parse_thinning_variant(const std::string& text, const std::string& what) {
-  if (text == "basic") return ThinningVariant::Basic;
-  if (text == "smooth") return ThinningVariant::Smooth;
-  throw InputError(what + ": expected 'basic' or 'smooth', got '" + text + "'");
-}
-
 ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
                          const ThinningOptions& options) {
   if (options.end_point_length < 0)

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "skel/data.hpp"
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
@@ -18,6 +19,9 @@ enum class ThinningVariant {
   Smooth  // Algorithm 2 (SMOOTHDOHT): per priority level, directional sub-iterations with a
           // parallel candidate check followed by sequential rechecking
 };
+constexpr auto enum_names(ThinningVariant) {
+  return std::to_array<EnumName<ThinningVariant>>({{ThinningVariant::Basic, "basic"}, {ThinningVariant::Smooth, "smooth"}});
+}
 
 struct ThinningOptions {
   ThinningVariant variant = ThinningVariant::Smooth;
@@ -61,9 +65,6 @@ struct ThinningResult {
 // Throws InputError on mismatched dims, Cancelled when the interrupter says so.
 ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked = nullptr,
                          const ThinningOptions& options = {});
-
-// Parses "basic" | "smooth" (throws InputError naming `what` otherwise).
-ThinningVariant parse_thinning_variant(const std::string& text, const std::string& what = "variant");
 
 // Local tests shared with tests and other thinning code.
 // The sub-iteration directions of a voxel (Smooth DOHT, fig. 2.17): bit d (0..5 for +x, -x, +y, -y,

@@ -21,9 +21,9 @@ public:
         .optional_input<VolumeU8>("locked", "voxels (> 0) that are never removed, e.g. block halos or 2D skeleton parts")
         .output<VolumeU8>("skeleton", "the skeleton: 1 = skeleton voxel, 0 = other; a subset of the mask")
         .output<Table>("table", "one row of statistics: voxels, tests, removals, kept end points, stuck configurations")
-        .choice("variant", {"basic", "smooth"}, "smooth",
+        .param("variant", &ThinningOptions::variant,
                 "basic: Algorithm 1 (removal in queue order); smooth: Algorithm 2 (directional sub-iterations, sequential rechecking; centred on plates)")
-        .param<int64_t>("end_point_length", 2,
+        .param("end_point_length", &ThinningOptions::end_point_length,
                         "l: 0 keeps no end points; l > 0 keeps end points of side branches longer than l voxels (1 keeps noise spurs; 2 and more are robust)")
         .range(0, 1000000)
         .unit("voxels")
@@ -74,12 +74,7 @@ the priority levels when there are at most 65536 of them; the input mask and pri
     auto mask = ctx.input<VolumeU8>("mask");
     DataPtr priority = ctx.input_data("priority");
     auto locked = ctx.optional_input<VolumeU8>("locked");
-    ThinningOptions o;
-    o.variant = parse_thinning_variant(ctx.param<std::string>("variant"));
-    o.end_point_length = static_cast<int>(ctx.param<int64_t>("end_point_length"));
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    ThinningResult r = thin_doht(*mask, *priority, locked.get(), o);
+    ThinningResult r = thin_doht(*mask, *priority, locked.get(), ctx.options<ThinningOptions>());
     const ThinningStatistics& s = r.stats;
     if (s.object_voxels == 0) ctx.warn("the mask is empty: the skeleton is empty");
     if (s.stuck_components > 0) {

@@ -27,7 +27,7 @@ TEST(ThinningModule, MatchesLibraryAndReportsTable) {
                                           {"end_point_length", ParamValue(int64_t{3})}},
                                          {.threads = 2});
     ThinningOptions o;
-    o.variant = parse_thinning_variant(variant);
+    o.variant = parse_enum<ThinningVariant>(variant, "variant");
     o.end_point_length = 3;
     o.threads = 1;
     const ThinningResult lib = thin_doht(m, d, nullptr, o);

@@ -357,7 +357,7 @@ TEST(Thinning, RejectsBadInputs) {
   ThinningOptions o;
   o.end_point_length = -1;
   EXPECT_THROW(thin_doht(m, m, nullptr, o), InputError);
-  EXPECT_THROW(parse_thinning_variant("fast"), InputError);
+  EXPECT_THROW(parse_enum<ThinningVariant>("fast", "variant"), InputError);
   VolumeU8 empty(Dims{5, 5, 5}, 0);
   EXPECT_EQ(thin_doht(empty, empty).stats.skeleton_voxels, 0);
 }
