@@ -29,7 +29,7 @@ namespace {
 #if defined(SKEL_HAVE_SYNTHETIC)
 VolumeU8 make_volume(int64_t n, const std::string& kind) {
   synthetic::NetworkOptions o;
-  o.shape = kind;
+  o.shape = parse_enum<synthetic::Shape>(kind, "shape");
   o.size = {n, n, n};
   o.threads = 2;
   return std::move(synthetic::make_network(o).mask);

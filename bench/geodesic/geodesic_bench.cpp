@@ -26,7 +26,7 @@ int main(int argc, char** argv) {
     if (big) sizes.push_back(512);
     for (int64_t n : sizes) {
       synthetic::NetworkOptions no;
-      no.shape = shape;
+      no.shape = parse_enum<synthetic::Shape>(shape, "shape");
       no.size = {n, n, n};
       no.threads = threads;
       auto ph = synthetic::make_network(no);

@@ -83,7 +83,7 @@ int main(int argc, char** argv) {
   const std::string dir = argv[2], mode = argv[3];
   if (mode == "generate") {
     synthetic::NetworkOptions no;
-    no.shape = "rods";
+    no.shape = synthetic::Shape::rods;
     no.size = {n, n, n};
     no.seed = 1;
     no.noise = 0.1;

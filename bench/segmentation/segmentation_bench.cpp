@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
   const int threads = argc > 5 ? std::atoi(argv[5]) : 2;
   if (mode == "generate") {
     synthetic::NetworkOptions no;
-    no.shape = kind;
+    no.shape = parse_enum<synthetic::Shape>(kind, "shape");
     no.size = {n, n, n};
     no.seed = 1;
     no.threads = threads;
@@ -89,7 +89,7 @@ int main(int argc, char** argv) {
     const VolumeU8 m = read_npy<uint8_t>(dir + "/mask.npy", d);
     rss_input = bench::peak_rss_mib();
     segmentation::ComponentOptions o;
-    o.connectivity = 26;
+    o.connectivity = Connectivity::c26;
     o.threads = threads;
     int64_t count = 0;
     t = bench::best_of(repeats, [&] { count = segmentation::connected_components(m, o).count; });

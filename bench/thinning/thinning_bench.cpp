@@ -74,7 +74,7 @@ int main(int argc, char** argv) {
     for (int kind = 0; kind < 2; ++kind) {
       const std::string name = kind == 0 ? "rods" : "plates";
       synthetic::NetworkOptions no;
-      no.shape = name;
+      no.shape = parse_enum<synthetic::Shape>(name, "shape");
       no.size = {n, n, n};
       no.seed = 1;
       no.threads = threads;

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   const int repeats = argc > 5 ? std::stoi(argv[5]) : 1;
 
   synthetic::NetworkOptions no;
-  no.shape = shape;
+  no.shape = parse_enum<synthetic::Shape>(shape, "shape");
   no.size = {n, n, n};
   no.seed = 1;
   no.threads = threads;

@@ -165,13 +165,18 @@ public:
   ModuleSpec& add_output(std::string name, std::vector<std::string> types, std::string doc);
 
   // --- parameters (modifiers below apply to the last one added) ---
+  // A parameter the module reads itself with ctx.param<T>(name) (choices: an enum with enum_names).
   template <class T>
   ModuleSpec& param(std::string name, T default_value, std::string doc) {
     ParamSpec p;
     p.name = std::move(name);
-    p.type = ParamTypeOf<T>::value;
-    if constexpr (std::is_same_v<T, int>) p.default_value = static_cast<int64_t>(default_value);
-    else p.default_value = std::move(default_value);
+    if constexpr (NamedEnum<T>) {
+      detail::describe_member<T>(p, default_value);
+    } else {
+      p.type = ParamTypeOf<T>::value;
+      if constexpr (std::is_same_v<T, int>) p.default_value = static_cast<int64_t>(default_value);
+      else p.default_value = std::move(default_value);
+    }
     p.doc = std::move(doc);
     return add_param(std::move(p));
   }
@@ -192,6 +197,22 @@ public:
     p.bound_to = typeid(Opt);
     p.assign = [member, n = p.name](void* options, const ParamValue& v) {
       detail::assign_member(static_cast<Opt*>(options)->*member, v, n);
+    };
+    return add_param(std::move(p));
+  }
+  // A parameter that sets an options struct through `setter(Opt&, const V&)`, for values that
+  // are not one member (e.g. three chamfer weights expanded to seven).
+  template <class Opt, class V, class F>
+  ModuleSpec& param_fn(std::string name, V default_value, F setter, std::string doc) {
+    ParamSpec p;
+    p.name = std::move(name);
+    p.doc = std::move(doc);
+    detail::describe_member<V>(p, default_value);
+    p.bound_to = typeid(Opt);
+    p.assign = [setter, n = p.name](void* options, const ParamValue& v) {
+      V value{};
+      detail::assign_member(value, v, n);
+      setter(*static_cast<Opt*>(options), value);
     };
     return add_param(std::move(p));
   }
@@ -265,7 +286,9 @@ public:
   template <class T>
   [[nodiscard]] T param(const std::string& name) const {
     const ParamValue& v = param_value(name);
-    if constexpr (std::is_same_v<T, int>) {
+    if constexpr (NamedEnum<T>) {
+      return parse_enum<T>(std::get<std::string>(v), "parameter '" + name + "'");
+    } else if constexpr (std::is_same_v<T, int>) {
       return static_cast<int>(std::get<int64_t>(v));
     } else {
       if (auto* p = std::get_if<T>(&v)) return *p;
@@ -281,10 +304,14 @@ public:
     fill(o);
     return o;
   }
+  // An options struct that extends another names it `using OptionsBase = Base;`, and the
+  // parameters bound to the base's members are filled too.
   template <class Opt>
   void fill(Opt& o) const {
     for (const ParamSpec& p : spec().params())
       if (p.bound_to == typeid(Opt)) p.assign(&o, param_value(p.name));
+    if constexpr (requires { typename Opt::OptionsBase; })
+      fill(static_cast<typename Opt::OptionsBase&>(o));
     if constexpr (requires { o.threads = 1; }) o.threads = threads();
     if constexpr (requires { o.interrupter = progress(); }) o.interrupter = progress();
   }

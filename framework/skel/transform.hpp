@@ -7,11 +7,16 @@
 #include <string>
 
 #include "skel/data.hpp"
+#include "skel/enum_names.hpp"
 #include "skel/volume.hpp"
 
 namespace skel {
 
 enum class TransformKind { Rigid, Similarity, Affine };
+constexpr auto enum_names(TransformKind) {
+  return std::to_array<EnumName<TransformKind>>(
+      {{TransformKind::Rigid, "rigid"}, {TransformKind::Similarity, "similarity"}, {TransformKind::Affine, "affine"}});
+}
 
 // "rigid" | "similarity" | "affine".
 std::string to_string(TransformKind kind);

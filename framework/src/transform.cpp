@@ -8,20 +8,10 @@
 
 namespace skel {
 
-std::string to_string(TransformKind kind) {
-  switch (kind) {
-    case TransformKind::Rigid: return "rigid";
-    case TransformKind::Similarity: return "similarity";
-    case TransformKind::Affine: return "affine";
-  }
-  return "affine";
-}
+std::string to_string(TransformKind kind) { return enum_name(kind); }
 
 TransformKind parse_transform_kind(const std::string& text, const std::string& what) {
-  if (text == "rigid") return TransformKind::Rigid;
-  if (text == "similarity") return TransformKind::Similarity;
-  if (text == "affine") return TransformKind::Affine;
-  throw InputError(what + ": '" + text + "' is not a transform kind; expected rigid, similarity or affine");
+  return parse_enum<TransformKind>(text, what);
 }
 
 Transform::Transform(const Matrix4& matrix, TransformKind kind) : m_(matrix), kind_(kind) {

@@ -50,12 +50,12 @@ public:
         .output<Table>("segments", "per edge: length, chord, tortuosity, radius stats, volume, surface")
         .output<Table>("nodes", "per node: degree, position")
         .output<Table>("summary", "one row: totals, densities, branch/end points, loops, orientation histogram")
-        .param<std::string>("radius", std::string("radius"), "point attribute holding radii")
-        .param<int64_t>("orientation_bins", 9, "bins of the angle between segments and the axis (0..90°)")
+        .param("radius", &NetworkStatisticsOptions::radius, "point attribute holding radii")
+        .param("orientation_bins", &NetworkStatisticsOptions::orientation_bins, "bins of the angle between segments and the axis (0..90°)")
         .min(1)
         .max(180)
-        .choice("axis", {"x", "y", "z"}, "z", "reference axis of the orientation histogram")
-        .param<double>("orientation_window", 0.0,
+        .param("axis", &NetworkStatisticsOptions::axis, "reference axis of the orientation histogram")
+        .param("orientation_window", &NetworkStatisticsOptions::orientation_window,
                        "arc length over which segment directions are measured (0 = 10 x the median point step)")
         .min(0)
         .unit("µm")
@@ -74,12 +74,7 @@ public:
   }
   void run(RunContext& ctx) override {
     auto g = ctx.input<SpatialGraph>("graph");
-    NetworkStatisticsOptions o;
-    o.radius = ctx.param<std::string>("radius");
-    o.orientation_bins = static_cast<int>(ctx.param<int64_t>("orientation_bins"));
-    const std::string axis = ctx.param<std::string>("axis");
-    o.axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
-    o.orientation_window = ctx.param<double>("orientation_window");
+    auto o = ctx.options<NetworkStatisticsOptions>();
     if (auto m = ctx.optional_input<VolumeU8>("mask")) o.reference_volume = mask_volume(*m);
     auto st = network_statistics(*g, o);
     ctx.output("segments", std::move(st.segments));
@@ -89,6 +84,13 @@ public:
 };
 SKEL_REGISTER_MODULE(NetworkStatisticsModule);
 
+// `root_points` is a flat list x y z, x y z, ...
+void set_root_points(TreeOptions& o, const std::vector<double>& rp) {
+  if (rp.size() % 3 != 0)
+    throw InputError("parameter 'root_points': expected x y z triples, got " + std::to_string(rp.size()) + " numbers");
+  for (size_t i = 0; i < rp.size(); i += 3) o.root_points.push_back({rp[i], rp[i + 1], rp[i + 2]});
+}
+
 class TreesModule final : public Module {
 public:
   static ModuleSpec spec() {
@@ -96,15 +98,15 @@ public:
         .input<SpatialGraph>("graph", "spatial graph (point attribute radius needed when min_diameter > 0)")
         .output<SpatialGraph>("graph", "graph with edge labels tree and branch_order")
         .output<Table>("trees", "per tree: root node, edges, total length")
-        .param<std::vector<int64_t>>("roots", {}, "root node ids")
+        .param("roots", &TreeOptions::roots, "root node ids")
         .optional_value()
-        .param<std::vector<double>>("root_points", {}, "root positions x y z, x y z ... (nearest node)")
+        .param_fn<TreeOptions>("root_points", std::vector<double>{}, set_root_points, "root positions x y z, x y z ... (nearest node)")
         .optional_value()
         .unit("µm")
-        .param<double>("min_diameter", 0.0, "edges thinner than this (2 × mean radius) are capillaries")
+        .param("min_diameter", &TreeOptions::min_diameter, "edges thinner than this (2 × mean radius) are capillaries")
         .min(0)
         .unit("µm")
-        .param<std::string>("radius", std::string("radius"), "point attribute holding radii")
+        .param("radius", &TreeOptions::radius, "point attribute holding radii")
         .details(
             "Thesis §6.1 (fig. 6.3): main vessel trees are separated from the capillary bed by diameter and "
             "root points. From all roots at once, a Dijkstra search along polyline lengths walks only edges "
@@ -115,15 +117,7 @@ public:
   }
   void run(RunContext& ctx) override {
     SpatialGraph g = *ctx.input<SpatialGraph>("graph");
-    TreeOptions o;
-    o.roots = ctx.param<std::vector<int64_t>>("roots");
-    const auto rp = ctx.param<std::vector<double>>("root_points");
-    if (rp.size() % 3 != 0)
-      throw InputError("parameter 'root_points': expected x y z triples, got " + std::to_string(rp.size()) + " numbers");
-    for (size_t i = 0; i < rp.size(); i += 3) o.root_points.push_back({rp[i], rp[i + 1], rp[i + 2]});
-    o.min_diameter = ctx.param<double>("min_diameter");
-    o.radius = ctx.param<std::string>("radius");
-    auto s = extract_trees(g, o);
+    auto s = extract_trees(g, ctx.options<TreeOptions>());
     const auto& tree = g.edge_labels.at("tree");
     std::vector<int64_t> id, root, edges(s.root_nodes.size(), 0);
     std::vector<double> len(s.root_nodes.size(), 0.0);
@@ -152,9 +146,9 @@ public:
         .optional_input<SpatialGraph>("graph", "graph whose edges colour the object")
         .optional_input<VolumeU32>("seeds", "instead of a graph: label volume (non-zero voxels are seeds)")
         .output<VolumeU32>("labels", "label per object voxel (0 = background or not reached)")
-        .param<std::string>("label", std::string(""), "edge label to paint (value + 1); empty: edge id + 1")
+        .param("label", &LabelPropagationOptions::label, "edge label to paint (value + 1); empty: edge id + 1")
         .optional_value()
-        .choice("metric", {"euclidean", "geodesic"}, "euclidean",
+        .param("metric", &LabelPropagationOptions::metric,
                 "nearest seed by Euclidean distance (physical units) or along the object (26-neighbour wave)")
         .details(
             "Thesis §6.2, fig. 6.14 (rods/plates decomposition): a skeleton cut at its branching points, each "
@@ -169,11 +163,7 @@ public:
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
-    LabelPropagationOptions o;
-    o.label = ctx.param<std::string>("label");
-    o.metric = ctx.param<std::string>("metric") == "geodesic" ? PropagationMetric::geodesic : PropagationMetric::euclidean;
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
+    const auto o = ctx.options<LabelPropagationOptions>();
     if (auto g = ctx.optional_input<SpatialGraph>("graph")) {
       ctx.output("labels", propagate_edge_labels(*mask, *g, o));
     } else if (auto s = ctx.optional_input<VolumeU32>("seeds")) {
@@ -192,9 +182,9 @@ public:
         .input<SpatialGraph>("graph", "network graph")
         .output<Table>("table", "one row per end point: position, partner (node or edge point), distance, angle, score")
         .output<SpatialGraph>("graph", "the input with node attribute `gap_score` (0 = no partner) and label `dangling` (1 at end points)")
-        .param<double>("max_distance", 20.0, "largest gap to bridge").min(0).unit("µm")
-        .param<double>("max_angle", 60.0, "largest angle between the segment's direction and the gap").range(0, 180).unit("degrees")
-        .param<double>("direction_length", 5.0, "how far back along the segment its direction is measured").min(0).unit("µm")
+        .param("max_distance", &graph::DanglingOptions::max_distance, "largest gap to bridge").min(0).unit("µm")
+        .param("max_angle", &graph::DanglingOptions::max_angle_deg, "largest angle between the segment's direction and the gap").range(0, 180).unit("degrees")
+        .param("direction_length", &graph::DanglingOptions::direction_length, "how far back along the segment its direction is measured").min(0).unit("µm")
         .details(R"(Thesis §6.1: about 4 % of the segments end unconnected because vessels were not filled
 completely; the user is guided to these ends and connects them. For every node of degree 1 the
 direction of its segment is measured over `direction_length`; candidates are the points of all other
@@ -205,11 +195,7 @@ ends without a partner last. A k-d tree (nanoflann) over all polyline points kee
   }
   void run(RunContext& ctx) override {
     auto g = ctx.input<SpatialGraph>("graph");
-    graph::DanglingOptions o;
-    o.max_distance = ctx.param<double>("max_distance");
-    o.max_angle_deg = ctx.param<double>("max_angle");
-    o.direction_length = ctx.param<double>("direction_length");
-    const auto ends = graph::find_dangling_ends(*g, o);
+    const auto ends = graph::find_dangling_ends(*g, ctx.options<graph::DanglingOptions>());
     std::vector<int64_t> node, partner_node, partner_edge, partner_point;
     std::vector<double> x, y, z, px, py, pz, dist, angle, score;
     std::vector<std::string> kind;

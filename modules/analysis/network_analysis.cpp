@@ -30,8 +30,6 @@ double mask_volume(const VolumeU8& mask) {
 NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatisticsOptions& options) {
   if (options.orientation_bins < 1)
     throw InputError("parameter 'orientation_bins': expected >= 1, got " + std::to_string(options.orientation_bins));
-  if (options.axis < 0 || options.axis > 2)
-    throw InputError("parameter 'axis': expected 0, 1 or 2, got " + std::to_string(options.axis));
   const auto problems = g.check_invariants();
   if (!problems.empty()) throw InputError("input 'graph': inconsistent graph: " + problems.front());
   const auto it = g.point_attributes.find(options.radius);
@@ -61,7 +59,8 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
   const auto add_piece = [&](const Vec3& a, const Vec3& b, double arc) {
     const double c = dist3(a, b);
     if (!(c > 0)) return;
-    const double cosine = std::abs(b[options.axis] - a[options.axis]) / c;
+    const auto ax = static_cast<size_t>(options.axis);
+    const double cosine = std::abs(b[ax] - a[ax]) / c;
     const double angle = std::acos(std::min(1.0, cosine)) * 180.0 / pi;
     orient[std::min(bins - 1, static_cast<int>(angle / (90.0 / bins)))] += arc;
   };

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
@@ -13,10 +14,13 @@
 
 namespace skel::analysis {
 
+enum class Axis { x, y, z };
+constexpr auto enum_names(Axis) { return std::to_array<EnumName<Axis>>({{Axis::x, "x"}, {Axis::y, "y"}, {Axis::z, "z"}}); }
+
 struct NetworkStatisticsOptions {
   std::string radius = "radius";  // point attribute with radii (optional; columns omitted without it)
   int orientation_bins = 9;       // bins of the angle to `axis`, 0..90°
-  int axis = 2;                   // 0 = x, 1 = y, 2 = z
+  Axis axis = Axis::z;
   // Arc length over which the direction is measured (chords of consecutive pieces of this length);
   // <= 0: 10 x the median point step of the graph. Single voxel steps only point along the 13
   // lattice directions, so a histogram of steps shows the grid, not the vessels.
@@ -60,6 +64,9 @@ enum class PropagationMetric {
   euclidean,  // nearest seed voxel in physical (anisotropic) Euclidean distance (exact feature transform)
   geodesic,   // nearest seed along the object: breadth-first wave through the 26-neighbourhood
 };
+constexpr auto enum_names(PropagationMetric) {
+  return std::to_array<EnumName<PropagationMetric>>({{PropagationMetric::euclidean, "euclidean"}, {PropagationMetric::geodesic, "geodesic"}});
+}
 struct LabelPropagationOptions {
   std::string label;  // edge label to paint; empty: edge id + 1
   PropagationMetric metric = PropagationMetric::euclidean;

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
@@ -30,6 +31,10 @@ enum class DistanceMethod {
               // on the same grid; thesis §6.2)
   KdTree      // nearest other point by a k-d tree (nanoflann) in physical coordinates; any inputs
 };
+constexpr auto enum_names(DistanceMethod) {
+  return std::to_array<EnumName<DistanceMethod>>(
+      {{DistanceMethod::Automatic, "automatic"}, {DistanceMethod::Transform, "transform"}, {DistanceMethod::KdTree, "kdtree"}});
+}
 // "automatic" | "transform" | "kdtree"; throws InputError naming `what` otherwise.
 DistanceMethod parse_distance_method(const std::string& text, const std::string& what = "method");
 

@@ -21,6 +21,12 @@ comparison::SkeletonInput skeleton_input(const RunContext& ctx, const std::strin
   return in;
 }
 
+// Value of the distance volumes off the skeleton.
+enum class OffSkeleton { zero, nan };
+constexpr auto enum_names(OffSkeleton) {
+  return std::to_array<EnumName<OffSkeleton>>({{OffSkeleton::zero, "zero"}, {OffSkeleton::nan, "nan"}});
+}
+
 class SkeletonDistanceModule final : public Module {
 public:
   static ModuleSpec spec() {
@@ -35,12 +41,15 @@ public:
         .output<VolumeU8>("other_changed", "symmetric and other is a volume: other skeleton voxels further than threshold from the reference")
         .output<SpatialGraph>("other_graph", "symmetric and other is a graph: a copy with point attributes distance and changed")
         .output<Table>("table", "rows reference_to_other [, other_to_reference, symmetric]: points, weight, mean, median, p95, hausdorff, changed_points, changed_weight, changed_fraction, threshold")
-        .param<double>("threshold", 2.0, "points further than this from the other skeleton are changed").min(0).unit("µm")
-        .param<bool>("symmetric", false, "also measure other -> reference; the table gets both directions and the symmetric (pooled) row")
-        .choice("method", {"automatic", "transform", "kdtree"}, "automatic",
+        .param("threshold", &SkeletonDistanceOptions::threshold, "points further than this from the other skeleton are changed").min(0).unit("µm")
+        .param("symmetric", &SkeletonDistanceOptions::symmetric, "also measure other -> reference; the table gets both directions and the symmetric (pooled) row")
+        .param("method", &SkeletonDistanceOptions::method,
                 "transform: seeded Euclidean distance transform (volumes on one grid); kdtree: nearest point in physical coordinates (any inputs); automatic: transform when possible")
-        .param<double>("sample_spacing", 0.0, "a graph compared against is sampled along its polylines at most this far apart; 0 = half the smallest voxel spacing of the inputs").min(0).unit("µm")
-        .choice("off_skeleton", {"zero", "nan"}, "zero", "value of the distance volumes off the skeleton")
+        .param("sample_spacing", &SkeletonDistanceOptions::sample_spacing, "a graph compared against is sampled along its polylines at most this far apart; 0 = half the smallest voxel spacing of the inputs").min(0).unit("µm")
+        .param_fn<SkeletonDistanceOptions>(
+            "off_skeleton", OffSkeleton::zero,
+            [](SkeletonDistanceOptions& o, OffSkeleton v) { o.nan_off_skeleton = v == OffSkeleton::nan; },
+            "value of the distance volumes off the skeleton")
         .details(R"(Thesis §6.2 "Analyzing Architectural Alterations" (figs. 6.15, 6.16): after registration, the
 skeleton of the original scan is compared to the skeleton after compression testing by "a distance
 transformation seeded at the skeleton"; points far from the other skeleton moved or vanished.
@@ -64,14 +73,7 @@ and changed 1 B per voxel, plus ~48 B per skeleton point; kdtree: ~80 B per poin
 for any thread count.)");
   }
   void run(RunContext& ctx) override {
-    comparison::SkeletonDistanceOptions o;
-    o.threshold = ctx.param<double>("threshold");
-    o.symmetric = ctx.param<bool>("symmetric");
-    o.method = comparison::parse_distance_method(ctx.param<std::string>("method"));
-    o.sample_spacing = ctx.param<double>("sample_spacing");
-    o.nan_off_skeleton = ctx.param<std::string>("off_skeleton") == "nan";
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
+    const auto o = ctx.options<SkeletonDistanceOptions>();
     auto r = comparison::skeleton_distance(skeleton_input(ctx, "reference"), skeleton_input(ctx, "other"), o);
     if (r.reference.is_graph) {
       ctx.output("graph", std::move(r.reference.graph));
@@ -102,10 +104,10 @@ public:
         .output<SpatialGraph>("other_graph", "other copy with the same labels and attributes (matched 0 = extra)")
         .output<Table>("table", "rows nodes, edges, length: reference, other, tp, fp, fn, precision, recall, f1")
         .output<Table>("errors", "NetMets-style errors: geometric_fnr, geometric_fpr, connectivity_fnr, connectivity_fpr, lengths, sample counts")
-        .param<double>("node_tolerance", 3.0, "nodes at most this far apart may be matched").min(0).unit("µm")
-        .param<double>("edge_tolerance", 3.0, "a polyline sample is covered if a sample of the other geometry is at most this far").min(0).unit("µm")
-        .param<double>("sample_spacing", 1.0, "polylines are resampled at equal steps of at most this length").min(1e-9).unit("µm")
-        .param<double>("overlap", 0.8, "fraction of an edge's samples (both ways) that must be covered by its partner edge").range(1e-6, 1)
+        .param("node_tolerance", &GraphMatchOptions::node_tolerance, "nodes at most this far apart may be matched").min(0).unit("µm")
+        .param("edge_tolerance", &GraphMatchOptions::edge_tolerance, "a polyline sample is covered if a sample of the other geometry is at most this far").min(0).unit("µm")
+        .param("sample_spacing", &GraphMatchOptions::sample_spacing, "polylines are resampled at equal steps of at most this length").min(1e-9).unit("µm")
+        .param("overlap", &GraphMatchOptions::overlap, "fraction of an edge's samples (both ways) that must be covered by its partner edge").range(1e-6, 1)
         .details(R"(Compares two reconstructions of one network (two methods, two time points, a reconstruction
 against ground truth). 1. Nodes: every pair closer than node_tolerance is a candidate; an optimal
 assignment — the maximum number of pairs, and among those the least total distance — is found by
@@ -126,14 +128,8 @@ the fraction without an edge match (missing or wrong connections), FPR likewise 
 Memory: ~100 B per sample and per node. Deterministic for any thread count.)");
   }
   void run(RunContext& ctx) override {
-    comparison::GraphMatchOptions o;
-    o.node_tolerance = ctx.param<double>("node_tolerance");
-    o.edge_tolerance = ctx.param<double>("edge_tolerance");
-    o.sample_spacing = ctx.param<double>("sample_spacing");
-    o.overlap = ctx.param<double>("overlap");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    auto r = comparison::graph_match(*ctx.input<SpatialGraph>("reference"), *ctx.input<SpatialGraph>("other"), o);
+    auto r = graph_match(*ctx.input<SpatialGraph>("reference"), *ctx.input<SpatialGraph>("other"),
+                         ctx.options<GraphMatchOptions>());
     ctx.output("reference_graph", std::move(r.reference));
     ctx.output("other_graph", std::move(r.other));
     ctx.output("table", std::move(r.table));

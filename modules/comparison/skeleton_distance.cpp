@@ -239,10 +239,7 @@ void validate_input(const SkeletonInput& in) {
 }  // namespace
 
 DistanceMethod parse_distance_method(const std::string& text, const std::string& what) {
-  if (text == "automatic") return DistanceMethod::Automatic;
-  if (text == "transform") return DistanceMethod::Transform;
-  if (text == "kdtree") return DistanceMethod::KdTree;
-  throw InputError(what + ": '" + text + "' is not one of automatic, transform, kdtree");
+  return parse_enum<DistanceMethod>(text, what);
 }
 
 double weighted_quantile(std::vector<std::pair<double, double>> vw, double q) {

@@ -20,6 +20,7 @@
 #include <string>
 
 #include "skel/data.hpp"
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
@@ -51,6 +52,7 @@ struct ChamferWeights {
 ChamferWeights chamfer_weights_from_spacing(const Vec3& spacing, double scale = 3.0);
 
 struct ChamferOptions : DistanceOptions {
+  using OptionsBase = DistanceOptions;
   ChamferWeights weights{};
   bool derive_from_spacing = false;  // replace `weights` by chamfer_weights_from_spacing(spacing)
   double spacing_scale = 3.0;        // scale used when derive_from_spacing is true
@@ -84,6 +86,7 @@ struct ChamferNearest {
 ChamferNearest chamfer_nearest(const VolumeU8& mask, const ChamferOptions& options = {});
 
 struct EuclideanOptions : DistanceOptions {
+  using OptionsBase = DistanceOptions;
   bool squared = false;  // output squared distances (physical units squared)
 };
 
@@ -103,6 +106,12 @@ VolumeF32 euclidean(const VolumeU8& mask, const EuclideanOptions& options = {});
 // voxel output plus 4 bytes per voxel of squared distances during the computation.
 DataPtr feature_transform(const VolumeU8& mask, const DistanceOptions& options = {});
 template <class Index> Volume<Index> feature_transform_as(const VolumeU8& mask, const DistanceOptions& options = {});
+
+// How distance.feature_transform finds the nearest background point.
+enum class FeatureMethod { euclidean, chamfer_bp };
+constexpr auto enum_names(FeatureMethod) {
+  return std::to_array<EnumName<FeatureMethod>>({{FeatureMethod::euclidean, "euclidean"}, {FeatureMethod::chamfer_bp, "chamfer_bp"}});
+}
 
 struct SeededOptions {
   bool squared = false;

@@ -1,4 +1,5 @@
 // Modules of the distance family: thin wrappers over distance/distance.hpp.
+#include <array>
 #include <cmath>
 #include <memory>
 
@@ -18,6 +19,12 @@ std::shared_ptr<const VolumeU8> mask_input(RunContext& ctx, const std::string& p
 }
 
 const char* kMaskDoc = "object mask: any integer volume, voxel > 0 is object, 0 is background";
+// The three isotropic chamfer weights (face, edge, vertex) of the `weights` parameter.
+void set_isotropic_weights(ChamferOptions& o, const std::array<int64_t, 3>& w) {
+  o.weights = ChamferWeights::isotropic(static_cast<uint32_t>(w[0]), static_cast<uint32_t>(w[1]), static_cast<uint32_t>(w[2]));
+}
+constexpr std::array<int64_t, 3> kDefaultWeights{3, 4, 5};
+
 const char* kBorderDoc =
     "treat voxels outside the array as object (default: they are background, so the distance never "
     "exceeds the distance to the array's border)";
@@ -29,16 +36,15 @@ public:
         .input<AnyIntegerVolume>("mask", kMaskDoc)
         .add_output("distance", {VoxelTraits<uint16_t>::id, VoxelTraits<uint32_t>::id},
                     "chamfer distance in chamfer units (uint16 where every possible value fits, else uint32); 0 on background")
-        .param<std::vector<int64_t>>("weights", {3, 4, 5},
-                                     "integer weights (face, edge, vertex) of the 26 neighbour steps on isotropic grids")
-        .length(3)
-        .min(1)
-        .param<bool>("derive_from_spacing", false,
+        .param_fn<ChamferOptions>("weights", kDefaultWeights, set_isotropic_weights,
+                                  "integer weights (face, edge, vertex) of the 26 neighbour steps on isotropic grids")
+        .range(1, 1000000)
+        .param("derive_from_spacing", &ChamferOptions::derive_from_spacing,
                      "derive the seven step weights from the voxel spacing (anisotropic grids) instead of `weights`")
-        .param<double>("spacing_scale", 3.0,
+        .param("spacing_scale", &ChamferOptions::spacing_scale,
                        "with derive_from_spacing: weight of one step of the smallest spacing (3 gives 3,4,5 on isotropic grids)")
         .range(1, 1000)
-        .param<bool>("border_is_object", false, kBorderDoc)
+        .param("border_is_object", &DistanceOptions::border_is_object, kBorderDoc)
         .details(R"(Thesis §2.3.1 (Borgefors' chamfer distance, fig. 2.14) and ch. 5.1. A forward raster scan
 (z, y, x increasing) propagates d(n) + w from the 13 already visited neighbours (plane z-1, row y-1,
 voxel x-1); a backward scan does the mirror. For weights obeying the chamfer-norm conditions
@@ -60,18 +66,7 @@ Memory: the output, 2 (or 4) bytes per voxel, plus one row of scratch.)");
   }
   void run(RunContext& ctx) override {
     auto mask = mask_input(ctx, "mask");
-    distance::ChamferOptions o;
-    auto w = ctx.param<std::vector<int64_t>>("weights");
-    for (int64_t v : w)
-      if (v < 1 || v > 1000000) throw InputError("weights: expected values in 1..1000000");
-    o.weights = distance::ChamferWeights::isotropic(static_cast<uint32_t>(w[0]), static_cast<uint32_t>(w[1]),
-                                                    static_cast<uint32_t>(w[2]));
-    o.derive_from_spacing = ctx.param<bool>("derive_from_spacing");
-    o.spacing_scale = ctx.param<double>("spacing_scale");
-    o.border_is_object = ctx.param<bool>("border_is_object");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    ctx.output("distance", distance::chamfer(*mask, o));
+    ctx.output("distance", chamfer(*mask, ctx.options<ChamferOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(ChamferModule);
@@ -82,8 +77,8 @@ public:
     return ModuleSpec("distance.euclidean", "Exact Euclidean distance to the background, in physical units")
         .input<AnyIntegerVolume>("mask", kMaskDoc)
         .output<VolumeF32>("distance", "Euclidean distance to the nearest background voxel centre (µm, from spacing); 0 on background")
-        .param<bool>("squared", false, "output squared distances (µm²)")
-        .param<bool>("border_is_object", false, kBorderDoc)
+        .param("squared", &EuclideanOptions::squared, "output squared distances (µm²)")
+        .param("border_is_object", &DistanceOptions::border_is_object, kBorderDoc)
         .details(R"(Exact Euclidean distance transform (thesis §2.3.1 uses it for exact medialness), separable:
 one pass along x (two scans per row), then one pass along y and one along z computing the lower
 envelope of parabolas (Felzenszwalb & Huttenlocher) per column, with blocks of 16 adjacent columns
@@ -99,12 +94,7 @@ Memory: the output, 4 bytes per voxel, plus per-thread line buffers (~40 bytes p
   }
   void run(RunContext& ctx) override {
     auto mask = mask_input(ctx, "mask");
-    distance::EuclideanOptions o;
-    o.squared = ctx.param<bool>("squared");
-    o.border_is_object = ctx.param<bool>("border_is_object");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    ctx.output("distance", distance::euclidean(*mask, o));
+    ctx.output("distance", euclidean(*mask, ctx.options<EuclideanOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(EuclideanModule);
@@ -117,12 +107,11 @@ public:
         .add_output("nearest", {VoxelTraits<uint32_t>::id, VoxelTraits<uint64_t>::id},
                     "linear index x + nx*(y + ny*z) of the nearest background voxel (uint32 below 2^32-1 voxels, else uint64); "
                     "the type's maximum where that point lies outside the array")
-        .choice("method", {"euclidean", "chamfer_bp"}, "euclidean",
+        .param("method", FeatureMethod::euclidean,
                 "euclidean: exact Euclidean nearest voxel; chamfer_bp: b(p) of thesis §2.3.2 propagated along the chamfer raster scans")
-        .param<std::vector<int64_t>>("weights", {3, 4, 5}, "chamfer_bp only: weights (face, edge, vertex)")
-        .length(3)
-        .min(1)
-        .param<bool>("border_is_object", false, kBorderDoc)
+        .param_fn<ChamferOptions>("weights", kDefaultWeights, set_isotropic_weights, "chamfer_bp only: weights (face, edge, vertex)")
+        .range(1, 1000000)
+        .param("border_is_object", &DistanceOptions::border_is_object, kBorderDoc)
         .details(R"(Background voxels get their own index. Voxels outside the array are background by default;
 where the nearest one is such an outside point, `nearest` holds the type's maximum (4294967295 or
 2^64-1). With border_is_object and no background at all, every voxel gets that value.
@@ -143,24 +132,10 @@ chamfer_bp 4 bytes (index) + 2 bytes (chamfer distance) per voxel (8 + 4 above 2
   }
   void run(RunContext& ctx) override {
     auto mask = mask_input(ctx, "mask");
-    if (ctx.param<std::string>("method") == "chamfer_bp") {
-      distance::ChamferOptions o;
-      auto w = ctx.param<std::vector<int64_t>>("weights");
-      for (int64_t v : w)
-        if (v < 1 || v > 1000000) throw InputError("weights: expected values in 1..1000000");
-      o.weights = distance::ChamferWeights::isotropic(static_cast<uint32_t>(w[0]), static_cast<uint32_t>(w[1]),
-                                                      static_cast<uint32_t>(w[2]));
-      o.border_is_object = ctx.param<bool>("border_is_object");
-      o.threads = ctx.threads();
-      o.interrupter = ctx.progress();
-      ctx.output("nearest", distance::chamfer_nearest(*mask, o).nearest);
-    } else {
-      distance::DistanceOptions o;
-      o.border_is_object = ctx.param<bool>("border_is_object");
-      o.threads = ctx.threads();
-      o.interrupter = ctx.progress();
-      ctx.output("nearest", distance::feature_transform(*mask, o));
-    }
+    if (ctx.param<FeatureMethod>("method") == FeatureMethod::chamfer_bp)
+      ctx.output("nearest", chamfer_nearest(*mask, ctx.options<ChamferOptions>()).nearest);
+    else
+      ctx.output("nearest", feature_transform(*mask, ctx.options<DistanceOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(FeatureTransformModule);
@@ -172,7 +147,7 @@ public:
         .input<AnyIntegerVolume>("seeds", "seed voxels: any integer volume, voxel > 0 is a seed")
         .optional_input<AnyIntegerVolume>("mask", "optional region (voxel > 0): distances are reported only inside it, 0 outside")
         .output<VolumeF32>("distance", "Euclidean distance to the nearest seed voxel centre (µm, from spacing); 0 on seeds")
-        .param<bool>("squared", false, "output squared distances (µm²)")
+        .param("squared", &SeededOptions::squared, "output squared distances (µm²)")
         .details(R"(Used by skeleton comparison (thesis §6.2) and label propagation (fig. 6.14). The exact,
 unrestricted Euclidean distance transform of the seed complement: paths are straight lines, not
 constrained to the mask; the optional mask only zeroes the output outside it (it must have the
@@ -182,11 +157,7 @@ Memory: the output, 4 bytes per voxel (plus 1 byte per voxel if seeds or mask ar
   }
   void run(RunContext& ctx) override {
     auto seeds = mask_input(ctx, "seeds");
-    distance::SeededOptions o;
-    o.squared = ctx.param<bool>("squared");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    VolumeF32 d = distance::seeded(*seeds, o);
+    VolumeF32 d = seeded(*seeds, ctx.options<SeededOptions>());
     if (ctx.has_input("mask")) {
       auto mask = mask_input(ctx, "mask");
       if (mask->dims() != seeds->dims())

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <string>
 
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
@@ -18,6 +19,9 @@ enum class Mode {
   Threshold,  // propagation stops at t; importance saturates at t (also where no path exists)
   Full        // exact values everywhere (+inf where the two points lie on unconnected parts of L)
 };
+constexpr auto enum_names(Mode) {
+  return std::to_array<EnumName<Mode>>({{Mode::Threshold, "threshold"}, {Mode::Full, "full"}});
+}
 
 struct Options {
   Mode mode = Mode::Threshold;

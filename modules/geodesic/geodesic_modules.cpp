@@ -19,9 +19,9 @@ public:
         .output<VolumeF32>("importance", "max geodesic distance g(b(p), b(q)) over the considered neighbours; 0 on background")
         .output<VolumeU8>("surface_skeleton", "object voxels with importance >= threshold (1), else 0")
         .output<Table>("table", "statistics: object and boundary-layer voxels, searches, memory")
-        .param<int64_t>("threshold", 20, "t: importance that selects the surface skeleton; propagation stops at t in threshold mode")
+        .param("threshold", &Options::threshold, "t: importance that selects the surface skeleton; propagation stops at t in threshold mode")
         .range(1, 1000000).unit("voxel steps")
-        .choice("mode", {"threshold", "full"}, "threshold",
+        .param("mode", &Options::mode,
                 "threshold: values saturate at t (fast, k·t²/r̄); full: exact values everywhere (+inf where no path exists), e.g. as a thinning priority")
         .details(R"(Thesis §2.3.2. b(p) is the nearest background point of p, found by propagating nearest
 points inward from the boundary layer ring by ring (26-neighbourhood, physical spacing). The geodesic
@@ -49,12 +49,7 @@ thread.)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
-    geodesic::Options o;
-    o.mode = ctx.param<std::string>("mode") == "full" ? geodesic::Mode::Full : geodesic::Mode::Threshold;
-    o.threshold = ctx.param<int64_t>("threshold");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    geodesic::Result r = geodesic::boundary_distance(*mask, o);
+    Result r = boundary_distance(*mask, ctx.options<Options>());
     if (r.stats.object_voxels == 0) ctx.warn("the mask is empty: importance is 0 everywhere");
     Table t;
     t.add("object_voxels", std::vector<int64_t>{r.stats.object_voxels});
@@ -71,20 +66,10 @@ thread.)");
 };
 SKEL_REGISTER_MODULE(BoundaryDistance);
 
-geodesic::TubularityOptions tubularity_options(const RunContext& ctx) {
-  geodesic::TubularityOptions o;
-  const std::string u = ctx.param<std::string>("distance_unit");
-  o.unit = u == "chamfer" ? geodesic::DistanceUnit::Chamfer : u == "voxels" ? geodesic::DistanceUnit::Voxels
-                                                                           : geodesic::DistanceUnit::Physical;
-  o.chamfer_unit = ctx.param<double>("chamfer_unit");
-  o.threads = ctx.threads();
-  return o;
-}
-
 ModuleSpec& distance_unit_params(ModuleSpec& s) {
-  return s.choice("distance_unit", {"physical", "chamfer", "voxels"}, "physical",
+  return s.param("distance_unit", &TubularityOptions::unit,
                   "unit of the distance input: physical (distance.euclidean; divided by the mean spacing), chamfer (divided by chamfer_unit), voxels")
-      .param<double>("chamfer_unit", 3.0, "chamfer value of one voxel step (3 for the 3-4-5 chamfer distance)")
+      .param("chamfer_unit", &TubularityOptions::chamfer_unit, "chamfer value of one voxel step (3 for the 3-4-5 chamfer distance)")
       .min(1e-6);
 }
 
@@ -104,9 +89,7 @@ topology. Memory: 1 byte per voxel (output) plus 8 bytes per surface voxel.)");
   }
   void run(RunContext& ctx) override {
     auto in = ctx.input<VolumeU8>("surface");
-    geodesic::ThinSurfaceOptions o;
-    o.interrupter = ctx.progress();
-    auto r = geodesic::thin_surface(*in, o);
+    auto r = thin_surface(*in, ctx.options<ThinSurfaceOptions>());
     ctx.output("skeleton", std::move(r.surface));
   }
 };
@@ -136,7 +119,7 @@ Graph points take the ratio of the voxel they lie in (0 off the skeleton). Memor
     auto sk = ctx.input<VolumeU8>("skeleton");
     auto imp = ctx.input<VolumeF32>("importance");
     auto dist = ctx.input_data("distance");
-    VolumeF32 ratio = geodesic::tubularity(*sk, *imp, *dist, tubularity_options(ctx));
+    VolumeF32 ratio = tubularity(*sk, *imp, *dist, ctx.options<TubularityOptions>());
     if (auto g = ctx.optional_input<SpatialGraph>("graph")) {
       SpatialGraph out(*g);
       auto& pa = out.ensure_point_attribute("tubularity");
@@ -166,7 +149,7 @@ public:
         .output<VolumeU8>("labels", "every object voxel: 1 rod, 2 plate (0 background)")
         .output<VolumeU8>("skeleton_labels", "skeleton voxels: 1 rod, 2 plate")
         .output<Table>("table", "per class: voxels, volume, fraction, surface, skeleton voxels, pieces, mean thickness, plate-to-rod ratio")
-        .param<double>("ratio_threshold", 5.0, "g/d at or above which a skeleton voxel is plate").min(0);
+        .param("ratio_threshold", &RodsPlatesOptions::ratio_threshold, "g/d at or above which a skeleton voxel is plate").min(0);
     distance_unit_params(s);
     s.details(R"(Thesis §6.2 and fig. 6.14. Skeleton voxels are classified by the ratio g/d (see
 analysis.tubularity): rods give about pi, plates far more. The default threshold 5 sits between pi and
@@ -182,12 +165,9 @@ in the distance input's unit) and the plate-to-rod volume ratio. Memory: 1 byte 
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
-    geodesic::RodsPlatesOptions o;
-    o.ratio_threshold = ctx.param<double>("ratio_threshold");
-    o.tubularity = tubularity_options(ctx);
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    auto r = geodesic::rods_plates(*mask, *ctx.input<VolumeU8>("skeleton"), *ctx.input<VolumeF32>("importance"),
+    auto o = ctx.options<RodsPlatesOptions>();
+    ctx.fill(o.tubularity);
+    auto r = rods_plates(*mask, *ctx.input<VolumeU8>("skeleton"), *ctx.input<VolumeF32>("importance"),
                                    *ctx.input_data("distance"), o);
     ctx.output("labels", std::move(r.labels));
     ctx.output("skeleton_labels", std::move(r.skeleton_labels));

@@ -4,6 +4,7 @@
 // and the rods/plates decomposition of bone.
 #include <cstdint>
 
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/table.hpp"
 #include "skel/volume.hpp"
@@ -28,6 +29,10 @@ ThinSurfaceResult thin_surface(const VolumeU8& surface, const ThinSurfaceOptions
 
 // How `distance` values convert to voxel units for the ratio g/d.
 enum class DistanceUnit { Physical, Chamfer, Voxels };
+constexpr auto enum_names(DistanceUnit) {
+  return std::to_array<EnumName<DistanceUnit>>(
+      {{DistanceUnit::Physical, "physical"}, {DistanceUnit::Chamfer, "chamfer"}, {DistanceUnit::Voxels, "voxels"}});
+}
 
 struct TubularityOptions {
   DistanceUnit unit = DistanceUnit::Physical;  // Physical: divide by the mean spacing

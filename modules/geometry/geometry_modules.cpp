@@ -13,13 +13,13 @@ public:
         .optional_input<AnyVolume>("distance", "distance volume on the same grid; gives the point attribute radius")
         .output<SpatialGraph>("graph", "nodes at junctions/ends, edges with polylines (µm), radius per point")
         .output<VolumeU8>("manifold", "manifold type per voxel (only when with_manifold is true)")
-        .param<int64_t>("smooth_passes", 0, "Gaussian smoothing passes over edge points (0 = off)")
+        .param("smooth_passes", &SkeletonToGraphOptions::smooth_passes, "Gaussian smoothing passes over edge points (0 = off)")
         .min(0)
-        .param<int64_t>("smooth_kernel", 5, "smoothing window in points (>= 3)")
+        .param("smooth_kernel", &SkeletonToGraphOptions::smooth_kernel, "smoothing window in points (>= 3)")
         .min(3)
-        .param<double>("radius_scale", 1.0, "radius = distance value × radius_scale (1 for distances in µm)")
+        .param("radius_scale", &SkeletonToGraphOptions::radius_scale, "radius = distance value × radius_scale (1 for distances in µm)")
         .min(0)
-        .param<bool>("with_manifold", false, "also output the manifold type volume")
+        .param("with_manifold", &SkeletonToGraphOptions::want_manifold, "also output the manifold type volume")
         .details(
             "Thesis §3.1. Each object voxel is a 0-cell; 1-cells join 6-adjacent voxels always, 18-adjacent "
             "voxels when the other two voxels of their face are background, 26-adjacent voxels when they are "
@@ -43,13 +43,7 @@ public:
   void run(RunContext& ctx) override {
     auto skel_in = ctx.input<VolumeU8>("skeleton");
     DataPtr dist = ctx.input_data("distance");
-    SkeletonToGraphOptions o;
-    o.smooth_passes = static_cast<int>(ctx.param<int64_t>("smooth_passes"));
-    o.smooth_kernel = static_cast<int>(ctx.param<int64_t>("smooth_kernel"));
-    o.radius_scale = ctx.param<double>("radius_scale");
-    o.want_manifold = ctx.param<bool>("with_manifold");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
+    const auto o = ctx.options<SkeletonToGraphOptions>();
     auto r = skeleton_to_graph(*skel_in, dist.get(), o);
     ctx.output("graph", std::move(r.graph));
     if (o.want_manifold) ctx.output("manifold", std::move(r.manifold));

@@ -15,15 +15,16 @@ public:
         .input<SpatialGraph>("graph", "spatial graph")
         .output<SpatialGraph>("graph", "pruned graph")
         .output<Table>("report", "one row: removed_edges, merged_nodes, iterations")
-        .param<double>("min_length", 5.0, "terminal branches shorter than this are removed")
+        .param("min_length", &PruneOptions::min_length, "terminal branches shorter than this are removed")
+        .default_value(5.0)
         .min(0)
         .unit("µm")
-        .param<int64_t>("max_iterations", 0, "rounds of pruning (0 = until nothing changes)")
+        .param("max_iterations", &PruneOptions::max_iterations, "rounds of pruning (0 = until nothing changes)")
         .min(0)
-        .param<double>("radius_factor", 0.0,
+        .param("radius_factor", &PruneOptions::radius_factor,
                        "also remove terminal branches shorter than this times the radius at their junction (0 = off)")
         .min(0)
-        .param<std::string>("radius", std::string("radius"), "point attribute holding the radius (for radius_factor)")
+        .param("radius", &PruneOptions::radius, "point attribute holding the radius (for radius_factor)")
         .details(
             "A terminal branch is an edge with one end of degree 1 and the other of degree >= 3. Per round, "
             "at every junction the short terminal branches are removed shortest first, never leaving the "
@@ -37,13 +38,7 @@ public:
   }
   void run(RunContext& ctx) override {
     SpatialGraph g = *ctx.input<SpatialGraph>("graph");
-    PruneOptions o;
-    o.min_length = ctx.param<double>("min_length");
-    o.max_iterations = static_cast<int>(ctx.param<int64_t>("max_iterations"));
-    o.radius_factor = ctx.param<double>("radius_factor");
-    o.radius = ctx.param<std::string>("radius");
-    o.interrupter = ctx.progress();
-    auto s = prune(g, o);
+    auto s = prune(g, ctx.options<PruneOptions>());
     Table t;
     t.add("removed_edges", std::vector<int64_t>{s.removed_edges})
         .add("merged_nodes", std::vector<int64_t>{s.merged_nodes})
@@ -60,12 +55,14 @@ public:
     return ModuleSpec("graph.filter", "Keep edges whose attribute lies in a range")
         .input<SpatialGraph>("graph", "spatial graph")
         .output<SpatialGraph>("graph", "graph with the kept edges")
-        .param<std::string>("attribute", std::string("length"),
+        .param("attribute", &FilterOptions::attribute,
                             "length, an edge attribute or label, or a point attribute (length-weighted mean)")
-        .param<double>("min", 0.0, "lowest kept value (inclusive)")
-        .param<double>("max", 1e30, "highest kept value (inclusive; 1e30 = no limit)")
-        .param<bool>("remove_isolated_nodes", true, "remove nodes left without edges")
-        .param<bool>("merge", false, "merge the two edges at nodes left with degree 2")
+        .param("min", &FilterOptions::min, "lowest kept value (inclusive)")
+        .default_value(0.0)
+        .param("max", &FilterOptions::max, "highest kept value (inclusive; 1e30 = no limit)")
+        .default_value(1e30)
+        .param("remove_isolated_nodes", &FilterOptions::remove_isolated_nodes, "remove nodes left without edges")
+        .param("merge", &FilterOptions::merge, "merge the two edges at nodes left with degree 2")
         .details(
             "Thesis §6.2 (fig. 6.9 filtering by local thickness). The value of an edge is its polyline length "
             "(`length`), its edge attribute or label of that name, or the length-weighted mean of the point "
@@ -74,13 +71,7 @@ public:
   }
   void run(RunContext& ctx) override {
     SpatialGraph g = *ctx.input<SpatialGraph>("graph");
-    FilterOptions o;
-    o.attribute = ctx.param<std::string>("attribute");
-    o.min = ctx.param<double>("min");
-    o.max = ctx.param<double>("max");
-    o.remove_isolated_nodes = ctx.param<bool>("remove_isolated_nodes");
-    o.merge = ctx.param<bool>("merge");
-    filter_edges(g, o);
+    filter_edges(g, ctx.options<FilterOptions>());
     ctx.output("graph", std::move(g));
   }
 };

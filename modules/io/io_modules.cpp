@@ -48,7 +48,7 @@ public:
         .add_input("volume", all_volume_types(), "volume to write", true)
         .path("path", "", PathRole::Output, "HDF5 file to create (.h5); written to a temporary file and renamed when the run succeeds")
         .param<std::string>("dataset", "/volume", "dataset name (groups are created)")
-        .param<int64_t>("compression", 1, "deflate level (0 = none; 1 is fast and compresses masks ~20x)").range(0, 9)
+        .param("compression", &io::WriteOptions::compression, "deflate level (0 = none; 1 is fast and compresses masks ~20x)").range(0, 9)
         .details(R"(Writes the volume as a dataset of shape [z][y][x] in its own voxel type, with attributes
 `spacing` and `origin` as (x, y, z). Chunks hold about 1 MiB and are as cube-like as the dims allow
 (128x128x64 for uint8, 64x64x64 for float32): whole-volume reads stay fast (HDF5's small automatic
@@ -58,10 +58,8 @@ written under a temporary name and renamed only when the whole pipeline run succ
 of the volume.)");
   }
   void run(RunContext& ctx) override {
-    io::WriteOptions o;
-    o.compression = static_cast<int>(ctx.param<int64_t>("compression"));
-    o.threads = ctx.threads();
-    io::write_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.param<std::string>("dataset"), o);
+    io::write_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.param<std::string>("dataset"),
+                     ctx.options<io::WriteOptions>());
   }
 };
 SKEL_REGISTER_MODULE(WriteVolume);

@@ -322,10 +322,7 @@ Table icp_table(const IcpResult& r) {
 // ---------------------------------------------------------------- applying transforms
 
 Interpolation parse_interpolation(const std::string& text, const std::string& what) {
-  if (text == "auto") return Interpolation::Auto;
-  if (text == "nearest") return Interpolation::Nearest;
-  if (text == "linear") return Interpolation::Linear;
-  throw InputError(what + ": '" + text + "' is not an interpolation; expected auto, nearest or linear");
+  return parse_enum<Interpolation>(text, what);
 }
 
 Grid transformed_bounding_grid(const Grid& grid, const Transform& transform) {

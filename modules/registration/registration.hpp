@@ -95,6 +95,10 @@ Table icp_table(const IcpResult& result);
 
 // ---------------------------------------------------------------- applying transforms
 enum class Interpolation { Auto, Nearest, Linear };
+constexpr auto enum_names(Interpolation) {
+  return std::to_array<EnumName<Interpolation>>(
+      {{Interpolation::Auto, "auto"}, {Interpolation::Nearest, "nearest"}, {Interpolation::Linear, "linear"}});
+}
 // "auto" | "nearest" | "linear"; throws InputError naming `what` otherwise.
 Interpolation parse_interpolation(const std::string& text, const std::string& what = "interpolation");
 

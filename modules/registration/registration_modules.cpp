@@ -27,7 +27,7 @@ public:
         .optional_input<LandmarkSet>("moving", "moving landmarks, set 0 used; same count and order as 'fixed'")
         .output<Transform>("transform", "least-squares transform mapping moving coordinates onto fixed ones")
         .output<Table>("table", "residual per landmark (dx, dy, dz, distance) and a last row 'RMS'")
-        .choice("model", {"rigid", "similarity", "affine"}, "rigid",
+        .param("model", TransformKind::Rigid,
                 "rigid: rotation + translation; similarity: + uniform scale; affine: general linear + translation")
         .param<int64_t>("fixed_set", 0, "set of 'landmarks' holding the fixed points").min(0)
         .param<int64_t>("moving_set", 1, "set of 'landmarks' holding the moving points").min(0)
@@ -50,7 +50,7 @@ fixed, distance) and a final row "RMS" whose dx/dy/dz hold the per-axis RMS and 
 overall RMS (coordinates 0 there). Memory: O(landmarks).)");
   }
   void run(RunContext& ctx) override {
-    const TransformKind model = parse_transform_kind(ctx.param<std::string>("model"), "param 'model'");
+    const auto model = ctx.param<TransformKind>("model");
     const bool has_set = ctx.has_input("landmarks");
     const bool has_pair = ctx.has_input("fixed") || ctx.has_input("moving");
     if (has_set == has_pair) {
@@ -98,12 +98,14 @@ public:
         .optional_input<Transform>("initial", "start transform moving → fixed (e.g. from registration.landmarks); identity if absent")
         .output<Transform>("transform", "refined transform mapping moving coordinates onto fixed ones")
         .output<Table>("table", "per iteration: pairs used, RMS before and after the update")
-        .choice("model", {"rigid", "similarity", "affine"}, "rigid", "transform model fitted in every iteration")
-        .param<int64_t>("iterations", 50, "maximum number of ICP iterations").range(1, 10000)
-        .param<double>("trim_fraction", 0.9, "fraction of the closest correspondences kept in each iteration (1 = all)").range(0.01, 1.0)
-        .param<double>("max_distance", 0.0, "drop correspondences farther apart than this (0 = no limit)").min(0.0).unit("µm")
-        .param<double>("tolerance", 1e-6, "stop when an iteration lowers the RMS of its pairs by less than this").min(0.0).unit("µm")
-        .param<int64_t>("max_points", 200000, "use at most this many moving points (regular subsample; 0 = all)").min(0)
+        .param("model", &IcpOptions::model, "transform model fitted in every iteration")
+        .param("iterations", &IcpOptions::iterations, "maximum number of ICP iterations").range(1, 10000)
+        .param("trim_fraction", &IcpOptions::trim_fraction, "fraction of the closest correspondences kept in each iteration (1 = all)").range(0.01, 1.0)
+        .param_fn<IcpOptions>("max_distance", 0.0, [](IcpOptions& o, double d) { if (d > 0.0) o.max_distance = d; },
+                              "drop correspondences farther apart than this (0 = no limit)").min(0.0).unit("µm")
+        .param("tolerance", &IcpOptions::tolerance, "stop when an iteration lowers the RMS of its pairs by less than this")
+        .default_value(1e-6).min(0.0).unit("µm")
+        .param("max_points", &IcpOptions::max_points, "use at most this many moving points (regular subsample; 0 = all)").min(0)
         .details(R"(Point-to-point ICP (Besl & McKay) refining the landmark fit of thesis §6.2 on the
 skeletons (or graphs) themselves — Amira stops at the landmark fit. Point sets: for a volume, the
 physical centres of its non-zero voxels (a skeleton, a mask); for a SpatialGraph, its node positions
@@ -123,16 +125,7 @@ and fitting are serial). Memory: 24 bytes per fixed and per moving point plus th
 of that again); a full 1280³ mask would give 2·10⁹ points, so feed skeletons or use `max_points`.)");
   }
   void run(RunContext& ctx) override {
-    IcpOptions o;
-    o.model = parse_transform_kind(ctx.param<std::string>("model"), "param 'model'");
-    o.iterations = static_cast<int>(ctx.param<int64_t>("iterations"));
-    o.trim_fraction = ctx.param<double>("trim_fraction");
-    const double md = ctx.param<double>("max_distance");
-    if (md > 0.0) o.max_distance = md;
-    o.tolerance = ctx.param<double>("tolerance");
-    o.max_points = ctx.param<int64_t>("max_points");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
+    const auto o = ctx.options<IcpOptions>();
     const auto fixed = points_of(*ctx.input_data("fixed"), "input 'fixed'");
     const auto moving = points_of(*ctx.input_data("moving"), "input 'moving'");
     auto initial = ctx.optional_input<Transform>("initial");
@@ -159,7 +152,7 @@ public:
         .add_output("volume", all_volume_types(), "resampled volume (same voxel type as the input)")
         .output<SpatialGraph>("graph", "transformed graph")
         .output<LandmarkSet>("landmarks", "transformed landmarks")
-        .choice("interpolation", {"auto", "nearest", "linear"}, "auto",
+        .param("interpolation", &ResampleOptions::interpolation,
                 "auto: nearest for integer volumes (masks, labels), linear for float volumes")
         .param<bool>("inverse", false, "apply the inverse transform (fixed → moving)")
         .details(R"(Brings the moving data of thesis §6.2 onto the fixed data once the transform is known.
@@ -193,10 +186,7 @@ produced. `inverse` applies T⁻¹ instead (a singular affine transform is an er
     }
     DataPtr ref = ctx.input_data("reference");
     if (ctx.has_input("volume")) {
-      ResampleOptions o;
-      o.interpolation = parse_interpolation(ctx.param<std::string>("interpolation"), "param 'interpolation'");
-      o.threads = ctx.threads();
-      o.interrupter = ctx.progress();
+      const auto o = ctx.options<ResampleOptions>();
       DataPtr in = ctx.input_data("volume");
       const Grid out_grid = ref ? volume_grid(*ref, "input 'reference'") : transformed_bounding_grid(volume_grid(*in, "input 'volume'"), tr);
       DataPtr out = visit_volume(*in, "input 'volume'", [&](const auto& v) -> DataPtr {

@@ -155,13 +155,13 @@ void check_connectivity(int connectivity) {
 }  // namespace
 
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& o) {
-  check_connectivity(o.connectivity);
+  check_connectivity(static_cast<int>(o.connectivity));
   if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("connected_components: nx must be < 2^31 - 1");
   const int64_t ny = mask.ny(), nz = mask.nz();
   const Runs r = extract_runs(mask, o.threads);
   o.interrupter.check(0.2);
   const auto nruns = static_cast<int64_t>(r.x0.size());
-  std::vector<int64_t> parent = union_runs(r, ny, nz, o.connectivity, o.threads, o.interrupter);
+  std::vector<int64_t> parent = union_runs(r, ny, nz, static_cast<int>(o.connectivity), o.threads, o.interrupter);
   o.interrupter.check(0.5);
   // parent[i] <= i, so one forward pass resolves every run to its root (the component's first run).
   std::vector<int64_t> comp(static_cast<size_t>(nruns));

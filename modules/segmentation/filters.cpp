@@ -213,7 +213,7 @@ IlluminationResult illumination_z(const DataObject& image, const IlluminationOpt
   IlluminationResult res;
   res.image = visit_volume(image, "image", [&](const auto& v) {
     const int64_t nz = v.nz(), plane = v.nx() * v.ny();
-    if (o.fit) {
+    if (o.mode == IlluminationMode::fit) {
       if (!(o.percentile > 0 && o.percentile <= 1))
         throw InputError("param 'percentile': expected a fraction in (0, 1], got " + std::to_string(o.percentile));
       res.slice_statistic.assign(static_cast<size_t>(nz), 0.0);

@@ -96,4 +96,17 @@ VolumeU8 threshold(const DataObject& image, double low, double high, int threads
   });
 }
 
+ThresholdResult threshold(const DataObject& image, const ThresholdOptions& options) {
+  ThresholdResult r;
+  r.low = options.low;
+  r.high = options.high;
+  if (options.method == ThresholdMethod::otsu) {
+    r.low = std::nextafter(otsu_threshold(image, options.threads), std::numeric_limits<double>::infinity());
+    r.high = std::numeric_limits<double>::infinity();
+  }
+  r.mask = threshold(image, r.low, r.high, options.threads);
+  for (auto v : r.mask) r.object_voxels += v;
+  return r;
+}
+
 }  // namespace skel::segmentation

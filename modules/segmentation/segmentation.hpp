@@ -5,10 +5,13 @@
 // "voxel > 0 is object"; float volumes where a mask is expected are an InputError naming the port.
 // Every function returns identical results for any thread count.
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "skel/data.hpp"
+#include "skel/connectivity.hpp"
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/table.hpp"
 #include "skel/volume.hpp"
@@ -21,6 +24,24 @@ double otsu_threshold(const DataObject& image, int threads = 0);
 // low <= value <= high -> 1.
 VolumeU8 threshold(const DataObject& image, double low, double high, int threads = 0);
 
+// Manual thresholds, or Otsu's: low = the next value above Otsu's threshold, high = +inf.
+enum class ThresholdMethod { manual, otsu };
+constexpr auto enum_names(ThresholdMethod) {
+  return std::to_array<EnumName<ThresholdMethod>>({{ThresholdMethod::manual, "manual"}, {ThresholdMethod::otsu, "otsu"}});
+}
+struct ThresholdOptions {
+  ThresholdMethod method = ThresholdMethod::manual;
+  double low = 0.5;                                    // inclusive
+  double high = std::numeric_limits<double>::infinity();  // inclusive
+  int threads = 0;
+};
+struct ThresholdResult {
+  VolumeU8 mask;
+  double low = 0, high = 0;  // the thresholds used
+  int64_t object_voxels = 0;
+};
+ThresholdResult threshold(const DataObject& image, const ThresholdOptions& options);
+
 struct GaussianOptions {
   Vec3 sigma{1, 1, 1};  // physical units per axis; 0 on an axis skips it
   double truncate = 3.5;  // kernel radius in sigmas
@@ -30,7 +51,7 @@ struct GaussianOptions {
 VolumeF32 gaussian(const DataObject& image, const GaussianOptions& options = {});
 
 struct ComponentOptions {
-  int connectivity = 26;   // 6, 18, 26
+  Connectivity connectivity = Connectivity::c26;
   int64_t min_size = 0;    // smaller components are removed (voxels)
   bool keep_largest = false;
   int threads = 0;
@@ -74,8 +95,12 @@ template <class T> Volume<T> median_as(const Volume<T>& image, const MedianOptio
 // mean of the brightest `percentile` fraction of voxels m(z) is computed, a line L(z) = a + b·z is
 // fitted to m(z) by least squares, and f(z) = L(0) / L(z) flattens the fitted profile (slices whose
 // fitted value is <= 0 are an InputError). Output float32.
+enum class IlluminationMode { fit, given };
+constexpr auto enum_names(IlluminationMode) {
+  return std::to_array<EnumName<IlluminationMode>>({{IlluminationMode::fit, "fit"}, {IlluminationMode::given, "given"}});
+}
 struct IlluminationOptions {
-  bool fit = true;
+  IlluminationMode mode = IlluminationMode::fit;
   double slope = 0.0, intercept = 1.0;  // given mode
   double percentile = 0.01;             // fitted mode: brightest fraction of each slice, (0, 1]
   int threads = 0;
@@ -96,6 +121,10 @@ IlluminationResult illumination_z(const DataObject& image, const IlluminationOpt
 // open = erode then dilate; close = dilate then erode. Computed by exact separable squared distance
 // transforms (integer lower envelopes), O(voxels) for any radius.
 enum class MorphologyOp { erode, dilate, open, close };
+constexpr auto enum_names(MorphologyOp) {
+  return std::to_array<EnumName<MorphologyOp>>({{MorphologyOp::erode, "erode"}, {MorphologyOp::dilate, "dilate"},
+                                               {MorphologyOp::open, "open"}, {MorphologyOp::close, "close"}});
+}
 struct MorphologyOptions {
   MorphologyOp op = MorphologyOp::dilate;
   double radius = 1.0;  // voxels, >= 0

@@ -16,9 +16,9 @@ public:
         .add_input("image", all_volume_types(), "scalar image", true)
         .output<VolumeU8>("mask", "1 where low <= value <= high, else 0")
         .output<Table>("table", "the thresholds used and the object fraction")
-        .choice("method", {"manual", "otsu"}, "manual", "manual: use low/high; otsu: low = Otsu's threshold of the image, high = +inf")
-        .param<double>("low", 0.5, "lowest object value (inclusive)")
-        .param<double>("high", std::numeric_limits<double>::infinity(), "highest object value (inclusive); .inf for none")
+        .param("method", &ThresholdOptions::method, "manual: use low/high; otsu: low = Otsu's threshold of the image, high = +inf")
+        .param("low", &ThresholdOptions::low, "lowest object value (inclusive)")
+        .param("high", &ThresholdOptions::high, "highest object value (inclusive); .inf for none")
         .details(R"(Manual: voxels with low <= value <= high become object (1). Otsu: the threshold maximises
 the between-class variance of a 256-bin histogram between the image's minimum and maximum (exact bins
 for uint8); voxels above it become object. NaN voxels are background. The table reports the
@@ -26,20 +26,13 @@ thresholds used and the object fraction, so a pipeline run documents itself. An 
 allowed (a warning says so). Memory: 1 byte per voxel (output).)");
   }
   void run(RunContext& ctx) override {
-    auto img = ctx.input_data("image");
-    double lo = ctx.param<double>("low"), hi = ctx.param<double>("high");
-    if (ctx.param<std::string>("method") == "otsu") {
-      lo = std::nextafter(segmentation::otsu_threshold(*img, ctx.threads()), std::numeric_limits<double>::infinity());
-      hi = std::numeric_limits<double>::infinity();
-    }
-    VolumeU8 m = segmentation::threshold(*img, lo, hi, ctx.threads());
-    int64_t c = 0;
-    for (auto v : m) c += v;
-    if (c == 0) ctx.warn("no voxel lies between the thresholds: the mask is empty");
+    ThresholdResult r = threshold(*ctx.input_data("image"), ctx.options<ThresholdOptions>());
+    if (r.object_voxels == 0) ctx.warn("no voxel lies between the thresholds: the mask is empty");
     Table t;
-    t.add("low", std::vector<double>{lo}).add("high", std::vector<double>{hi});
-    t.add("object_fraction", std::vector<double>{m.size() ? static_cast<double>(c) / static_cast<double>(m.size()) : 0.0});
-    ctx.output("mask", std::move(m));
+    t.add("low", std::vector<double>{r.low}).add("high", std::vector<double>{r.high});
+    const int64_t n = r.mask.size();
+    t.add("object_fraction", std::vector<double>{n ? static_cast<double>(r.object_voxels) / static_cast<double>(n) : 0.0});
+    ctx.output("mask", std::move(r.mask));
     ctx.output("table", std::move(t));
   }
 };
@@ -51,9 +44,9 @@ public:
     return ModuleSpec("segmentation.gaussian", "Separable Gaussian smoothing with sigma in physical units")
         .add_input("image", all_volume_types(), "scalar image", true)
         .output<VolumeF32>("image", "smoothed image (float32)")
-        .param<std::vector<double>>("sigma", {1.0, 1.0, 1.0}, "standard deviation per axis [x, y, z]; 0 skips an axis")
-        .length(3).min(0).unit("µm")
-        .param<double>("truncate", 3.5, "kernel radius in standard deviations").range(1, 10)
+        .param("sigma", &GaussianOptions::sigma, "standard deviation per axis [x, y, z]; 0 skips an axis")
+        .min(0).unit("µm")
+        .param("truncate", &GaussianOptions::truncate, "kernel radius in standard deviations").range(1, 10)
         .details(R"(Thesis §6.1 pre-processing. Three 1D convolutions (x, y, z), each with a normalised
 sampled Gaussian of radius max(1, ceil(truncate·sigma/spacing)) voxels; the border value is replicated
 (SciPy mode "nearest"). The x pass works on padded rows, the y and z passes combine whole x-rows
@@ -62,13 +55,7 @@ does not depend on the thread count. Memory: 4 bytes per voxel (output, also the
 slice per thread.)");
   }
   void run(RunContext& ctx) override {
-    segmentation::GaussianOptions o;
-    const auto s = ctx.param<std::vector<double>>("sigma");
-    o.sigma = {s[0], s[1], s[2]};
-    o.truncate = ctx.param<double>("truncate");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    ctx.output("image", segmentation::gaussian(*ctx.input_data("image"), o));
+    ctx.output("image", gaussian(*ctx.input_data("image"), ctx.options<GaussianOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(Gaussian);
@@ -81,9 +68,9 @@ public:
         .output<VolumeU32>("labels", "0 background, 1 the largest kept component, 2 the next, ...")
         .output<VolumeU8>("mask", "the kept components as a 0/1 mask")
         .output<Table>("table", "per component: label, voxels, volume, bounding box, centroid")
-        .param<int64_t>("connectivity", 26, "6, 18 or 26").range(6, 26)
-        .param<int64_t>("min_size", 0, "components with fewer voxels are removed").min(0).unit("voxels")
-        .param<bool>("keep_largest", false, "keep only the largest component")
+        .param("connectivity", &ComponentOptions::connectivity, "6 (faces), 18 (and edges) or 26 (and corners)")
+        .param("min_size", &ComponentOptions::min_size, "components with fewer voxels are removed").min(0).unit("voxels")
+        .param("keep_largest", &ComponentOptions::keep_largest, "keep only the largest component")
         .details(R"(Thesis §6.2. Mask rule: voxel > 0 is object for any integer volume; a float volume is an
 error naming the port. Union-find over runs (maximal x-intervals of object voxels): runs are extracted
 per row in parallel, each row is merged with its backward neighbour rows (2, 4 or 4 rows for 6/18/26;
@@ -95,15 +82,7 @@ Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run a
 (typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).)");
   }
   void run(RunContext& ctx) override {
-    const int64_t c = ctx.param<int64_t>("connectivity");
-    if (c != 6 && c != 18 && c != 26) throw InputError("param 'connectivity': must be 6, 18 or 26, got " + std::to_string(c));
-    segmentation::ComponentOptions o;
-    o.connectivity = static_cast<int>(c);
-    o.min_size = ctx.param<int64_t>("min_size");
-    o.keep_largest = ctx.param<bool>("keep_largest");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    auto r = segmentation::connected_components(segmentation::as_mask(*ctx.input_data("mask"), "mask"), o);
+    auto r = connected_components(as_mask(*ctx.input_data("mask"), "mask"), ctx.options<ComponentOptions>());
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     ctx.output("labels", std::move(r.labels));
     ctx.output("mask", std::move(r.mask));
@@ -118,7 +97,7 @@ public:
     return ModuleSpec("segmentation.median", "Median filter over a cube of (2·radius+1)³ voxels")
         .add_input("image", all_volume_types(), "scalar image", true)
         .add_output("image", all_volume_types(), "filtered image (same type as the input)")
-        .param<int64_t>("radius", 1, "half width of the cube; 1 = 3×3×3").range(0, 10).unit("voxels")
+        .param("radius", &MedianOptions::radius, "half width of the cube; 1 = 3×3×3").range(0, 10).unit("voxels")
         .details(R"(Thesis §6.1: removes salt-and-pepper noise before smoothing. Each voxel takes the median
 of the (2r+1)³ cube around it; voxels outside the volume take the value of the nearest border voxel
 (SciPy mode "nearest"). radius 1: a forgetful-selection network (keep 15 of the 27 values, drop the
@@ -128,11 +107,7 @@ over rows; identical for any thread count. Memory: output of the input's type pl
 thread.)");
   }
   void run(RunContext& ctx) override {
-    segmentation::MedianOptions o;
-    o.radius = static_cast<int>(ctx.param<int64_t>("radius"));
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    ctx.output("image", segmentation::median(*ctx.input_data("image"), o));
+    ctx.output("image", median(*ctx.input_data("image"), ctx.options<MedianOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(Median);
@@ -144,10 +119,10 @@ public:
         .add_input("image", all_volume_types(), "scalar image (a confocal stack, z = depth)", true)
         .output<VolumeF32>("image", "corrected image (float32)")
         .output<Table>("table", "per slice: z, statistic m(z) (fitted mode), factor f(z)")
-        .choice("mode", {"fit", "given"}, "fit", "fit: factor from a line fitted to slice brightness; given: factor = intercept + slope·z")
-        .param<double>("percentile", 0.01, "fit: fraction of brightest voxels per slice whose mean is the slice brightness").range(1e-6, 1)
-        .param<double>("slope", 0.0, "given: factor change per slice (z = slice index)")
-        .param<double>("intercept", 1.0, "given: factor of slice 0")
+        .param("mode", &IlluminationOptions::mode, "fit: factor from a line fitted to slice brightness; given: factor = intercept + slope·z")
+        .param("percentile", &IlluminationOptions::percentile, "fit: fraction of brightest voxels per slice whose mean is the slice brightness").range(1e-6, 1)
+        .param("slope", &IlluminationOptions::slope, "given: factor change per slice (z = slice index)")
+        .param("intercept", &IlluminationOptions::intercept, "given: factor of slice 0")
         .details(R"(Thesis §6.1: "the drop of illumination in deeper slices is corrected for by scaling image
 values with a linear function in z". Fit mode: m(z) = mean of the brightest `percentile` fraction of
 slice z (at least one voxel); a least-squares line L(z) = a + b·z through (z, m(z)); each slice is
@@ -156,21 +131,16 @@ Given mode: slice z is multiplied by intercept + slope·z. Slice statistics use 
 (parallel over slices). Memory: 4 bytes per voxel (output) plus one slice of doubles per thread.)");
   }
   void run(RunContext& ctx) override {
-    segmentation::IlluminationOptions o;
-    o.fit = ctx.param<std::string>("mode") == "fit";
-    o.percentile = ctx.param<double>("percentile");
-    o.slope = ctx.param<double>("slope");
-    o.intercept = ctx.param<double>("intercept");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    auto r = segmentation::illumination_z(*ctx.input_data("image"), o);
+    const auto o = ctx.options<IlluminationOptions>();
+    const bool fit = o.mode == IlluminationMode::fit;
+    auto r = illumination_z(*ctx.input_data("image"), o);
     Table t;
     std::vector<int64_t> z(r.factor.size());
     for (size_t i = 0; i < z.size(); ++i) z[i] = static_cast<int64_t>(i);
     t.add("z", z);
-    if (o.fit) t.add("statistic", r.slice_statistic);
+    if (fit) t.add("statistic", r.slice_statistic);
     t.add("factor", r.factor);
-    if (o.fit) ctx.warn("fitted brightness " + std::to_string(r.fit_intercept) + " + " + std::to_string(r.fit_slope) + "·z");
+    if (fit) ctx.warn("fitted brightness " + std::to_string(r.fit_intercept) + " + " + std::to_string(r.fit_slope) + "·z");
     ctx.output("image", std::move(r.image));
     ctx.output("table", std::move(t));
   }
@@ -183,8 +153,8 @@ public:
     return ModuleSpec("segmentation.morphology", "Binary erosion, dilation, opening or closing with a ball")
         .add_input("mask", integer_volume_types(), "binary mask (voxel > 0 is object)", true)
         .output<VolumeU8>("mask", "the result as a 0/1 mask")
-        .choice("operation", {"erode", "dilate", "open", "close"}, "dilate", "open = erode then dilate; close = dilate then erode")
-        .param<double>("radius", 1.0, "ball radius; the ball is every offset with dx²+dy²+dz² <= radius²").min(0).unit("voxels")
+        .param("operation", &MorphologyOptions::op, "open = erode then dilate; close = dilate then erode")
+        .param("radius", &MorphologyOptions::radius, "ball radius; the ball is every offset with dx²+dy²+dz² <= radius²").min(0).unit("voxels")
         .details(R"(Mask rule: voxel > 0 is object for any integer volume; a float volume is an error naming
 the port. The structuring element is the exact digital ball of the given radius in voxel units (spacing
 is ignored). Dilation: object where the squared Euclidean distance to the nearest object voxel is
@@ -196,16 +166,7 @@ full volume: dilation gives a full volume, erosion keeps voxels farther than rad
 Memory: 4 bytes per voxel (squared distances) + 1 (output); open/close hold one intermediate mask more.)");
   }
   void run(RunContext& ctx) override {
-    segmentation::MorphologyOptions o;
-    const auto op = ctx.param<std::string>("operation");
-    o.op = op == "erode" ? segmentation::MorphologyOp::erode
-         : op == "open"  ? segmentation::MorphologyOp::open
-         : op == "close" ? segmentation::MorphologyOp::close
-                         : segmentation::MorphologyOp::dilate;
-    o.radius = ctx.param<double>("radius");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
-    ctx.output("mask", segmentation::morphology(segmentation::as_mask(*ctx.input_data("mask"), "mask"), o));
+    ctx.output("mask", morphology(as_mask(*ctx.input_data("mask"), "mask"), ctx.options<MorphologyOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(Morphology);

@@ -185,7 +185,7 @@ NetworkElements network_elements(const NetworkOptions& o, const Vec3& lo, const 
       if (std::max(a[k], b[k]) + r < lo[k] || std::min(a[k], b[k]) - r > hi[k]) return;
     el.capsules.push_back({a, b, r});
   };
-  if (o.shape == "rods") {
+  if (o.shape == Shape::rods) {
     auto node = [&](int64_t i, int64_t j, int64_t k) {
       return Vec3{(static_cast<double>(i) + 0.5 + 0.4 * (u(1, i, j, k) - 0.5)) * P,
                   (static_cast<double>(j) + 0.5 + 0.4 * (u(2, i, j, k) - 0.5)) * P,
@@ -199,7 +199,7 @@ NetworkElements network_elements(const NetworkOptions& o, const Vec3& lo, const 
             keep(node(i, j, k), node(i + (axis == 0), j + (axis == 1), k + (axis == 2)),
                  R * (0.8 + 0.4 * u(20 + axis, i, j, k)));
           }
-  } else if (o.shape == "spheres") {
+  } else if (o.shape == Shape::spheres) {
     const double rmin = 1.5 * R, rmax = std::max(rmin, 0.35 * P - 1.5);
     for (int64_t k = c0[2]; k < c1[2]; ++k)
       for (int64_t j = c0[1]; j < c1[1]; ++j)
@@ -210,14 +210,14 @@ NetworkElements network_elements(const NetworkOptions& o, const Vec3& lo, const 
                        (static_cast<double>(k) + 0.5 + 0.3 * (u(33, i, j, k) - 0.5)) * P};
           keep(c, c, rmin + (rmax - rmin) * u(34, i, j, k));
         }
-  } else if (o.shape == "plates") {
+  } else if (o.shape == Shape::plates) {
     for (int64_t k = c0[2]; k < c1[2]; ++k)
       el.plates.push_back({2, 0, 1, (static_cast<double>(k) + 0.5 + 0.2 * (u(40, k, 0, 0) - 0.5)) * P,
                            0.3 * (u(41, k, 0, 0) - 0.5), 0.3 * (u(42, k, 0, 0) - 0.5), 0.0, k, 0.45, P / 3, P});
     for (int64_t i = c0[0] / 2 - 1; i < c1[0] / 2 + 1; ++i)
       el.plates.push_back({0, 1, 2, (2.0 * static_cast<double>(i) + 1.0 + 0.2 * (u(43, i, 0, 0) - 0.5)) * P,
                            0.2 * (u(44, i, 0, 0) - 0.5), 0.2 * (u(45, i, 0, 0) - 0.5), 0.0, 1000 + i, 0.45, P / 3, P});
-  } else if (o.shape == "mixed") {
+  } else if (o.shape == Shape::mixed) {
     // Plate k sits at (2k + 1)·P; the rods between plates k and k + 1 use lattice layer k + 1 (as in
     // make_network, whose plate list starts at k = -1).
     const int64_t k0 = std::min<int64_t>(-1, floor_i(lo[2] / (2 * P)) - 2), k1 = ceil_i(hi[2] / (2 * P)) + 2;
@@ -253,7 +253,7 @@ NetworkElements network_elements(const NetworkOptions& o, const Vec3& lo, const 
         }
     }
   } else {
-    throw InputError("shape: '" + o.shape + "' is not one of rods, plates, spheres, mixed");
+    throw InputError("shape: not one of rods, plates, spheres, mixed");
   }
   const double H = 0.5 * o.plate_thickness;
   for (Plate& pl : el.plates) pl.h = H * std::sqrt(1 + pl.su * pl.su + pl.sv * pl.sv);

@@ -221,8 +221,8 @@ void add_two_frequency_noise(VolumeF32& image, uint64_t seed, double amplitude, 
 NetworkResult make_network(const NetworkOptions& o) {
   const Grid grid(o.size, o.spacing);
   grid.validate();
-  if (o.shape != "rods" && o.shape != "plates" && o.shape != "spheres" && o.shape != "mixed")
-    throw InputError("shape: '" + o.shape + "' is not one of rods, plates, spheres, mixed");
+  if (static_cast<unsigned>(o.shape) > static_cast<unsigned>(Shape::mixed))
+    throw InputError("shape: not one of rods, plates, spheres, mixed");
   if (!(o.period >= 8)) throw InputError("period: " + std::to_string(o.period) + " voxels; expected >= 8");
   if (!(o.radius > 0 && o.radius * 4 <= o.period))
     throw InputError("radius: " + std::to_string(o.radius) + " voxels; expected > 0 and <= period / 4");
@@ -247,7 +247,7 @@ NetworkResult make_network(const NetworkOptions& o) {
     caps.push_back(c);
   };
 
-  if (o.shape == "rods") {
+  if (o.shape == Shape::rods) {
     // Jittered lattice nodes; each joins its +x, +y, +z neighbour with probability 0.8.
     auto node = [&](int64_t i, int64_t j, int64_t k) {
       return V{(static_cast<double>(i) + 0.5 + 0.4 * (u(1, i, j, k) - 0.5)) * P,
@@ -263,7 +263,7 @@ NetworkResult make_network(const NetworkOptions& o) {
             const V b = node(i + (axis == 0), j + (axis == 1), k + (axis == 2));
             keep(capsule(a, b, R * (0.8 + 0.4 * u(20 + axis, i, j, k))));
           }
-  } else if (o.shape == "spheres") {
+  } else if (o.shape == Shape::spheres) {
     // One ball per lattice cell (probability 0.85), jittered by ≤ 0.15 period; radii keep a gap of
     // ≥ 3 voxels between neighbours so they stay separate after smoothing.
     const double rmin = 1.5 * R, rmax = std::max(rmin, 0.35 * P - 1.5);
@@ -276,7 +276,7 @@ NetworkResult make_network(const NetworkOptions& o) {
                     (static_cast<double>(k) + 0.5 + 0.3 * (u(33, i, j, k) - 0.5)) * P};
           keep(capsule(c, c, rmin + (rmax - rmin) * u(34, i, j, k)));
         }
-  } else if (o.shape == "plates") {
+  } else if (o.shape == Shape::plates) {
     // Slabs perpendicular to z every period (tilted by up to ±0.15) and walls perpendicular to x
     // every 2 periods joining them; round holes (radius period / 3) in 45 % of the cells.
     for (int64_t k = -1; k < cells[2]; ++k)

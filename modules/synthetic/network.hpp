@@ -5,13 +5,20 @@
 #include <cstdint>
 #include <string>
 
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
 namespace skel::synthetic {
 
+enum class Shape { rods, plates, spheres, mixed };
+constexpr auto enum_names(Shape) {
+  return std::to_array<EnumName<Shape>>(
+      {{Shape::rods, "rods"}, {Shape::plates, "plates"}, {Shape::spheres, "spheres"}, {Shape::mixed, "mixed"}});
+}
+
 struct NetworkOptions {
-  std::string shape = "rods";  // rods | plates | spheres | mixed
+  Shape shape = Shape::rods;
   Dims size{128, 128, 128};
   uint64_t seed = 1;
   double noise = 0.0;            // amplitude of the two-frequency noise, 0..1

@@ -6,32 +6,23 @@
 namespace skel::synthetic {
 namespace {
 
-Dims dims_param(const RunContext& ctx) {
-  const auto s = ctx.param<std::vector<int64_t>>("size");
-  return {s[0], s[1], s[2]};
-}
-Vec3 spacing_param(const RunContext& ctx) {
-  const auto s = ctx.param<std::vector<double>>("spacing");
-  return {s[0], s[1], s[2]};
-}
-
 class Network final : public Module {
 public:
   static ModuleSpec spec() {
     return ModuleSpec("synthetic.network", "Synthetic rods, plates, spheres or mixtures (the test objects of thesis ch. 4)")
         .output<VolumeF32>("image", "smooth scalar image in about [0, 1]; 0.5 is the object boundary")
         .output<VolumeU8>("mask", "image > 0.5 (0/1)")
-        .choice("shape", {"rods", "plates", "spheres", "mixed"}, "rods",
+        .param("shape", &NetworkOptions::shape,
                 "rods: jittered lattice of rods along x, y, z; plates: slabs with holes; spheres: balls; mixed: plates joined by rods (bone-like)")
-        .param<std::vector<int64_t>>("size", {128, 128, 128}, "volume size [x, y, z]").length(3).range(1, 8192).unit("voxels")
-        .param<int64_t>("seed", 1, "random seed: the same seed gives the same volume on any machine and thread count").min(0)
-        .param<double>("noise", 0.0, "amplitude of noise at two frequencies (smooth 16-voxel value noise and per-voxel noise)").range(0, 1)
-        .param<std::vector<double>>("spacing", {1.0, 1.0, 1.0}, "voxel size [x, y, z]").length(3).min(1e-9).unit("µm")
-        .param<double>("period", 24.0, "lattice cell size: distance between neighbouring elements").range(8, 4096).unit("voxels")
-        .param<double>("radius", 2.0, "rod radius (each rod varies ±20 %); balls have radii 1.5·radius .. 0.35·period − 1.5").min(0.1).unit("voxels")
-        .param<double>("plate_thickness", 3.0, "thickness of the plates (plates, mixed)").min(0.1).unit("voxels")
-        .param<double>("sigma", 1.0, "standard deviation of the Gaussian that smooths the drawn object (0 = none)").min(0).unit("voxels")
-        .param<double>("threshold", 0.5, "mask = image > threshold").range(0.01, 0.99)
+        .param("size", &NetworkOptions::size, "volume size [x, y, z]").range(1, 8192).unit("voxels")
+        .param("seed", &NetworkOptions::seed, "random seed: the same seed gives the same volume on any machine and thread count").min(0)
+        .param("noise", &NetworkOptions::noise, "amplitude of noise at two frequencies (smooth 16-voxel value noise and per-voxel noise)").range(0, 1)
+        .param("spacing", &NetworkOptions::spacing, "voxel size [x, y, z]").min(1e-9).unit("µm")
+        .param("period", &NetworkOptions::period, "lattice cell size: distance between neighbouring elements").range(8, 4096).unit("voxels")
+        .param("radius", &NetworkOptions::radius, "rod radius (each rod varies ±20 %); balls have radii 1.5·radius .. 0.35·period − 1.5").min(0.1).unit("voxels")
+        .param("plate_thickness", &NetworkOptions::plate_thickness, "thickness of the plates (plates, mixed)").min(0.1).unit("voxels")
+        .param("sigma", &NetworkOptions::sigma, "standard deviation of the Gaussian that smooths the drawn object (0 = none)").min(0).unit("voxels")
+        .param("threshold", &NetworkOptions::threshold, "mask = image > threshold").range(0.01, 0.99)
         .details(R"(Thesis ch. 4 (fig. 4.1 test objects). Elements are generated from a jittered lattice
 (cell = period voxels) and drawn as 1 into a zero float image: rods are capsules between jittered
 lattice nodes along x, y and z (each present with probability 0.8, so the network has free ends);
@@ -47,19 +38,7 @@ results are identical for any thread count and machine. Memory: 5 bytes per voxe
 mask) plus one (x, y) or (x, z) plane of floats per thread.)");
   }
   void run(RunContext& ctx) override {
-    synthetic::NetworkOptions o;
-    o.shape = ctx.param<std::string>("shape");
-    o.size = dims_param(ctx);
-    o.seed = static_cast<uint64_t>(ctx.param<int64_t>("seed"));
-    o.noise = ctx.param<double>("noise");
-    o.spacing = spacing_param(ctx);
-    o.period = ctx.param<double>("period");
-    o.radius = ctx.param<double>("radius");
-    o.plate_thickness = ctx.param<double>("plate_thickness");
-    o.sigma = ctx.param<double>("sigma");
-    o.threshold = ctx.param<double>("threshold");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
+    const auto o = ctx.options<NetworkOptions>();
     auto r = synthetic::make_network(o);
     ctx.output("image", std::move(r.image));
     ctx.output("mask", std::move(r.mask));
@@ -77,15 +56,15 @@ public:
         .output<SpatialGraph>("graph", "the same ground-truth graph as `truth` (the name other families use)")
         .output<Table>("nodes", "ground-truth nodes: id, x, y, z (physical), kind (root | branch | end | junction), degree")
         .output<Table>("edges", "ground-truth edges: id, node0, node1, length and radius (physical), tree (artery | vein | capillary)")
-        .param<std::vector<int64_t>>("size", {128, 128, 128}, "volume size [x, y, z]").length(3).range(16, 8192).unit("voxels")
-        .param<int64_t>("seed", 1, "random seed: the same seed gives the same network on any machine and thread count").min(0)
-        .param<double>("noise", 0.0, "amplitude of noise at two frequencies (smooth 16-voxel value noise and per-voxel noise)").range(0, 1)
-        .param<std::vector<double>>("spacing", {1.0, 1.0, 1.0}, "voxel size [x, y, z]").length(3).min(1e-9).unit("µm")
-        .param<int64_t>("roots", 4, "number of trees (half arterial from the x = 0 face, half venous from the far face)").range(2, 64)
-        .param<double>("root_radius", 5.0, "radius of the root vessels").min(1).unit("voxels")
-        .param<double>("min_radius", 2.0, "branching stops below this radius; capillary radius").min(1).unit("voxels")
-        .param<double>("capillary_length", 50.0, "longest capillary joining two tree ends, before length_scale (up to 4x longer ones only join otherwise separate trees)").min(1).unit("voxels")
-        .param<double>("length_scale", 0.0, "vessel and capillary lengths are multiplied by this; 0 = automatic, max(1, smallest size / 128)").min(0)
+        .param("size", &VesselTreeOptions::size, "volume size [x, y, z]").range(16, 8192).unit("voxels")
+        .param("seed", &VesselTreeOptions::seed, "random seed: the same seed gives the same network on any machine and thread count").min(0)
+        .param("noise", &VesselTreeOptions::noise, "amplitude of noise at two frequencies (smooth 16-voxel value noise and per-voxel noise)").range(0, 1)
+        .param("spacing", &VesselTreeOptions::spacing, "voxel size [x, y, z]").min(1e-9).unit("µm")
+        .param("roots", &VesselTreeOptions::roots, "number of trees (half arterial from the x = 0 face, half venous from the far face)").range(2, 64)
+        .param("root_radius", &VesselTreeOptions::root_radius, "radius of the root vessels").min(1).unit("voxels")
+        .param("min_radius", &VesselTreeOptions::min_radius, "branching stops below this radius; capillary radius").min(1).unit("voxels")
+        .param("capillary_length", &VesselTreeOptions::capillary_length, "longest capillary joining two tree ends, before length_scale (up to 4x longer ones only join otherwise separate trees)").min(1).unit("voxels")
+        .param("length_scale", &VesselTreeOptions::length_scale, "vessel and capillary lengths are multiplied by this; 0 = automatic, max(1, smallest size / 128)").min(0)
         .details(R"(Thesis §6.1 (India-ink filled microvessels). Trees grow from root points on the x faces:
 each segment is about 5 radii long (× length_scale), then branches into two children at 25–45° whose
 radius is 0.79 of the parent's (Murray's law for a symmetric split), until the radius falls below
@@ -102,18 +81,7 @@ Ground truth (graph and tables) in physical units (radius × mean spacing). Memo
 (float image + mask). Thread count does not change the result.)");
   }
   void run(RunContext& ctx) override {
-    synthetic::VesselTreeOptions o;
-    o.size = dims_param(ctx);
-    o.seed = static_cast<uint64_t>(ctx.param<int64_t>("seed"));
-    o.noise = ctx.param<double>("noise");
-    o.spacing = spacing_param(ctx);
-    o.roots = static_cast<int>(ctx.param<int64_t>("roots"));
-    o.root_radius = ctx.param<double>("root_radius");
-    o.min_radius = ctx.param<double>("min_radius");
-    o.capillary_length = ctx.param<double>("capillary_length");
-    o.length_scale = ctx.param<double>("length_scale");
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
+    const auto o = ctx.options<VesselTreeOptions>();
     auto r = synthetic::make_vessel_tree(o);
     ctx.output("image", std::move(r.image));
     ctx.output("mask", std::move(r.mask));

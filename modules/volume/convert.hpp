@@ -3,6 +3,7 @@
 #include <string>
 
 #include "skel/data.hpp"
+#include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
 
@@ -12,6 +13,9 @@ enum class ConvertMode {
   Clamp,    // value cast to the target type, clamped to its range (NaN → 0)
   Rescale,  // input [min, max] mapped linearly onto the target range (float targets: onto [0, 1])
 };
+constexpr auto enum_names(ConvertMode) {
+  return std::to_array<EnumName<ConvertMode>>({{ConvertMode::Clamp, "clamp"}, {ConvertMode::Rescale, "rescale"}});
+}
 
 struct ConvertOptions {
   std::string dtype = "uint8";  // uint8 | uint16 | uint32 | int32 | float32 | float64

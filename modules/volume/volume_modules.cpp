@@ -13,7 +13,7 @@ public:
         .add_output("output", all_volume_types(), "converted volume, same grid")
         .choice("dtype", {"uint8", "uint16", "uint32", "int32", "float32", "float64"}, "float32",
                 "target voxel type")
-        .choice("mode", {"clamp", "rescale"}, "clamp",
+        .param("mode", &ConvertOptions::mode,
                 "clamp: cast and clamp to the target range; rescale: map [min, max] of the input "
                 "onto the target range ([0, 1] for float types)")
         .details("Memory: input plus output (1–8 bytes per voxel each). Floating-point values "
@@ -21,11 +21,8 @@ public:
                  "becomes 0.");
   }
   void run(RunContext& ctx) override {
-    ConvertOptions o;
+    auto o = ctx.options<ConvertOptions>();
     o.dtype = ctx.param<std::string>("dtype");
-    o.mode = ctx.param<std::string>("mode") == "rescale" ? ConvertMode::Rescale : ConvertMode::Clamp;
-    o.threads = ctx.threads();
-    o.interrupter = ctx.progress();
     ctx.output("output", convert_volume_type(*ctx.input_data("input"), o));
   }
 };

@@ -216,7 +216,7 @@ TEST(NetworkStatistics, SegmentsNodesSummary) {
   EXPECT_DOUBLE_EQ(st.summary.reals("orientation_8")[0], 31.0);
   EXPECT_DOUBLE_EQ(st.summary.reals("orientation_0")[0], 0.0);
   NetworkStatisticsOptions o;
-  o.axis = 0;
+  o.axis = Axis::x;
   o.orientation_bins = 2;
   auto sx = network_statistics(g, o);
   EXPECT_DOUBLE_EQ(sx.summary.reals("orientation_0")[0], 20.0);

@@ -158,7 +158,7 @@ TEST(IlluminationZ, GivenAndFittedFactors) {
   for (int64_t z = 0; z < 6; ++z)
     for (int64_t i = 0; i < 100; ++i) v[z * 100 + i] = static_cast<uint16_t>(i < 10 ? 200 - 20 * z : 5);
   IlluminationOptions o;
-  o.fit = false;
+  o.mode = segmentation::IlluminationMode::given;
   o.intercept = 1.0;
   o.slope = 0.5;
   auto g = illumination_z(v, o);
@@ -205,7 +205,7 @@ TEST(ConnectedComponents, IdenticalFor1_2_4ThreadsAndEmptyFullVolumes) {
   for (int conn : {6, 18, 26}) {
     VolumeU8 m = random_mask(Dims{41, 37, 53}, static_cast<uint64_t>(conn), 0.3);
     ComponentOptions o;
-    o.connectivity = conn;
+    o.connectivity = static_cast<Connectivity>(conn);
     o.threads = 1;
     const auto a = connected_components(m, o);
     for (int t : {2, 4}) {
@@ -261,7 +261,7 @@ TEST(FillCavities, NoEnclosedBackgroundOnRandomMasksAndNothingElseChanges) {
     VolumeU8 bg(m.grid(), 0);
     for (int64_t i = 0; i < m.size(); ++i) bg[i] = f[i] ? 0 : 1;
     ComponentOptions o;
-    o.connectivity = 6;
+    o.connectivity = Connectivity::c6;
     auto c = connected_components(bg, o);
     const auto* x0 = &c.table.ints("bbox_min_x");
     const auto* y0 = &c.table.ints("bbox_min_y");

@@ -58,7 +58,7 @@ TEST(ConnectedComponents, EqualBfsPartitionsFor6_18_26) {
     for (int conn : {6, 18, 26}) {
       VolumeU8 m = random_mask(Dims{13, 11, 9}, seed, 0.3);
       ComponentOptions o;
-      o.connectivity = conn;
+      o.connectivity = static_cast<Connectivity>(conn);
       auto r = connected_components(m, o);
       auto ref = bfs_labels(m, conn);
       std::map<int64_t, uint32_t> a2b;

@@ -139,7 +139,7 @@ TEST(Threads, EverySegmentationFunctionIdenticalFor1_2_4) {
     // connected components with min_size and keep_largest: labels, kept mask and table
     for (int conn : {6, 26}) {
       ComponentOptions o;
-      o.connectivity = conn;
+      o.connectivity = static_cast<Connectivity>(conn);
       o.min_size = 20;
       o.threads = 1;
       const auto a = connected_components(mask, o);
@@ -181,7 +181,7 @@ TEST(Threads, EverySegmentationFunctionIdenticalFor1_2_4) {
     EXPECT_TRUE(it.image == i1.image);
     EXPECT_EQ(it.factor, i1.factor);
     EXPECT_EQ(it.slice_statistic, i1.slice_statistic);
-    io.fit = false;
+    io.mode = segmentation::IlluminationMode::given;
     io.slope = 0.03;
     io.intercept = 0.8;
     io.threads = 1;
@@ -277,7 +277,7 @@ TEST(EdgeCases, EmptyConstantAndAllObjectInputs) {
   // given mode just scales.
   EXPECT_THROW(illumination_z(VolumeU16(d, 0), IlluminationOptions{}), InputError);
   IlluminationOptions given;
-  given.fit = false;
+  given.mode = segmentation::IlluminationMode::given;
   given.intercept = 2.0;
   EXPECT_TRUE(illumination_z(VolumeU16(d, 0), given).image == VolumeF32(d, 0.0f));
 }

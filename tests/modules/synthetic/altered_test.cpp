@@ -17,7 +17,7 @@ namespace {
 
 NetworkOptions small_network(const std::string& shape, int threads = 2) {
   NetworkOptions n;
-  n.shape = shape;
+  n.shape = parse_enum<synthetic::Shape>(shape, "shape");
   n.size = {56, 48, 64};
   n.seed = 3;
   n.period = 16;
@@ -198,6 +198,6 @@ TEST(AlteredNetwork, InvalidOptionsAreInputErrors) {
     EXPECT_NE(std::string(e.what()).find("landmarks"), std::string::npos);
   }
   o.landmarks = 8;
-  o.network.shape = "cubes";
+  o.network.shape = static_cast<synthetic::Shape>(99);
   EXPECT_THROW((void)make_altered_network(o), InputError);
 }

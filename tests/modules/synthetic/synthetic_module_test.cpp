@@ -23,7 +23,7 @@ TEST(SyntheticModule, NetworkMatchesLibrary) {
                                         {"radius", ParamValue(2.5)}},
                                        {.threads = 2});
   synthetic::NetworkOptions o;
-  o.shape = "mixed";
+  o.shape = synthetic::Shape::mixed;
   o.size = {40, 36, 52};
   o.seed = 7;
   o.noise = 0.2;

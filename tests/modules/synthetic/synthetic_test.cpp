@@ -112,7 +112,7 @@ TEST(SyntheticTestHelpers, TopologyOfKnownObjects) {
 TEST(Network, ReproducibleAndThreadIndependent) {
   for (const char* shape : {"rods", "plates", "spheres", "mixed"}) {
     NetworkOptions o;
-    o.shape = shape;
+    o.shape = parse_enum<synthetic::Shape>(shape, "shape");
     o.size = {50, 41, 37};
     o.noise = 0.3;
     o.threads = 1;
@@ -138,7 +138,7 @@ TEST(Network, ObjectFractionsAndShapeTopology) {
   for (const Expect& ex : {Expect{"rods", 0.03, 0.10}, Expect{"plates", 0.08, 0.25}, Expect{"spheres", 0.015, 0.08},
                            Expect{"mixed", 0.03, 0.15}}) {
     NetworkOptions o;
-    o.shape = ex.shape;
+    o.shape = parse_enum<synthetic::Shape>(ex.shape, "shape");
     o.size = {96, 96, 96};
     o.threads = 2;
     const auto r = make_network(o);
@@ -188,9 +188,9 @@ TEST(Network, MaskIsThresholdedImageAndNoiseIsBounded) {
 TEST(Network, InvalidOptionsAreInputErrors) {
   NetworkOptions o;
   o.size = {16, 16, 16};
-  o.shape = "cubes";
+  o.shape = static_cast<synthetic::Shape>(99);
   EXPECT_THROW(make_network(o), InputError);
-  o.shape = "rods";
+  o.shape = synthetic::Shape::rods;
   o.noise = 1.5;
   EXPECT_THROW(make_network(o), InputError);
   o.noise = 0;

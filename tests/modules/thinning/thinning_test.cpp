@@ -85,7 +85,7 @@ TEST(Thinning, InvariantsOnSyntheticNetworks) {
   for (const char* shape : {"rods", "plates", "spheres", "mixed"})
     for (double noise : {0.0, 0.6}) {
       synthetic::NetworkOptions no;
-      no.shape = shape;
+      no.shape = parse_enum<synthetic::Shape>(shape, "shape");
       no.size = {64, 64, 64};
       no.noise = noise;
       no.seed = 7;
