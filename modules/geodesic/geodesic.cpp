@@ -1,3 +1,4 @@
+// Geodesic boundary distance (thesis §2.3.2); the phases are declared in geodesic_phases.hpp.
 #include "geodesic/geodesic.hpp"
 
 #include <algorithm>
@@ -9,80 +10,13 @@
 #include <type_traits>
 #include <vector>
 
+#include "geodesic/geodesic_phases.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
 namespace skel::geodesic {
 
-namespace {
-
-constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
-
-// A bitmap over the padded domain with O(1) rank (number of set bits before a position).
-// 2 bits per voxel. Before build_rank(), `words` holds the bits; after, pairs (bits of word w, set
-// bits before word w) interleaved, so a test and a rank touch one cache line.
-struct RankBits {
-  std::vector<uint64_t> words;
-  [[nodiscard]] uint64_t word(size_t w) const { return words[2 * w]; }
-  [[nodiscard]] uint64_t prefix(size_t w) const { return words[2 * w + 1]; }
-  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6) * 2] >> (pos & 63)) & 1u; }
-  [[nodiscard]] uint64_t rank(int64_t pos) const {
-    const size_t w = static_cast<size_t>(pos >> 6) * 2;
-    const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
-    return words[w + 1] + static_cast<uint64_t>(std::popcount(below));
-  }
-  uint64_t build_rank() {
-    const size_t n = words.size();
-    words.resize(2 * n);
-    for (size_t i = n; i-- > 1;) words[2 * i] = words[i];  // spread in place (word 0 stays)
-    uint64_t s = 0;
-    for (size_t i = 0; i < n; ++i) {
-      words[2 * i + 1] = s;
-      s += static_cast<uint64_t>(std::popcount(words[2 * i]));
-    }
-    return s;
-  }
-  [[nodiscard]] size_t word_count() const { return words.size() / 2; }
-  [[nodiscard]] uint64_t bytes() const { return words.size() * 8; }
-};
-
-struct Coord {
-  uint16_t x, y, z;
-};
-
-// The padded domain: mask voxel (x, y, z) lives at bit position (x+2) + BX*((y+2) + BY*(z+2)).
-// Rows start at word boundaries; two empty voxels on every side (the first belongs to the domain as
-// background "outside the array", the second is a guard that is never set).
-struct Domain {
-  int64_t nx, ny, nz, BX, BY, BZ, plane;
-  explicit Domain(const Dims& d) : nx(d[0]), ny(d[1]), nz(d[2]) {
-    BX = ((nx + 4 + 63) / 64) * 64;
-    BY = ny + 4;
-    BZ = nz + 4;
-    plane = BX * BY;
-  }
-  [[nodiscard]] int64_t pos(int64_t x, int64_t y, int64_t z) const { return x + BX * (y + BY * z); }
-  [[nodiscard]] int64_t bits() const { return BX * BY * BZ; }
-  [[nodiscard]] int64_t row_words() const { return BX / 64; }
-};
-
-struct Prepared {
-  Domain dom;
-  RankBits obj, layer;
-  std::vector<Coord> lcoord;  // L-id -> padded coordinates (freed after the nearest-point transform
-                              // unless kept for the reference; searches carry positions instead)
-  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point
-  std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
-  int64_t k = 0, nl = 0;
-  uint64_t prepare_bytes = 0;  // peak working memory of prepare()
-  explicit Prepared(const Dims& d) : dom(d) {}
-  [[nodiscard]] int64_t lpos(uint32_t l) const { return dom.pos(lcoord[l].x, lcoord[l].y, lcoord[l].z); }
-  // L-id of the nearest background point of the voxel at `pos` (object or layer voxel).
-  [[nodiscard]] uint32_t base_of(int64_t pos) const {
-    if (obj.test(pos)) return b[obj.rank(pos)];
-    return static_cast<uint32_t>(layer.rank(pos));
-  }
-};
+namespace detail {
 
 std::vector<int64_t> offsets26(const Domain& d) {
   std::vector<int64_t> o;
@@ -278,61 +212,294 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
   intr.check(0.22);
 }
 
-// Scratch of one worker. Own searches need only "visited" and "target" marks (one byte per L voxel:
-// the search runs level by level, so the distance is the level); pivot searches keep 8- or 16-bit
-// distances (d + 1, 0 = unvisited; none without pivots) because targets of neighbouring bases are
-// looked up afterwards. Both are reset through the lists of voxels they touched, so a search costs
-// O(visited), never O(|L|).
-struct Scratch {
-  static constexpr uint8_t kVisited = 1, kTarget = 2;
-  std::vector<uint8_t> mark;      // own search: kVisited | kTarget
-  std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
-  std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
-  std::vector<uint32_t> queue;  // own search: visited voxels in distance order (cleared after the search)
-  std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
-  std::vector<int64_t> qpos;    // padded positions of the current search's queue
-  Scratch(size_t nl, uint32_t pivot_limit) : mark(nl, 0) {
-    if (pivot_limit == 0) return;
-    if (pivot_limit <= 254) pdist8.assign(nl, 0);
-    else pdist16.assign(nl, 0);
+Buckets bucket_by_base(const Prepared& P) {
+  Buckets bk;
+  const Domain& D = P.dom;
+  std::vector<uint32_t>& start = bk.start;
+  Members& members = bk.members;
+  start.assign(static_cast<size_t>(P.nl) + 1, 0);
+  for (uint32_t l : P.b) ++start[l + 1];
+  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
+  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    const size_t nwords = P.obj.word_count();
+    for (size_t w = 0; w < nwords; ++w) {
+      uint64_t bits = P.obj.word(w);
+      uint64_t id = P.obj.prefix(w);
+      while (bits) {
+        const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
+        bits &= bits - 1;
+        members.set(fill[P.b[id++]]++, pos);
+      }
+    }
   }
-  [[nodiscard]] uint32_t pdist(uint32_t v) const { return pdist8.empty() ? pdist16[v] : pdist8[v]; }
-  [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist(v) != 0; }
-  [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return pdist(v) - 1; }
-  [[nodiscard]] uint64_t bytes() const {
-    return mark.size() + pdist8.size() + pdist16.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4 + qpos.capacity() * 8;
-  }
-};
+  return bk;
+}
 
-// Object voxels grouped by base point, as padded positions: 32-bit where the padded domain allows.
-struct Members {
-  bool wide = false;
-  std::vector<uint32_t> narrow;
-  std::vector<int64_t> full;
-  void resize(size_t n, bool w) {
-    wide = w;
-    if (wide) full.resize(n);
-    else narrow.resize(n);
+int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
+                const std::vector<uint32_t>& want, std::vector<uint32_t>& wd) {
+  S.queue.clear();
+  S.queue.push_back(src);
+  S.qpos.clear();
+  S.qpos.push_back(src_pos);
+  S.mark[src] |= Scratch::kVisited;
+  int64_t left = static_cast<int64_t>(want.size());
+  wd.assign(want.size(), kNone);
+  for (uint32_t w : want) S.mark[w] |= Scratch::kTarget;
+  auto check_target = [&](uint32_t v, uint32_t d) {
+    if (!(S.mark[v] & Scratch::kTarget)) return;
+    for (size_t i = 0; i < want.size(); ++i)
+      if (want[i] == v && wd[i] == kNone) {
+        wd[i] = d;
+        --left;
+      }
+  };
+  check_target(src, 0);
+  int64_t visited = 0;
+  uint32_t dv = 0;
+  size_t level_end = 1;  // queue[.. level_end) has distance <= dv
+  for (size_t head = 0; head < S.queue.size() && left > 0; ++head) {
+    if (head == level_end) {
+      ++dv;
+      level_end = S.queue.size();
+    }
+    ++visited;
+    if (dv >= limit) continue;
+    for_each_layer_neighbour(P, S.qpos[head], [&](uint32_t u, int64_t q) {
+      if (S.mark[u] & Scratch::kVisited) return;
+      S.mark[u] |= Scratch::kVisited;
+      S.queue.push_back(u);
+      S.qpos.push_back(q);
+      check_target(u, dv + 1);
+    });
   }
-  void set(size_t i, int64_t pos) {
-    if (wide) full[i] = pos;
-    else narrow[i] = static_cast<uint32_t>(pos);
-  }
-  [[nodiscard]] int64_t operator[](size_t i) const { return wide ? full[i] : static_cast<int64_t>(narrow[i]); }
-  [[nodiscard]] uint64_t bytes() const { return narrow.size() * 4 + full.size() * 8; }
-};
+  for (uint32_t v : S.queue) S.mark[v] = 0;
+  for (uint32_t w : want) S.mark[w] = 0;
+  return visited;
+}
 
-// The considered neighbours of object voxel `pos` and their base points.
-template <class F>
-void for_each_target(const Prepared& P, int64_t pos, F&& f) {
-  const int64_t offs[3] = {1, P.dom.BX, P.dom.plane};
-  for (int64_t o : offs) {
-    // Lower neighbour: always (object or layer).
-    f(P.base_of(pos - o));
-    // Upper neighbour: only if background (then it is in L).
-    if (!P.obj.test(pos + o)) f(static_cast<uint32_t>(P.layer.rank(pos + o)));
+int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+  auto run = [&](auto& pdist) {
+    using T = typename std::decay_t<decltype(pdist)>::value_type;
+    for (uint32_t v : S.pqueue) pdist[v] = 0;
+    S.pqueue.clear();
+    S.pqueue.push_back(src);
+    S.qpos.clear();
+    S.qpos.push_back(src_pos);
+    pdist[src] = 1;
+    for (size_t head = 0; head < S.pqueue.size(); ++head) {
+      const T dv1 = pdist[S.pqueue[head]];  // distance + 1
+      if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
+      for_each_layer_neighbour(P, S.qpos[head], [&](uint32_t u, int64_t q) {
+        if (pdist[u]) return;
+        pdist[u] = static_cast<T>(dv1 + 1);
+        S.pqueue.push_back(u);
+        S.qpos.push_back(q);
+      });
+    }
+  };
+  if (S.pdist8.empty()) run(S.pdist16);
+  else run(S.pdist8);
+  return static_cast<int64_t>(S.pqueue.size());
+}
+
+SearchShared::SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& m, float* out, uint32_t threshold,
+                           bool full_mode)
+    : P(p), B(b), mask(m), importance(out), t(threshold), full(full_mode),
+      claimed(static_cast<size_t>((p.nl + 63) / 64)) {
+  for (auto& c : claimed) c.store(0, std::memory_order_relaxed);
+  // Pivot distances are 16-bit: no pivots where t + margin does not fit (results are the same).
+  pivot_margin = full || t + std::max<uint32_t>(2, t / 4) >= 65534 ? 0 : std::max<uint32_t>(2, t / 4);
+}
+
+void BaseWork::gather(uint32_t base_id) {
+  const Prepared& P = sh_.P;
+  const std::vector<uint32_t>& start = sh_.B.start;
+  const Members& members = sh_.B.members;
+  targets.clear();
+  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m)
+    for_each_target(P, members[m], [&](uint32_t c) {
+      if (std::find(targets.begin(), targets.end(), c) == targets.end()) targets.push_back(c);
+    });
+  tdist.assign(targets.size(), kNone);
+}
+
+void BaseWork::finish(uint32_t base_id) {
+  const Prepared& P = sh_.P;
+  const std::vector<uint32_t>& start = sh_.B.start;
+  const Members& members = sh_.B.members;
+  const bool full = sh_.full;
+  const uint32_t t = sh_.t;
+  const float inf = std::numeric_limits<float>::infinity();
+  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+    float v = 0.0f;
+    for_each_target(P, members[m], [&](uint32_t c) {
+      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
+      const uint32_t d = tdist[i];
+      float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
+      if (!full) g = std::min(g, static_cast<float>(t));
+      v = std::max(v, g);
+    });
+    sh_.importance[sh_.mask_index(members[m])] = v;
   }
 }
+
+void BaseWork::mark_needed(uint32_t base_id) {
+  const Prepared& P = sh_.P;
+  const std::vector<uint32_t>& start = sh_.B.start;
+  const Members& members = sh_.B.members;
+  const bool full = sh_.full;
+  const uint32_t t = sh_.t;
+  const bool any_saturated =
+      !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
+  needed.assign(targets.size(), any_saturated ? 0 : 1);
+  if (!any_saturated) return;
+  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+    size_t idx[6];
+    int n = 0;
+    bool saturated = false;
+    for_each_target(P, members[m], [&](uint32_t c) {
+      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
+      idx[n++] = i;
+      if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
+    });
+    if (!saturated)
+      for (int j = 0; j < n; ++j) needed[idx[j]] = 1;
+  }
+}
+
+bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
+  const Prepared& P = sh_.P;
+  std::vector<uint32_t>& want = want_;
+  std::vector<uint32_t>& wd = wd_;
+  std::vector<size_t>& want_index = want_index_;
+  want.clear();
+  want_index.clear();
+  mark_needed(base_id);
+  for (size_t i = 0; i < targets.size(); ++i)
+    if (tdist[i] == kNone && needed[i] && P.lcomp[targets[i]] == P.lcomp[base_id]) {
+      want.push_back(targets[i]);
+      want_index.push_back(i);
+    }
+  if (want.empty()) return false;
+  const uint32_t limit = sh_.full ? static_cast<uint32_t>(std::min<int64_t>(P.nl, kNone / 2)) : sh_.t;
+  sh_.n_visited += own_bfs(P, S_, base_id, base_pos, limit, want, wd);
+  ++sh_.n_search;
+  bool open = false;
+  for (size_t j = 0; j < want.size(); ++j) {
+    if (wd[j] != kNone) tdist[want_index[j]] = wd[j];
+    else open = true;
+  }
+  return open;
+}
+
+void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
+  const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
+  const std::vector<uint32_t>& start = sh.B.start;
+  BaseWork w(sh, S);
+  std::vector<uint32_t>& targets = w.targets;
+  std::vector<uint32_t>& tdist = w.tdist;
+  w.gather(a);
+  const bool long_search = w.own_search(a, apos);
+  if (long_search) ++sh.n_long;
+  w.finish(a);
+  sh.done_bases++;
+  if (!long_search || sh.full || pivot_margin == 0) return;
+
+  // Pivot: search from `a` up to t + margin, then settle the bases within `margin`.
+  const uint32_t plimit = t + pivot_margin;
+  sh.n_visited += pivot_bfs(sh.P, S, a, apos, plimit);
+  ++sh.n_search;
+  ++sh.n_pivots;
+  // Bases with work within `margin` of a, with their positions (the queue is in distance order).
+  std::vector<std::pair<uint32_t, int64_t>> near;
+  for (size_t i = 0; i < S.pqueue.size(); ++i) {
+    const uint32_t v = S.pqueue[i];
+    if (S.pivot_at(v) > pivot_margin) break;
+    if (v != a && start[v + 1] > start[v]) near.emplace_back(v, S.qpos[i]);
+  }
+  for (const auto& [a2, a2pos] : near) {
+    if (!sh.claim(a2)) continue;
+    w.gather(a2);
+    const uint32_t da2 = S.pivot_at(a2);
+    for (size_t i = 0; i < targets.size(); ++i) {
+      const uint32_t c = targets[i];
+      // g(a, c) > t + margin (unreached) or >= t + g(a, a2): then g(a2, c) >= t.
+      if (!S.pivot_visited(c) || S.pivot_at(c) >= t + da2) {
+        tdist[i] = t;
+        ++sh.n_saturated;
+      }
+    }
+    if (w.own_search(a2, a2pos)) ++sh.n_long;
+    w.finish(a2);
+    sh.done_bases++;
+  }
+}
+
+uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_progress) {
+  const Prepared& P = sh.P;
+  const int nthreads = effective_threads(threads);
+  std::mutex scratch_mutex;
+  std::vector<std::unique_ptr<Scratch>> pool;
+  const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
+  auto acquire = [&]() {
+    std::lock_guard lock(scratch_mutex);
+    if (!pool.empty()) {
+      auto s = std::move(pool.back());
+      pool.pop_back();
+      return s;
+    }
+    return std::make_unique<Scratch>(static_cast<size_t>(P.nl), pivot_margin ? t + pivot_margin : 0);
+  };
+  auto release = [&](std::unique_ptr<Scratch> s) {
+    std::lock_guard lock(scratch_mutex);
+    pool.push_back(std::move(s));
+  };
+
+  // Work: bases with a non-empty bucket, in L order, found by walking the words of L (which gives
+  // their positions too). Chunks of words are processed in parallel; each base is claimed exactly
+  // once, and every value is exact (searches) or a proven saturation, so the result does not depend
+  // on the thread count or on who claimed a base.
+  {
+    int64_t nb = 0;
+    for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
+    sh.n_bases = nb;
+  }
+  const int64_t lwords = static_cast<int64_t>(P.layer.word_count());
+  const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(lwords, nthreads * 64));
+  parallel_chunks(0, lwords, chunks, nthreads, [&](int64_t, int64_t w0, int64_t w1) {
+    auto S = acquire();
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t bits = P.layer.word(static_cast<size_t>(w));
+      uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
+      for (; bits; bits &= bits - 1, ++a) {
+        if (!sh.B.has_work(a) || !sh.claim(a)) continue;
+        process_base(sh, *S, a, w * 64 + std::countr_zero(bits));
+      }
+      if ((w & 1023) == 0)
+        search_progress.check(static_cast<double>(sh.done_bases.load()) / static_cast<double>(std::max<int64_t>(1, sh.n_bases.load())));
+    }
+    release(std::move(S));
+  });
+  uint64_t bytes = 0;
+  for (const auto& sc : pool) bytes += sc->bytes();
+  return bytes;
+}
+
+void threshold_surface(const VolumeF32& importance, VolumeU8& skeleton, uint32_t t, int threads) {
+  // Background is 0 < t.
+  const float tf = static_cast<float>(t);
+  parallel_for(0, static_cast<int64_t>(importance.size()), threads, [&](int64_t i0, int64_t i1) {
+    for (int64_t i = i0; i < i1; ++i) skeleton[i] = importance[i] >= tf ? 1 : 0;
+  }, 1 << 16);
+}
+
+}  // namespace detail
+
+namespace {
+
+using namespace detail;
 
 Result empty_result(const VolumeU8& mask) {
   Result res;
@@ -357,300 +524,25 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.object_voxels = P.k;
   res.stats.layer_voxels = P.nl;
   if (P.k == 0) return res;
-  const Domain& D = P.dom;
 
-  // Buckets: object voxels grouped by base point b(p) (counting sort; positions in raster order).
-  std::vector<uint32_t> start(static_cast<size_t>(P.nl) + 1, 0);
-  for (uint32_t l : P.b) ++start[l + 1];
-  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
-  Members members;
-  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
-  {
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    const size_t nwords = P.obj.word_count();
-    for (size_t w = 0; w < nwords; ++w) {
-      uint64_t bits = P.obj.word(w);
-      uint64_t id = P.obj.prefix(w);
-      while (bits) {
-        const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
-        bits &= bits - 1;
-        members.set(fill[P.b[id++]]++, pos);
-      }
-    }
-  }
+  const Buckets B = bucket_by_base(P);
   opt.interrupter.check(0.25);
 
-  const float inf = std::numeric_limits<float>::infinity();
   // Importance goes straight into the output (written once per voxel: each voxel is in exactly one
   // bucket, so threads never write the same element).
-  auto mask_index = [&](int64_t pos) {
-    const int64_t z = pos / D.plane, rem = pos % D.plane;
-    return mask.index(rem % D.BX - 2, rem / D.BX - 2, z - 2);
-  };
-  // Bases are claimed once: by their own search or by a neighbouring pivot.
-  std::vector<std::atomic<uint64_t>> claimed(static_cast<size_t>((P.nl + 63) / 64));
-  for (auto& c : claimed) c.store(0, std::memory_order_relaxed);
-  auto claim = [&](uint32_t l) {  // true for the one caller that claims base l
-    const uint64_t bit = uint64_t{1} << (l & 63);
-    return !(claimed[l >> 6].fetch_or(bit) & bit);
-  };
-
-  const int nthreads = effective_threads(opt.threads);
-  std::mutex scratch_mutex;
-  std::vector<std::unique_ptr<Scratch>> pool;
-  std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
-  // Pivot distances are 16-bit: no pivots where t + margin does not fit (results are the same).
-  const uint32_t pivot_margin = full || t + std::max<uint32_t>(2, t / 4) >= 65534 ? 0 : std::max<uint32_t>(2, t / 4);
-
-  auto acquire = [&]() {
-    std::lock_guard lock(scratch_mutex);
-    if (!pool.empty()) {
-      auto s = std::move(pool.back());
-      pool.pop_back();
-      return s;
-    }
-    return std::make_unique<Scratch>(static_cast<size_t>(P.nl), pivot_margin ? t + pivot_margin : 0);
-  };
-  auto release = [&](std::unique_ptr<Scratch> s) {
-    std::lock_guard lock(scratch_mutex);
-    pool.push_back(std::move(s));
-  };
-
-  // The 6-neighbours of the L voxel at padded position `pos` that are in L: f(L-id, position).
-  // (Searches queue positions as well as L-ids, so a visit needs no coordinate look-up.)
-  auto for_each_layer_neighbour = [&](int64_t pos, auto&& f) {
-    const int64_t nb[6] = {pos - 1, pos + 1, pos - D.BX, pos + D.BX, pos - D.plane, pos + D.plane};
-    for (int64_t q : nb)
-      if (P.layer.test(q)) f(static_cast<uint32_t>(P.layer.rank(q)), q);
-  };
-
-  // Own search: breadth-first over L from `src`, level by level up to distance `limit`, stopping once
-  // every target in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns
-  // the number of visited voxels. The marks are cleared again before returning.
-  auto own_bfs = [&](Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit, const std::vector<uint32_t>& want,
-                     std::vector<uint32_t>& wd) -> int64_t {
-    S.queue.clear();
-    S.queue.push_back(src);
-    S.qpos.clear();
-    S.qpos.push_back(src_pos);
-    S.mark[src] |= Scratch::kVisited;
-    int64_t left = static_cast<int64_t>(want.size());
-    wd.assign(want.size(), kNone);
-    for (uint32_t w : want) S.mark[w] |= Scratch::kTarget;
-    auto check_target = [&](uint32_t v, uint32_t d) {
-      if (!(S.mark[v] & Scratch::kTarget)) return;
-      for (size_t i = 0; i < want.size(); ++i)
-        if (want[i] == v && wd[i] == kNone) {
-          wd[i] = d;
-          --left;
-        }
-    };
-    check_target(src, 0);
-    int64_t visited = 0;
-    uint32_t dv = 0;
-    size_t level_end = 1;  // queue[.. level_end) has distance <= dv
-    for (size_t head = 0; head < S.queue.size() && left > 0; ++head) {
-      if (head == level_end) {
-        ++dv;
-        level_end = S.queue.size();
-      }
-      ++visited;
-      if (dv >= limit) continue;
-      for_each_layer_neighbour(S.qpos[head], [&](uint32_t u, int64_t q) {
-        if (S.mark[u] & Scratch::kVisited) return;
-        S.mark[u] |= Scratch::kVisited;
-        S.queue.push_back(u);
-        S.qpos.push_back(q);
-        check_target(u, dv + 1);
-      });
-    }
-    for (uint32_t v : S.queue) S.mark[v] = 0;
-    for (uint32_t w : want) S.mark[w] = 0;
-    return visited;
-  };
-
-  // Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
-  // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
-  // voxels in distance order.
-  auto pivot_bfs = [&](Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) -> int64_t {
-    auto run = [&](auto& pdist) {
-      using T = typename std::decay_t<decltype(pdist)>::value_type;
-      for (uint32_t v : S.pqueue) pdist[v] = 0;
-      S.pqueue.clear();
-      S.pqueue.push_back(src);
-      S.qpos.clear();
-      S.qpos.push_back(src_pos);
-      pdist[src] = 1;
-      for (size_t head = 0; head < S.pqueue.size(); ++head) {
-        const T dv1 = pdist[S.pqueue[head]];  // distance + 1
-        if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-        for_each_layer_neighbour(S.qpos[head], [&](uint32_t u, int64_t q) {
-          if (pdist[u]) return;
-          pdist[u] = static_cast<T>(dv1 + 1);
-          S.pqueue.push_back(u);
-          S.qpos.push_back(q);
-        });
-      }
-    };
-    if (S.pdist8.empty()) run(S.pdist16);
-    else run(S.pdist8);
-    return static_cast<int64_t>(S.pqueue.size());
-  };
-
-  // Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
-  // to t + margin that settles the far targets of all bases within `margin` of `a` (triangle
-  // inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
-  auto process_base = [&](Scratch& S, uint32_t a, int64_t apos) {
-    std::vector<uint32_t> targets, tdist;
-    auto gather = [&](uint32_t base_id) {
-      targets.clear();
-      for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m)
-        for_each_target(P, members[m], [&](uint32_t c) {
-          if (std::find(targets.begin(), targets.end(), c) == targets.end()) targets.push_back(c);
-        });
-    };
-    auto finish = [&](uint32_t base_id) {  // importance of the bucket's voxels from tdist
-      for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
-        float v = 0.0f;
-        for_each_target(P, members[m], [&](uint32_t c) {
-          const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-          const uint32_t d = tdist[i];
-          float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
-          if (!full) g = std::min(g, static_cast<float>(t));
-          v = std::max(v, g);
-        });
-        res.importance[mask_index(members[m])] = v;
-      }
-    };
-    // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
-    // component of L (the others have no path: infinite). Returns true if targets were left when
-    // the search reached the threshold.
-    // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
-    // its other targets are searched only if another voxel of the bucket needs them.
-    std::vector<uint32_t> want, wd;
-    std::vector<size_t> want_index;
-    std::vector<uint8_t> needed;
-    auto mark_needed = [&](uint32_t base_id) {
-      const bool any_saturated =
-          !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
-      needed.assign(targets.size(), any_saturated ? 0 : 1);
-      if (!any_saturated) return;
-      for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
-        size_t idx[6];
-        int n = 0;
-        bool saturated = false;
-        for_each_target(P, members[m], [&](uint32_t c) {
-          const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-          idx[n++] = i;
-          if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
-        });
-        if (!saturated)
-          for (int j = 0; j < n; ++j) needed[idx[j]] = 1;
-      }
-    };
-    auto own_search = [&](uint32_t base_id, int64_t base_pos) -> bool {
-      want.clear();
-      want_index.clear();
-      mark_needed(base_id);
-      for (size_t i = 0; i < targets.size(); ++i)
-        if (tdist[i] == kNone && needed[i] && P.lcomp[targets[i]] == P.lcomp[base_id]) {
-          want.push_back(targets[i]);
-          want_index.push_back(i);
-        }
-      if (want.empty()) return false;
-      const uint32_t limit = full ? static_cast<uint32_t>(std::min<int64_t>(P.nl, kNone / 2)) : t;
-      n_visited += own_bfs(S, base_id, base_pos, limit, want, wd);
-      ++n_search;
-      bool open = false;
-      for (size_t j = 0; j < want.size(); ++j) {
-        if (wd[j] != kNone) tdist[want_index[j]] = wd[j];
-        else open = true;
-      }
-      return open;
-    };
-
-    gather(a);
-    tdist.assign(targets.size(), kNone);
-    const bool long_search = own_search(a, apos);
-    if (long_search) ++n_long;
-    finish(a);
-    done_bases++;
-    if (!long_search || full || pivot_margin == 0) return;
-
-    // Pivot: search from `a` up to t + margin, then settle the bases within `margin`.
-    const uint32_t plimit = t + pivot_margin;
-    n_visited += pivot_bfs(S, a, apos, plimit);
-    ++n_search;
-    ++n_pivots;
-    // Bases with work within `margin` of a, with their positions (the queue is in distance order).
-    std::vector<std::pair<uint32_t, int64_t>> near;
-    for (size_t i = 0; i < S.pqueue.size(); ++i) {
-      const uint32_t v = S.pqueue[i];
-      if (S.pivot_at(v) > pivot_margin) break;
-      if (v != a && start[v + 1] > start[v]) near.emplace_back(v, S.qpos[i]);
-    }
-    for (const auto& [a2, a2pos] : near) {
-      if (!claim(a2)) continue;
-      gather(a2);
-      tdist.assign(targets.size(), kNone);
-      const uint32_t da2 = S.pivot_at(a2);
-      for (size_t i = 0; i < targets.size(); ++i) {
-        const uint32_t c = targets[i];
-        // g(a, c) > t + margin (unreached) or >= t + g(a, a2): then g(a2, c) >= t.
-        if (!S.pivot_visited(c) || S.pivot_at(c) >= t + da2) {
-          tdist[i] = t;
-          ++n_saturated;
-        }
-      }
-      if (own_search(a2, a2pos)) ++n_long;
-      finish(a2);
-      done_bases++;
-    }
-  };
-
-  // Work: bases with a non-empty bucket, in L order, found by walking the words of L (which gives
-  // their positions too). Chunks of words are processed in parallel; each base is claimed exactly
-  // once, and every value is exact (searches) or a proven saturation, so the result does not depend
-  // on the thread count or on who claimed a base.
-  {
-    int64_t nb = 0;
-    for (int64_t l = 0; l < P.nl; ++l) nb += start[static_cast<size_t>(l) + 1] > start[static_cast<size_t>(l)];
-    n_bases = nb;
-  }
-  const int64_t lwords = static_cast<int64_t>(P.layer.word_count());
-  const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(lwords, nthreads * 64));
-  const Interrupter search_progress = opt.interrupter.sub(0.25, 0.97);
-  parallel_chunks(0, lwords, chunks, nthreads, [&](int64_t, int64_t w0, int64_t w1) {
-    auto S = acquire();
-    for (int64_t w = w0; w < w1; ++w) {
-      uint64_t bits = P.layer.word(static_cast<size_t>(w));
-      uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
-      for (; bits; bits &= bits - 1, ++a) {
-        if (start[a + 1] == start[a] || !claim(a)) continue;
-        process_base(*S, a, w * 64 + std::countr_zero(bits));
-      }
-      if ((w & 1023) == 0)
-        search_progress.check(static_cast<double>(done_bases.load()) / static_cast<double>(std::max<int64_t>(1, n_bases.load())));
-    }
-    release(std::move(S));
-  });
-
-  // Surface skeleton from the importance (background is 0 < t).
-  const float tf = static_cast<float>(t);
-  parallel_for(0, static_cast<int64_t>(mask.size()), opt.threads, [&](int64_t i0, int64_t i1) {
-    for (int64_t i = i0; i < i1; ++i) res.surface_skeleton[i] = res.importance[i] >= tf ? 1 : 0;
-  }, 1 << 16);
-  res.stats.base_points = n_bases.load();
-  res.stats.searches = n_search.load();
-  res.stats.pivots = n_pivots.load();
-  res.stats.long_searches = n_long.load();
-  res.stats.saturated_by_pivot = n_saturated.load();
-  res.stats.visited = n_visited.load();
+  SearchShared sh(P, B, mask, res.importance.data(), t, full);
+  const uint64_t scratch_bytes = search_bases(sh, opt.threads, opt.interrupter.sub(0.25, 0.97));
+  threshold_surface(res.importance, res.surface_skeleton, t, opt.threads);
+  res.stats.base_points = sh.n_bases.load();
+  res.stats.searches = sh.n_search.load();
+  res.stats.pivots = sh.n_pivots.load();
+  res.stats.long_searches = sh.n_long.load();
+  res.stats.saturated_by_pivot = sh.n_saturated.load();
+  res.stats.visited = sh.n_visited.load();
   // Peak of the two phases: the nearest-point transform (with L coordinates and the ring marks) and
   // the searches (with components, buckets, claims and the workers' scratch).
-  uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.b.size() * 4 + P.lcomp.size() * 4 + start.size() * 4 +
-                          members.bytes() + claimed.size() * 8;
-  for (const auto& sc : pool) search_bytes += sc->bytes();
+  const uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.b.size() * 4 + P.lcomp.size() * 4 +
+                                B.start.size() * 4 + B.members.bytes() + sh.claimed.size() * 8 + scratch_bytes;
   res.stats.bytes = std::max(P.prepare_bytes, search_bytes);
   opt.interrupter.check(1.0);
   return res;

@@ -8,6 +8,7 @@
 #include <set>
 #include <unordered_map>
 
+#include "geometry/skeleton_to_graph_phases.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
@@ -329,43 +330,23 @@ void smooth_edges(SpatialGraph& graph, int passes, int kernel) {
     }
   }
 }
+namespace detail {
 
-SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject* distance,
-                                      const SkeletonToGraphOptions& options) {
-  const Grid& grid = skeleton.grid();
-  if (distance != nullptr) {
-    const Grid& dg = volume_grid(*distance, "distance");
-    if (dg.dims != grid.dims)
-      throw InputError("input 'distance': dims " + std::to_string(dg.dims[0]) + "x" +
-                       std::to_string(dg.dims[1]) + "x" + std::to_string(dg.dims[2]) +
-                       " differ from the skeleton's " + std::to_string(grid.dims[0]) + "x" +
-                       std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]));
-  }
-  if (options.smooth_passes > 0 && options.smooth_kernel < 3)
-    throw InputError("parameter 'smooth_kernel': expected >= 3 points, got " +
-                     std::to_string(options.smooth_kernel));
+SkeletonVoxels collect_voxels(const VolumeU8& skeleton, int threads, const Interrupter& intr) {
+  SkeletonVoxels sv;
+  sv.skeleton = &skeleton;
+  sv.vox = object_voxels(skeleton, threads, intr);
+  return sv;
+}
+
+void classify_voxels(SkeletonVoxels& sv, int threads, const Interrupter& intr) {
   const auto& table = dual_cube_table();
-  const Interrupter& intr = options.interrupter;
-  const int threads = options.threads;
-  const Accessor acc{skeleton.data(), skeleton.nx(), skeleton.ny(), skeleton.nz()};
+  const Accessor acc{sv.skeleton->data(), sv.skeleton->nx(), sv.skeleton->ny(), sv.skeleton->nz()};
   const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
-
-  const std::vector<int64_t> vox = object_voxels(skeleton, threads, intr.sub(0.0, 0.2));
-  const int64_t n = static_cast<int64_t>(vox.size());
-  // Id of object voxel `idx` >= vox[i], by a galloping search forward from i: the corners of a dual
-  // cube lie at or after its lowest object corner in x-fastest order, and usually close to it.
-  auto id_from = [&](int64_t i, int64_t idx) {
-    int64_t lo = i, step = 1;
-    while (lo + step < n && vox[lo + step] < idx) {
-      lo += step;
-      step *= 2;
-    }
-    const int64_t hi = std::min(lo + step + 1, n);
-    return static_cast<int64_t>(std::lower_bound(vox.begin() + lo, vox.begin() + hi, idx) - vox.begin());
-  };
-
-  // 1. Manifold type per voxel (fig. 3.9).
-  std::vector<uint8_t> cls(n);
+  const std::vector<int64_t>& vox = sv.vox;
+  const int64_t n = sv.size();
+  std::vector<uint8_t>& cls = sv.cls;
+  cls.resize(n);
   parallel_for(0, n, threads, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) {
       const int64_t idx = vox[i];
@@ -373,10 +354,15 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
     }
     intr.check();
   }, 4096);
-  intr.check(0.4);
+}
 
-  // 2. 1-cells, each generated once by the reduced dual cube that contains it (fig. 3.12). A cube is
-  //    handled by its lowest object corner.
+void connect_one_cells(SkeletonVoxels& sv, int threads, const Interrupter& intr) {
+  const auto& table = dual_cube_table();
+  const Accessor acc{sv.skeleton->data(), sv.skeleton->nx(), sv.skeleton->ny(), sv.skeleton->nz()};
+  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
+  const std::vector<int64_t>& vox = sv.vox;
+  const int64_t n = sv.size();
+  auto id_from = [&](int64_t i, int64_t idx) { return sv.id_from(i, idx); };
   const int64_t chunks = std::clamp<int64_t>(n / 4096, 1, 256);
   std::vector<std::vector<std::array<int64_t, 2>>> part_edges(chunks);
   const auto& pt = pair_table();
@@ -419,16 +405,23 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
         adj[fill[ed[1]]++] = ed[0];
       }
   }
-  part_edges.clear();
-  part_edges.shrink_to_fit();
-  intr.check(0.6);
+  sv.off = std::move(off);
+  sv.adj = std::move(adj);
+}
 
-  // 3. Junction collapse: non-1-manifold voxels connected by 1-cells form one node (§3.1.2).
-  auto is_line = [&](int64_t i) {
-    return cls[i] == static_cast<uint8_t>(ManifoldType::line) ||
-           cls[i] == static_cast<uint8_t>(ManifoldType::line_end);
-  };
-  auto is_node_voxel = [&](int64_t i) { return cls[i] != static_cast<uint8_t>(ManifoldType::line); };
+void read_radius(SkeletonVoxels& sv, const DataObject& distance, double scale) {
+  const int64_t n = sv.size();
+  sv.rad.resize(n);
+  visit_volume(distance, "distance", [&](const auto& d) {
+    for (int64_t i = 0; i < n; ++i) sv.rad[i] = static_cast<double>(d[sv.vox[i]]) * scale;
+  });
+}
+
+std::vector<int64_t> collapse_junctions(const SkeletonVoxels& sv) {
+  const int64_t n = sv.size();
+  const std::vector<int64_t>& off = sv.off;
+  const std::vector<int64_t>& adj = sv.adj;
+  auto is_line = [&](int64_t i) { return sv.is_line(i); };
   std::vector<int64_t> parent(n);
   std::iota(parent.begin(), parent.end(), int64_t{0});
   for (int64_t i = 0; i < n; ++i) {
@@ -440,31 +433,25 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
       if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
     }
   }
+  return parent;
+}
 
-  SkeletonGraphResult result;
-  SpatialGraph& g = result.graph;
-  g.source_grid = grid;
-  const bool with_radius = distance != nullptr;
-  std::vector<double> rad;
-  if (with_radius) {
-    rad.resize(n);
-    visit_volume(*distance, "distance", [&](const auto& d) {
-      for (int64_t i = 0; i < n; ++i) rad[i] = static_cast<double>(d[vox[i]]) * options.radius_scale;
-    });
-  }
-  auto pos = [&](int64_t i) {
-    const int64_t idx = vox[i];
-    return grid.position(static_cast<double>(idx % nx), static_cast<double>(idx / nx % acc.ny),
-                         static_cast<double>(idx / nxy));
-  };
-
-  // Nodes: one per collapsed component (at its centroid) and per 1-boundary voxel, numbered in the
-  // order of their first voxel.
-  std::vector<int64_t> node_of(n, -1);
+GraphBuild make_nodes(const SkeletonVoxels& sv, std::vector<int64_t>& parent, bool with_radius) {
+  const int64_t n = sv.size();
+  const std::vector<uint8_t>& cls = sv.cls;
+  const std::vector<double>& rad = sv.rad;
+  auto is_node_voxel = [&](int64_t i) { return sv.is_node_voxel(i); };
+  auto pos = [&](int64_t i) { return sv.position(i); };
+  GraphBuild b;
+  b.with_radius = with_radius;
+  SpatialGraph& g = b.graph;
+  g.source_grid = sv.skeleton->grid();
+  std::vector<int64_t>& node_of = b.node_of;
+  node_of.assign(n, -1);
   std::vector<Vec3> sum;
   std::vector<int64_t> members;
-  std::vector<double> node_rad;
-  std::vector<int32_t> node_kind;
+  std::vector<double>& node_rad = b.node_rad;
+  std::vector<int32_t>& node_kind = b.node_kind;
   for (int64_t i = 0; i < n; ++i) {
     if (!is_node_voxel(i)) continue;
     const int64_t r = find_root(parent, i);
@@ -487,17 +474,25 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
     const double m = static_cast<double>(members[nd]);
     g.add_node({sum[nd][0] / m, sum[nd][1] / m, sum[nd][2] / m});
   }
-  intr.check(0.7);
+  return b;
+}
 
-  // 4. Chains of 1-manifold voxels become edge polylines (simplification, fig. 3.13).
-  std::vector<uint8_t> visited(n, 0);
-  std::vector<std::vector<float>> point_rad;
-  std::vector<Vec3> pts;
-  std::vector<float> prad;
-  auto emit = [&](int64_t n0, int64_t n1) {
-    g.edges.push_back(GraphEdge{n0, n1, pts});
-    if (with_radius) point_rad.push_back(prad);
-  };
+void trace_chains(const SkeletonVoxels& sv, GraphBuild& b) {
+  const int64_t n = sv.size();
+  const std::vector<int64_t>& off = sv.off;
+  const std::vector<int64_t>& adj = sv.adj;
+  const std::vector<double>& rad = sv.rad;
+  const bool with_radius = b.with_radius;
+  auto is_node_voxel = [&](int64_t i) { return sv.is_node_voxel(i); };
+  auto pos = [&](int64_t i) { return sv.position(i); };
+  SpatialGraph& g = b.graph;
+  const std::vector<int64_t>& node_of = b.node_of;
+  const std::vector<double>& node_rad = b.node_rad;
+  std::vector<uint8_t>& visited = b.visited;
+  visited.assign(n, 0);
+  std::vector<Vec3>& pts = b.pts;
+  std::vector<float>& prad = b.prad;
+  auto emit = [&](int64_t n0, int64_t n1) { b.emit(n0, n1); };
   for (int64_t i = 0; i < n; ++i) {
     if (!is_node_voxel(i)) continue;
     const int64_t ni = node_of[i];
@@ -528,11 +523,29 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
       emit(ni, node_of[cur]);
     }
   }
-  // Tunnels inside collapsed components (e.g. a ring of junction voxels around a hole): collapsing
-  // a component to one point would lose them, so each independent cycle of the component's cell
-  // complex that does not bound its 2-cells becomes a loop edge on the component's node, drawn along
-  // the cycle's voxels.
-  {
+}
+
+void tunnel_loops(const SkeletonVoxels& sv, GraphBuild& b) {
+  const auto& table = dual_cube_table();
+  const auto& pt = pair_table();
+  const Accessor acc{sv.skeleton->data(), sv.skeleton->nx(), sv.skeleton->ny(), sv.skeleton->nz()};
+  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
+  const int64_t n = sv.size();
+  const std::vector<int64_t>& vox = sv.vox;
+  const std::vector<uint8_t>& cls = sv.cls;
+  const std::vector<int64_t>& off = sv.off;
+  const std::vector<int64_t>& adj = sv.adj;
+  const std::vector<double>& rad = sv.rad;
+  const bool with_radius = b.with_radius;
+  auto is_line = [&](int64_t i) { return sv.is_line(i); };
+  auto id_from = [&](int64_t i, int64_t idx) { return sv.id_from(i, idx); };
+  auto pos = [&](int64_t i) { return sv.position(i); };
+  SpatialGraph& g = b.graph;
+  const std::vector<int64_t>& node_of = b.node_of;
+  const std::vector<double>& node_rad = b.node_rad;
+  std::vector<Vec3>& pts = b.pts;
+  std::vector<float>& prad = b.prad;
+  auto emit = [&](int64_t n0, int64_t n1) { b.emit(n0, n1); };
     std::vector<std::vector<int64_t>> comp_members(g.positions.size());
     for (int64_t i = 0; i < n; ++i)
       if (!is_line(i) && cls[i] != static_cast<uint8_t>(ManifoldType::point)) comp_members[node_of[i]].push_back(i);
@@ -661,8 +674,24 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
         emit(nid, nid);
       }
     }
-  }
-  // Isolated loops of 1-manifold voxels: one loop edge on a node at the loop's first voxel.
+}
+
+void isolated_loops(const SkeletonVoxels& sv, GraphBuild& b) {
+  const int64_t n = sv.size();
+  const std::vector<uint8_t>& cls = sv.cls;
+  const std::vector<int64_t>& off = sv.off;
+  const std::vector<int64_t>& adj = sv.adj;
+  const std::vector<double>& rad = sv.rad;
+  const bool with_radius = b.with_radius;
+  auto is_node_voxel = [&](int64_t i) { return sv.is_node_voxel(i); };
+  auto pos = [&](int64_t i) { return sv.position(i); };
+  SpatialGraph& g = b.graph;
+  std::vector<double>& node_rad = b.node_rad;
+  std::vector<int32_t>& node_kind = b.node_kind;
+  std::vector<uint8_t>& visited = b.visited;
+  std::vector<Vec3>& pts = b.pts;
+  std::vector<float>& prad = b.prad;
+  auto emit = [&](int64_t n0, int64_t n1) { b.emit(n0, n1); };
   for (int64_t i = 0; i < n; ++i) {
     if (is_node_voxel(i) || visited[i]) continue;
     const int64_t nd = g.add_node(pos(i));
@@ -685,19 +714,59 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
     prad.push_back(static_cast<float>(node_rad[nd]));
     emit(nd, nd);
   }
+}
+
+}  // namespace detail
+
+SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject* distance,
+                                      const SkeletonToGraphOptions& options) {
+  const Grid& grid = skeleton.grid();
+  if (distance != nullptr) {
+    const Grid& dg = volume_grid(*distance, "distance");
+    if (dg.dims != grid.dims)
+      throw InputError("input 'distance': dims " + std::to_string(dg.dims[0]) + "x" +
+                       std::to_string(dg.dims[1]) + "x" + std::to_string(dg.dims[2]) +
+                       " differ from the skeleton's " + std::to_string(grid.dims[0]) + "x" +
+                       std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]));
+  }
+  if (options.smooth_passes > 0 && options.smooth_kernel < 3)
+    throw InputError("parameter 'smooth_kernel': expected >= 3 points, got " +
+                     std::to_string(options.smooth_kernel));
+  const Interrupter& intr = options.interrupter;
+  const int threads = options.threads;
+
+  detail::SkeletonVoxels sv = detail::collect_voxels(skeleton, threads, intr.sub(0.0, 0.2));
+  detail::classify_voxels(sv, threads, intr);  // 1.
+  intr.check(0.4);
+  detail::connect_one_cells(sv, threads, intr);  // 2.
+  intr.check(0.6);
+  std::vector<int64_t> parent = detail::collapse_junctions(sv);  // 3.
+  const bool with_radius = distance != nullptr;
+  if (with_radius) detail::read_radius(sv, *distance, options.radius_scale);
+  detail::GraphBuild b = detail::make_nodes(sv, parent, with_radius);
+  intr.check(0.7);
+  detail::trace_chains(sv, b);  // 4.
+  detail::tunnel_loops(sv, b);
+  detail::isolated_loops(sv, b);
   intr.check(0.9);
 
+  SkeletonGraphResult result;
+  result.graph = std::move(b.graph);
+  SpatialGraph& g = result.graph;
+  const std::vector<double>& node_rad = b.node_rad;
+  const std::vector<int32_t>& node_kind = b.node_kind;
+  const int64_t n = sv.size();
   auto& kind = g.ensure_node_label("kind");
   for (size_t nd = 0; nd < kind.size(); ++nd) kind[nd] = node_kind[nd];
   if (with_radius) {
     auto& nr = g.ensure_node_attribute("radius");
     for (size_t nd = 0; nd < nr.size(); ++nd) nr[nd] = static_cast<float>(node_rad[nd]);
-    g.point_attributes["radius"] = std::move(point_rad);
+    g.point_attributes["radius"] = std::move(b.point_rad);
   }
   smooth_edges(g, options.smooth_passes, options.smooth_kernel);
   if (options.want_manifold) {
     result.manifold = VolumeU8(grid, 0);
-    for (int64_t i = 0; i < n; ++i) result.manifold[vox[i]] = cls[i];
+    for (int64_t i = 0; i < n; ++i) result.manifold[sv.vox[i]] = sv.cls[i];
   }
   intr.check(1.0);
   return result;

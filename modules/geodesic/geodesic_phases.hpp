@@ -1,0 +1,252 @@
+#pragma once
+// The phases of boundary_distance (geodesic.hpp, thesis §2.3.2), for geodesic.cpp and its tests.
+// Not part of the module's API: names and signatures follow the implementation.
+//
+// boundary_distance runs, in order:
+//   1. prepare: the object and layer bitmaps (L = background voxels 26-adjacent to the object), the
+//      nearest background point b(p) of every object voxel, the 6-components of L;
+//   2. bucket_by_base: the object voxels grouped by b(p);
+//   3. search_bases: per base point with work, its own breadth-first search over L to the targets of
+//      its voxels (own_bfs), and where that runs to the threshold a pivot search (pivot_bfs) that
+//      settles the far targets of the bases near it (process_base); the importance of every voxel;
+//   4. threshold_surface: the surface skeleton (importance >= t).
+#include <atomic>
+#include <bit>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "geodesic/geodesic.hpp"
+#include "skel/interrupter.hpp"
+#include "skel/volume.hpp"
+
+namespace skel::geodesic::detail {
+
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+
+// A bitmap over the padded domain with O(1) rank (number of set bits before a position).
+// 2 bits per voxel. Before build_rank(), `words` holds the bits; after, pairs (bits of word w, set
+// bits before word w) interleaved, so a test and a rank touch one cache line.
+struct RankBits {
+  std::vector<uint64_t> words;
+  [[nodiscard]] uint64_t word(size_t w) const { return words[2 * w]; }
+  [[nodiscard]] uint64_t prefix(size_t w) const { return words[2 * w + 1]; }
+  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6) * 2] >> (pos & 63)) & 1u; }
+  [[nodiscard]] uint64_t rank(int64_t pos) const {
+    const size_t w = static_cast<size_t>(pos >> 6) * 2;
+    const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
+    return words[w + 1] + static_cast<uint64_t>(std::popcount(below));
+  }
+  uint64_t build_rank() {
+    const size_t n = words.size();
+    words.resize(2 * n);
+    for (size_t i = n; i-- > 1;) words[2 * i] = words[i];  // spread in place (word 0 stays)
+    uint64_t s = 0;
+    for (size_t i = 0; i < n; ++i) {
+      words[2 * i + 1] = s;
+      s += static_cast<uint64_t>(std::popcount(words[2 * i]));
+    }
+    return s;
+  }
+  [[nodiscard]] size_t word_count() const { return words.size() / 2; }
+  [[nodiscard]] uint64_t bytes() const { return words.size() * 8; }
+};
+
+struct Coord {
+  uint16_t x, y, z;
+};
+
+// The padded domain: mask voxel (x, y, z) lives at bit position (x+2) + BX*((y+2) + BY*(z+2)).
+// Rows start at word boundaries; two empty voxels on every side (the first belongs to the domain as
+// background "outside the array", the second is a guard that is never set).
+struct Domain {
+  int64_t nx, ny, nz, BX, BY, BZ, plane;
+  explicit Domain(const Dims& d) : nx(d[0]), ny(d[1]), nz(d[2]) {
+    BX = ((nx + 4 + 63) / 64) * 64;
+    BY = ny + 4;
+    BZ = nz + 4;
+    plane = BX * BY;
+  }
+  [[nodiscard]] int64_t pos(int64_t x, int64_t y, int64_t z) const { return x + BX * (y + BY * z); }
+  [[nodiscard]] int64_t bits() const { return BX * BY * BZ; }
+  [[nodiscard]] int64_t row_words() const { return BX / 64; }
+};
+
+struct Prepared {
+  Domain dom;
+  RankBits obj, layer;
+  std::vector<Coord> lcoord;  // L-id -> padded coordinates (freed after the nearest-point transform
+                              // unless kept for the reference; searches carry positions instead)
+  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point
+  std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
+  int64_t k = 0, nl = 0;
+  uint64_t prepare_bytes = 0;  // peak working memory of prepare()
+  explicit Prepared(const Dims& d) : dom(d) {}
+  [[nodiscard]] int64_t lpos(uint32_t l) const { return dom.pos(lcoord[l].x, lcoord[l].y, lcoord[l].z); }
+  // L-id of the nearest background point of the voxel at `pos` (object or layer voxel).
+  [[nodiscard]] uint32_t base_of(int64_t pos) const {
+    if (obj.test(pos)) return b[obj.rank(pos)];
+    return static_cast<uint32_t>(layer.rank(pos));
+  }
+};
+
+
+// The 26 neighbour offsets in the padded domain.
+std::vector<int64_t> offsets26(const Domain& d);
+
+// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform and L's components.
+// L coordinates are freed afterwards unless `keep_coords`.
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords);
+
+// Scratch of one worker. Own searches need only "visited" and "target" marks (one byte per L voxel:
+// the search runs level by level, so the distance is the level); pivot searches keep 8- or 16-bit
+// distances (d + 1, 0 = unvisited; none without pivots) because targets of neighbouring bases are
+// looked up afterwards. Both are reset through the lists of voxels they touched, so a search costs
+// O(visited), never O(|L|).
+struct Scratch {
+  static constexpr uint8_t kVisited = 1, kTarget = 2;
+  std::vector<uint8_t> mark;      // own search: kVisited | kTarget
+  std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
+  std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
+  std::vector<uint32_t> queue;  // own search: visited voxels in distance order (cleared after the search)
+  std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
+  std::vector<int64_t> qpos;    // padded positions of the current search's queue
+  Scratch(size_t nl, uint32_t pivot_limit) : mark(nl, 0) {
+    if (pivot_limit == 0) return;
+    if (pivot_limit <= 254) pdist8.assign(nl, 0);
+    else pdist16.assign(nl, 0);
+  }
+  [[nodiscard]] uint32_t pdist(uint32_t v) const { return pdist8.empty() ? pdist16[v] : pdist8[v]; }
+  [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist(v) != 0; }
+  [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return pdist(v) - 1; }
+  [[nodiscard]] uint64_t bytes() const {
+    return mark.size() + pdist8.size() + pdist16.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4 + qpos.capacity() * 8;
+  }
+};
+
+// Object voxels grouped by base point, as padded positions: 32-bit where the padded domain allows.
+struct Members {
+  bool wide = false;
+  std::vector<uint32_t> narrow;
+  std::vector<int64_t> full;
+  void resize(size_t n, bool w) {
+    wide = w;
+    if (wide) full.resize(n);
+    else narrow.resize(n);
+  }
+  void set(size_t i, int64_t pos) {
+    if (wide) full[i] = pos;
+    else narrow[i] = static_cast<uint32_t>(pos);
+  }
+  [[nodiscard]] int64_t operator[](size_t i) const { return wide ? full[i] : static_cast<int64_t>(narrow[i]); }
+  [[nodiscard]] uint64_t bytes() const { return narrow.size() * 4 + full.size() * 8; }
+};
+
+// The considered neighbours of object voxel `pos` and their base points.
+template <class F>
+void for_each_target(const Prepared& P, int64_t pos, F&& f) {
+  const int64_t offs[3] = {1, P.dom.BX, P.dom.plane};
+  for (int64_t o : offs) {
+    // Lower neighbour: always (object or layer).
+    f(P.base_of(pos - o));
+    // Upper neighbour: only if background (then it is in L).
+    if (!P.obj.test(pos + o)) f(static_cast<uint32_t>(P.layer.rank(pos + o)));
+  }
+}
+
+// Phase 2: object voxels grouped by base point b(p) (counting sort): the voxels of base l are
+// members[start[l] .. start[l+1]), as padded positions in raster order.
+struct Buckets {
+  std::vector<uint32_t> start;
+  Members members;
+  [[nodiscard]] bool has_work(uint32_t l) const { return start[l + 1] > start[l]; }
+};
+Buckets bucket_by_base(const Prepared& P);
+
+// The 6-neighbours of the L voxel at padded position `pos` that are in L: f(L-id, position).
+// (Searches queue positions as well as L-ids, so a visit needs no coordinate look-up.)
+template <class F>
+inline void for_each_layer_neighbour(const Prepared& P, int64_t pos, F&& f) {
+  const int64_t nb[6] = {pos - 1, pos + 1, pos - P.dom.BX, pos + P.dom.BX, pos - P.dom.plane, pos + P.dom.plane};
+  for (int64_t q : nb)
+    if (P.layer.test(q)) f(static_cast<uint32_t>(P.layer.rank(q)), q);
+}
+
+// Own search: breadth-first over L from `src`, level by level up to distance `limit`, stopping once
+// every target in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns
+// the number of visited voxels. The marks are cleared again before returning.
+int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
+                const std::vector<uint32_t>& want, std::vector<uint32_t>& wd);
+
+// Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
+// distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
+// voxels in distance order. Returns the number of visited voxels.
+int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit);
+
+// What the workers of phase 3 share: inputs, the output, the claims and the counters.
+struct SearchShared {
+  const Prepared& P;
+  const Buckets& B;
+  const VolumeU8& mask;
+  float* importance;       // output, mask.size() values (each voxel written once)
+  uint32_t t = 0;          // threshold
+  bool full = false;       // Mode::Full
+  uint32_t pivot_margin = 0;  // 0 = no pivots
+  // Bases are claimed once: by their own search or by a neighbouring pivot.
+  std::vector<std::atomic<uint64_t>> claimed;
+  std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
+
+  SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& m, float* out, uint32_t threshold, bool full_mode);
+  // True for the one caller that claims base l.
+  bool claim(uint32_t l) {
+    const uint64_t bit = uint64_t{1} << (l & 63);
+    return !(claimed[l >> 6].fetch_or(bit) & bit);
+  }
+  // Index in the mask of the object voxel at padded position `pos`.
+  [[nodiscard]] int64_t mask_index(int64_t pos) const {
+    const int64_t z = pos / P.dom.plane, rem = pos % P.dom.plane;
+    return mask.index(rem % P.dom.BX - 2, rem / P.dom.BX - 2, z - 2);
+  }
+};
+
+// The work on one base's bucket (and, after a pivot, on a neighbouring base's).
+class BaseWork {
+public:
+  BaseWork(SearchShared& sh, Scratch& S) : sh_(sh), S_(S) {}
+  // targets = the distinct bases of the considered neighbours of the bucket's voxels; tdist = kNone.
+  void gather(uint32_t base_id);
+  // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
+  // its other targets are searched only if another voxel of the bucket needs them: needed[i].
+  void mark_needed(uint32_t base_id);
+  // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
+  // component of L (the others have no path: infinite). Returns true if targets were left when the
+  // search reached the threshold.
+  bool own_search(uint32_t base_id, int64_t base_pos);
+  // Importance of the bucket's voxels from tdist.
+  void finish(uint32_t base_id);
+
+  std::vector<uint32_t> targets, tdist;
+  std::vector<uint8_t> needed;
+
+private:
+  SearchShared& sh_;
+  Scratch& S_;
+  std::vector<uint32_t> want_, wd_;
+  std::vector<size_t> want_index_;
+};
+
+// Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
+// to t + margin that settles the far targets of all bases within `margin` of `a` (triangle
+// inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
+void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos);
+
+// Phase 3: every base with work, claimed once, on `threads` workers; returns the bytes of the
+// workers' scratch. The importance does not depend on the thread count.
+uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& progress);
+
+// Phase 4: skeleton[i] = importance[i] >= t.
+void threshold_surface(const VolumeF32& importance, VolumeU8& skeleton, uint32_t t, int threads);
+
+}  // namespace skel::geodesic::detail

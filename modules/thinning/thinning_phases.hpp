@@ -1,0 +1,478 @@
+#pragma once
+// The phases of distance ordered homotopic thinning (thin_doht, thesis §2.3.1), for thinning.cpp and
+// its tests. Not part of the module's API: names and signatures follow the implementation.
+//
+// thin_doht runs, in order:
+//   1. scan_planes: voxel state flags, the distinct priority keys, the boundary voxels per z-plane;
+//   2. Levels: priorities ranked into dense integer levels (the buckets of the queue);
+//   3. fill_initial_queue: the boundary voxels in raster order within each level;
+//   4. Removal::run_basic (Algorithm 1) or Removal::run_smooth (Algorithm 2: per level, a parallel
+//      check, the choice of a sub-iteration direction and a sequential recheck);
+//   5. collect_skeleton, count_skeleton (kept end points, locked and interior voxels),
+//      count_stuck (fig. 2.23 components), finish_state (flags back to 0/1).
+// The per-voxel steps (Thinner, Levels::level, candidate_directions, Removal::remove) are inline so
+// that the loops of the phases keep them inlined.
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <bit>
+#include <cstdint>
+#include <memory>
+#include <type_traits>
+#include <vector>
+
+#include "skel/big_vector.hpp"
+#include "skel/interrupter.hpp"
+#include "skel/volume.hpp"
+#include "thinning/local_topology.hpp"
+#include "thinning/thinning.hpp"
+
+namespace skel::thinning::detail {
+
+// Voxel state bits, kept in the output volume while thinning runs. kQueued: in the queue or a
+// candidate of the running sub-iteration; kVisited: skeleton component search after thinning.
+constexpr uint8_t kObject = 1, kQueued = 2, kVisited = 4, kLocked = 8, kBorder = 16;
+// A 26-neighbour was removed since the voxel's sub-iteration directions were cached (smooth variant).
+constexpr uint8_t kDirty = 32;
+// Smooth-variant queue entries may carry the voxel's cached sub-iteration directions (bits 56..61)
+// and a validity bit (62) above the voxel index (< 2^56).
+constexpr uint64_t kIndexMask = (uint64_t{1} << 56) - 1, kCacheValid = uint64_t{1} << 62;
+
+// Direction masks of fig. 2.17 for the 26 neighbour directions v.
+struct DirectionMasks {
+  std::array<uint32_t, 26> strict_bg{};  // neighbours t + w with w in the closed octant face of v
+  std::array<uint32_t, 26> weak_bg{};    // neighbour t + v only
+  std::array<uint32_t, 26> obj{};        // neighbour t - v
+  std::array<uint32_t, 26> dirs{};       // sub-iteration directions of v
+};
+
+// The masks, built once on first use.
+const DirectionMasks& direction_masks();
+
+// Queue entries looked ahead when prefetching the state and priorities they will touch (the check,
+// flag and removal loops walk the level bucket in queue order; its voxels are scattered).
+constexpr int64_t kAhead = 8;  // (flag loop: 2 x kAhead)
+
+// Sub-iteration order: up, down, north, south, east, west (+z, -z, +y, -y, +x, -x).
+constexpr std::array<int, 6> kDirectionOrder = {4, 5, 2, 3, 0, 1};
+
+// The direction of the sub-iteration `iteration` (1, 2, ...) among the directions present in `x`
+// (bits as thinning_directions): the first present one in kDirectionOrder, starting at position
+// iteration % 6, so the sub-iterations rotate through the directions. -1 if x is empty.
+inline int choose_subiteration(uint32_t x, int64_t iteration) {
+  for (int k = 0; k < 6; ++k) {
+    const int d = kDirectionOrder[static_cast<size_t>((iteration + k) % 6)];
+    if (x & (1u << d)) return d;
+  }
+  return -1;
+}
+
+// thinning_directions(nb) (fig. 2.17): the directions of the strict masks that match, else those
+// of the weak masks.
+inline uint32_t matched_directions(uint32_t nb, const DirectionMasks& dm) {
+  uint32_t d = 0;
+  for (int k = 0; k < 26; ++k)
+    if ((nb & dm.strict_bg[static_cast<size_t>(k)]) == 0 && (nb & dm.obj[static_cast<size_t>(k)]))
+      d |= dm.dirs[static_cast<size_t>(k)];
+  if (d == 0)
+    for (int k = 0; k < 26; ++k)
+      if ((nb & dm.weak_bg[static_cast<size_t>(k)]) == 0 && (nb & dm.obj[static_cast<size_t>(k)]))
+        d |= dm.dirs[static_cast<size_t>(k)];
+  return d;
+}
+
+// The sub-iteration directions of a deletable voxel with 26-neighbourhood `nb` as the smooth
+// variant's check stores them: thinning_directions(nb), all six if that is empty (cannot happen for
+// a simple voxel; kept as a guard), and bit 6 for a local end point (exactly one neighbour): end
+// points depend on voxels beyond the 26-neighbourhood, so their check is never cached.
+inline uint32_t candidate_directions(uint32_t nb, const DirectionMasks& dm) {
+  uint32_t d = matched_directions(nb, dm);
+  if (d == 0) d = 63u;
+  if (std::popcount(nb) == 1) d |= 64u;
+  return d;
+}
+
+// Order-preserving unsigned keys for priority values.
+template <class T>
+uint64_t order_key(T v) {
+  if constexpr (std::is_floating_point_v<T>) {
+    const double d = static_cast<double>(v) == 0.0 ? 0.0 : static_cast<double>(v);  // -0 == +0
+    const uint64_t b = std::bit_cast<uint64_t>(d);
+    return (b & (uint64_t{1} << 63)) ? ~b : (b | (uint64_t{1} << 63));
+  } else if constexpr (std::is_signed_v<T>) {
+    return static_cast<uint64_t>(static_cast<int64_t>(v)) ^ (uint64_t{1} << 63);
+  } else {
+    return static_cast<uint64_t>(v);
+  }
+}
+
+// A set of distinct 64-bit keys (open addressing; repeated keys are cheap).
+class KeySet {
+public:
+  void insert(uint64_t k) {
+    if (has_last_ && k == last_) return;
+    has_last_ = true;
+    last_ = k;
+    size_t h = slot(k);
+    while (used_[h]) {
+      if (table_[h] == k) return;
+      h = (h + 1) & (table_.size() - 1);
+    }
+    used_[h] = 1;
+    table_[h] = k;
+    if (++count_ * 2 > table_.size()) grow();
+  }
+  void append_to(std::vector<uint64_t>& out) const {
+    for (size_t j = 0; j < table_.size(); ++j)
+      if (used_[j]) out.push_back(table_[j]);
+  }
+
+private:
+  [[nodiscard]] size_t slot(uint64_t k) const {
+    return static_cast<size_t>((k * 0x9E3779B97F4A7C15ull) >> 20) & (table_.size() - 1);
+  }
+  void grow() {
+    std::vector<uint64_t> keys;
+    append_to(keys);
+    table_.assign(table_.size() * 4, 0);
+    used_.assign(used_.size() * 4, 0);
+    for (uint64_t k : keys) {
+      size_t h = slot(k);
+      while (used_[h]) h = (h + 1) & (table_.size() - 1);
+      used_[h] = 1;
+      table_[h] = k;
+    }
+  }
+  std::vector<uint64_t> table_ = std::vector<uint64_t>(256, 0);
+  std::vector<char> used_ = std::vector<char>(256, 0);
+  size_t count_ = 0;
+  bool has_last_ = false;
+  uint64_t last_ = 0;
+};
+
+// Maps priority values of object voxels to dense integer levels 0..count-1: the rank of the value
+// among the distinct values; integer priorities with a small range use value - min directly.
+template <class T>
+class Levels {
+public:
+  // `all`: the distinct keys of the object voxels' priorities (any order; sorted here).
+  Levels(const T* pr, std::vector<uint64_t> all) : pr_(pr) {
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    if (all.empty()) return;
+    count_ = static_cast<int64_t>(all.size());
+    if constexpr (std::is_integral_v<T>) {
+      const uint64_t range = all.back() - all.front();
+      if (range < (uint64_t{1} << 22) && range <= 4 * static_cast<uint64_t>(all.size()) + 4096) {
+        direct_ = true;
+        min_key_ = all.front();
+        count_ = static_cast<int64_t>(range + 1);
+        return;
+      }
+    }
+    size_t cap = 16;
+    while (cap < 2 * all.size()) cap *= 2;
+    keys_.assign(cap, 0);
+    ranks_.assign(cap, -1);
+    for (size_t r = 0; r < all.size(); ++r) {
+      size_t h = slot(all[r]);
+      while (ranks_[h] >= 0) h = (h + 1) & (cap - 1);
+      keys_[h] = all[r];
+      ranks_[h] = static_cast<int32_t>(r);
+    }
+  }
+  [[nodiscard]] int64_t count() const { return count_; }
+  [[nodiscard]] uint64_t bytes() const { return keys_.size() * 12; }
+  // Level of object voxel i, from its priority (hash of the distinct values; no per-voxel array:
+  // measured faster than building one).
+  [[nodiscard]] uint32_t level(int64_t i) const { return level_from_priority(i); }
+  [[nodiscard]] uint32_t level_from_priority(int64_t i) const {
+    const uint64_t k = order_key(pr_[i]);
+    if (direct_) return static_cast<uint32_t>(k - min_key_);
+    size_t h = slot(k);
+    while (keys_[h] != k) h = (h + 1) & (keys_.size() - 1);
+    return static_cast<uint32_t>(ranks_[h]);
+  }
+
+private:
+  [[nodiscard]] size_t slot(uint64_t k) const {
+    return static_cast<size_t>((k * 0x9E3779B97F4A7C15ull) >> 17) & (keys_.size() - 1);
+  }
+  const T* pr_;
+  bool direct_ = false;
+  uint64_t min_key_ = 0;
+  int64_t count_ = 0;
+  std::vector<uint64_t> keys_;
+  std::vector<int32_t> ranks_;
+};
+
+// The thinning state: voxel flags in `st` (the output buffer), neighbour offsets, local tests.
+class Thinner {
+public:
+  Thinner(uint8_t* st, Dims dims, int end_point_length)
+      : st_(st), nx_(dims[0]), ny_(dims[1]), nz_(dims[2]), l_(end_point_length) {
+    int k = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0 && dz == 0) continue;
+          off_[static_cast<size_t>(k)] = dx + nx_ * (dy + ny_ * dz);
+          d_[static_cast<size_t>(k)] = {dx, dy, dz};
+          ++k;
+        }
+    f6_ = {1, -1, nx_, -nx_, nx_ * ny_, -nx_ * ny_};
+    for (int r = 0; r < 9; ++r) row_[static_cast<size_t>(r)] = nx_ * ((r % 3 - 1) + ny_ * (r / 3 - 1));
+  }
+
+  [[nodiscard]] uint32_t neighbourhood(int64_t i) const {
+    if (st_[i] & kBorder) return neighbourhood_slow(i);
+    const uint8_t* p = st_ + i;
+    uint32_t nb = 0;
+    for (int k = 0; k < 26; ++k) nb |= static_cast<uint32_t>(p[off_[static_cast<size_t>(k)]] & kObject) << k;
+    return nb;
+  }
+
+  // Prefetch hints for the nine rows of the 3x3x3 neighbourhood of i: state (and priority) bytes.
+  // Addresses are formed as integers: rows of a voxel on an array face may lie outside the arrays,
+  // which a prefetch ignores.
+  template <class P>
+  void prefetch(int64_t i, const P* pv) const {
+    for (const int64_t r : row_) {
+      __builtin_prefetch(address(st_, i + r - 1), 1);
+      __builtin_prefetch(address(pv, i + r - 1), 0);
+    }
+  }
+  void prefetch_state(int64_t i) const {
+    for (const int64_t r : row_) __builtin_prefetch(address(st_, i + r - 1), 0);
+  }
+  template <class P>
+  static const void* address(const P* base, int64_t i) {
+    return reinterpret_cast<const void*>(reinterpret_cast<uintptr_t>(base) + static_cast<uintptr_t>(i) * sizeof(P));
+  }
+
+  // Object neighbours of i as indices (returns count).
+  int neighbours(int64_t i, int64_t* out) const {
+    int c = 0;
+    if (st_[i] & kBorder) {
+      int64_t x, y, z;
+      decode(i, x, y, z);
+      for (int k = 0; k < 26; ++k) {
+        const auto& d = d_[static_cast<size_t>(k)];
+        const int64_t a = x + d[0], b = y + d[1], e = z + d[2];
+        if (a < 0 || b < 0 || e < 0 || a >= nx_ || b >= ny_ || e >= nz_) continue;
+        const int64_t j = i + off_[static_cast<size_t>(k)];
+        if (st_[j] & kObject) out[c++] = j;
+      }
+    } else {
+      for (int k = 0; k < 26; ++k) {
+        const int64_t j = i + off_[static_cast<size_t>(k)];
+        if (st_[j] & kObject) out[c++] = j;
+      }
+    }
+    return c;
+  }
+
+  // Deletable in the current object: simple and not a kept end point. Returns the neighbourhood
+  // word through `nb_out` for callers that need the sub-iteration directions.
+  bool deletable(int64_t i, uint32_t& nb_out) const {
+    if (!(st_[i] & kBorder)) {
+      const uint8_t* p = st_ + i;
+      if (p[f6_[0]] & p[f6_[1]] & p[f6_[2]] & p[f6_[3]] & p[f6_[4]] & p[f6_[5]] & kObject) return false;
+    }
+    const uint32_t nb = neighbourhood(i);
+    nb_out = nb;
+    if (!simple(nb)) return false;
+    if (l_ > 0 && std::popcount(nb) == 1 && importance(i) > l_) return false;
+    return true;
+  }
+
+  // The exact simple test behind a small direct-mapped cache of recent answers (thinning meets the
+  // same configurations over and over). Each slot packs the 26-bit configuration, a valid bit and
+  // the answer in one relaxed atomic word, so the parallel check may share it; only speed depends
+  // on its contents, never the answer.
+  [[nodiscard]] bool simple(uint32_t nb) const {
+    std::atomic<uint32_t>& slot = cache_[(nb * 0x9E3779B1u) >> (32 - kCacheBits)];
+    const uint32_t c = slot.load(std::memory_order_relaxed);
+    if ((c & ((1u << 27) - 1)) == (nb | (1u << 26))) return (c >> 27) & 1u;
+    const bool r = is_simple_direct(nb);
+    slot.store(nb | (1u << 26) | (static_cast<uint32_t>(r) << 27), std::memory_order_relaxed);
+    return r;
+  }
+
+  // Importance of the local end point i (thesis §2.3.1): the number of voxels p_0 = i, p_1, ... that
+  // are local end points in turn, each after removing its predecessors; counted up to l + 1.
+  [[nodiscard]] int importance(int64_t i) const {
+    int n = 0;
+    int64_t prev = -1, cur = i;
+    int64_t nbr[26];
+    while (true) {
+      const int c = neighbours(cur, nbr);
+      int64_t next = -1;
+      int count = 0;
+      for (int k = 0; k < c; ++k)
+        if (nbr[k] != prev) {
+          ++count;
+          next = nbr[k];
+        }
+      if (count != 1) return n;
+      if (++n > l_) return n;
+      prev = cur;
+      cur = next;
+    }
+  }
+
+  void decode(int64_t i, int64_t& x, int64_t& y, int64_t& z) const {
+    x = i % nx_;
+    y = (i / nx_) % ny_;
+    z = i / (nx_ * ny_);
+  }
+
+  [[nodiscard]] uint32_t neighbourhood_slow(int64_t i) const {
+    int64_t x, y, z;
+    decode(i, x, y, z);
+    uint32_t nb = 0;
+    for (int k = 0; k < 26; ++k) {
+      const auto& d = d_[static_cast<size_t>(k)];
+      const int64_t a = x + d[0], b = y + d[1], e = z + d[2];
+      if (a < 0 || b < 0 || e < 0 || a >= nx_ || b >= ny_ || e >= nz_) continue;
+      nb |= static_cast<uint32_t>(st_[i + off_[static_cast<size_t>(k)]] & kObject) << k;
+    }
+    return nb;
+  }
+
+  uint8_t* st_;
+  int64_t nx_, ny_, nz_;
+  int l_;
+  std::array<int64_t, 26> off_{};
+  std::array<std::array<int, 3>, 26> d_{};
+  std::array<int64_t, 6> f6_{};
+  std::array<int64_t, 9> row_{};  // index offsets of the nine rows of the 3x3x3 neighbourhood
+  static constexpr int kCacheBits = 15;
+  std::unique_ptr<std::atomic<uint32_t>[]> cache_{new std::atomic<uint32_t>[size_t{1} << kCacheBits]()};
+};
+
+// Bucket queue over dense levels; FIFO inside a bucket.
+struct BucketQueue {
+  std::vector<BigVector<int64_t>> bucket;
+  std::vector<size_t> head;
+  int64_t lowest = 0;
+  int64_t size = 0, peak = 0;
+  uint64_t extra_bytes = 0;  // working buffers outside the buckets (smooth variant)
+  explicit BucketQueue(int64_t levels) : bucket(static_cast<size_t>(levels)), head(static_cast<size_t>(levels), 0) {}
+  void push(uint32_t level, int64_t i) {
+    bucket[level].push_back(i);
+    if (static_cast<int64_t>(level) < lowest) lowest = level;
+    peak = std::max(peak, ++size);
+  }
+  [[nodiscard]] uint64_t capacity_bytes() const {
+    uint64_t b = extra_bytes + bucket.capacity() * sizeof(bucket[0]) + head.capacity() * sizeof(size_t);
+    for (const auto& v : bucket) b += v.capacity() * sizeof(int64_t);
+    return b;
+  }
+  // Advances `lowest` to the first non-empty bucket; false if the queue is empty.
+  bool settle() {
+    const int64_t n = static_cast<int64_t>(bucket.size());
+    while (lowest < n) {
+      auto& b = bucket[static_cast<size_t>(lowest)];
+      if (head[static_cast<size_t>(lowest)] < b.size()) return true;
+      // Keep the capacity: levels are revisited (smooth variant); nothing is freed before the end, so
+      // the final capacities are the peak queue memory (reported in the statistics).
+      b.clear();
+      head[static_cast<size_t>(lowest)] = 0;
+      ++lowest;
+    }
+    return false;
+  }
+};
+
+// ---- phases ----
+
+// Phase 1, per z-plane: what one pass over the mask finds.
+struct PlaneScan {
+  int64_t objects = 0;
+  bool nan = false;            // a NaN priority at an object voxel
+  KeySet keys;                 // distinct order_key()s of the object voxels' priorities
+  std::vector<int64_t> boundary;  // unlocked object voxels with a background 6-neighbour (or on an
+                                  // array face), raster order
+};
+
+// Phase 1: writes the initial state to `st` (mask.size() bytes): kObject, kLocked, kBorder on the
+// array faces; 0 elsewhere. Fixed chunks of planes, so the result does not depend on `threads`.
+template <class T>
+std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* priority, const VolumeU8* locked, uint8_t* st,
+                                   int threads);
+
+// Phase 2 input: the distinct keys of all planes; throws InputError on a NaN priority. Adds the
+// object voxel count to `object_voxels`.
+std::vector<uint64_t> gather_keys(const std::vector<PlaneScan>& planes, int64_t& object_voxels);
+
+// Phase 3: the boundary voxels of `planes` into `q` (sized levels.count()), per level in raster
+// order, buckets sized exactly; marks them kQueued. Frees the planes' boundary lists. The result does
+// not depend on `threads`.
+template <class T>
+void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels, uint8_t* st, int64_t nz, int threads,
+                        BucketQueue& q);
+
+// Phase 4: the removal loops over the queue. `progress` reports between 0.08 and 0.9.
+template <class T>
+class Removal {
+public:
+  Removal(uint8_t* st, const Thinner& th, const Levels<T>& levels, BucketQueue& q, const T* priority,
+          ThinningStatistics& stats, int threads, const Interrupter& irq)
+      : st_(st), th_(th), levels_(levels), q_(q), pv_(priority), stats_(stats), threads_(threads), irq_(irq),
+        total_(static_cast<double>(stats.object_voxels)), next_check_(stats.tests + kProgressTests) {}
+
+  // Algorithm 1: pops voxels in queue order and removes the deletable ones.
+  void run_basic();
+  // Algorithm 2: per level, sub-iterations (take_level, check, flag, choose, recheck) until no level
+  // has a deletable voxel.
+  void run_smooth();
+
+  // Smooth steps, for one sub-iteration at level `lv` (public for tests).
+  // Moves the unread entries of bucket lv to `tv` (the bucket keeps tv's old buffer).
+  void take_level(size_t lv, BigVector<int64_t>& tv);
+  // The parallel check (reads the state only): dirs[j] = candidate_directions of entry j if it is
+  // deletable, else 0; a cached entry whose neighbourhood is unchanged (no kDirty) keeps its cached
+  // directions. Returns the number of deletability tests run.
+  int64_t check(const BigVector<int64_t>& tv, BigVector<uint8_t>& dirs) const;
+  // Flags the checked voxels (candidates keep kQueued, kDirty cleared) and compacts the candidates to
+  // the front of tv with their directions in bits 56..62, in queue order. Returns the union of the
+  // candidates' directions (bits 0..5) and their count through `nc`.
+  uint32_t flag(BigVector<int64_t>& tv, const BigVector<uint8_t>& dirs, int64_t nt, int64_t& nc);
+  // Sequential recheck of the candidates of direction bit `chosen`: removes the still deletable ones;
+  // the candidates of other directions go back to level lv with their directions cached.
+  void recheck(const BigVector<int64_t>& tv, int64_t nc, uint32_t chosen, uint32_t lv);
+
+  // Removes t and queues its unqueued object neighbours (marking all of them kDirty).
+  inline void remove(int64_t t);
+
+private:
+  static constexpr int64_t kProgressTests = int64_t{1} << 21;
+  void progress();
+
+  uint8_t* st_;
+  const Thinner& th_;
+  const Levels<T>& levels_;
+  BucketQueue& q_;
+  const T* pv_;
+  ThinningStatistics& stats_;
+  int threads_;
+  const Interrupter& irq_;
+  double total_;
+  int64_t next_check_;
+};
+
+// Phase 5: the object voxels of `st` in raster order.
+std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int threads);
+// Phase 5: skeleton_voxels, locked_voxels, kept_end_points, interior_voxels of the skeleton `skel`.
+void count_skeleton(const Thinner& th, const uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
+                    ThinningStatistics& stats);
+// Phase 5: stuck_components and stuck_voxels (fig. 2.23): 26-components of `skel` with more than
+// one voxel, no locked voxel and (end_point_length > 0) no end point, that are contractible. Uses and
+// leaves kVisited on the skeleton voxels.
+void count_stuck(const Thinner& th, uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
+                 int end_point_length, ThinningStatistics& stats);
+// Phase 5: the state back to the 0/1 skeleton: skeleton voxels to 1, flags on the array faces cleared.
+void finish_state(uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims, int threads);
+
+}  // namespace skel::thinning::detail

@@ -1,0 +1,171 @@
+// The phases of boundary_distance on their own (geodesic_phases.hpp): the bitmaps and nearest
+// background points, the buckets, the two breadth-first searches, the considered targets, the search
+// over all bases and the threshold.
+#include "geodesic/geodesic_phases.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <set>
+#include <vector>
+
+using namespace skel;
+using namespace skel::geodesic;
+using namespace skel::geodesic::detail;
+
+namespace {
+
+// One object voxel at (1,1,1) of 3^3: padded position (3,3,3); L is the 26 voxels around it.
+struct SingleVoxel {
+  VolumeU8 mask{Dims{3, 3, 3}, 0};
+  Prepared P{Dims{3, 3, 3}};
+  SingleVoxel() {
+    mask(1, 1, 1) = 1;
+    prepare(mask, P, 1, {}, true);
+  }
+  [[nodiscard]] uint32_t lid(int64_t x, int64_t y, int64_t z) const {
+    const int64_t pos = P.dom.pos(x, y, z);
+    EXPECT_TRUE(P.layer.test(pos));
+    return static_cast<uint32_t>(P.layer.rank(pos));
+  }
+};
+
+}  // namespace
+
+TEST(GeodesicPhases, PrepareFindsTheLayerAndTheNearestBackgroundPoint) {
+  const SingleVoxel s;
+  const Prepared& P = s.P;
+  EXPECT_EQ(P.k, 1);
+  EXPECT_EQ(P.nl, 26);
+  for (int64_t z = 2; z <= 4; ++z)
+    for (int64_t y = 2; y <= 4; ++y)
+      for (int64_t x = 2; x <= 4; ++x) {
+        const bool centre = x == 3 && y == 3 && z == 3;
+        EXPECT_EQ(P.obj.test(P.dom.pos(x, y, z)), centre);
+        EXPECT_EQ(P.layer.test(P.dom.pos(x, y, z)), !centre);
+      }
+  // Six face neighbours at distance 1; the tie goes to the lowest L-id, i.e. (3,3,2) (z - 1).
+  ASSERT_EQ(P.b.size(), 1u);
+  EXPECT_EQ(P.b[0], s.lid(3, 3, 2));
+  EXPECT_EQ(P.lcoord[P.b[0]].x, 3);
+  EXPECT_EQ(P.lcoord[P.b[0]].y, 3);
+  EXPECT_EQ(P.lcoord[P.b[0]].z, 2);
+  // The shell is one 6-component.
+  for (uint32_t c : P.lcomp) EXPECT_EQ(c, P.lcomp[0]);
+}
+
+TEST(GeodesicPhases, PrepareSeparatesLayerComponentsAndFollowsRings) {
+  // Two separate objects: a voxel and a 5x5x5 cube, whose centre lies three rings deep.
+  VolumeU8 mask(Dims{12, 7, 7}, 0);
+  mask(1, 3, 3) = 1;
+  for (int z = 1; z <= 5; ++z)
+    for (int y = 1; y <= 5; ++y)
+      for (int x = 5; x <= 9; ++x) mask(x, y, z) = 1;
+  Prepared P(mask.dims());
+  prepare(mask, P, 2, {}, true);
+  EXPECT_EQ(P.k, 126);
+  const uint32_t c0 = P.lcomp[P.b[P.obj.rank(P.dom.pos(3, 5, 5))]];
+  const uint32_t c1 = P.lcomp[P.b[P.obj.rank(P.dom.pos(9, 5, 5))]];
+  EXPECT_NE(c0, c1);
+  EXPECT_EQ(std::set<uint32_t>(P.lcomp.begin(), P.lcomp.end()).size(), 2u);
+  // The cube's centre (7,3,3) -> padded (9,5,5): nearest background points at distance 3; the lowest
+  // L-id among them is (9,5,2).
+  const uint32_t b = P.b[P.obj.rank(P.dom.pos(9, 5, 5))];
+  EXPECT_EQ(P.lpos(b), P.dom.pos(9, 5, 2));
+  // Every object voxel has a base.
+  for (uint32_t l : P.b) EXPECT_LT(l, static_cast<uint32_t>(P.nl));
+}
+
+TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
+  std::mt19937 rng(3);
+  VolumeU8 mask(Dims{10, 9, 8}, 0);
+  for (int64_t i = 0; i < mask.size(); ++i) mask[i] = rng() % 3 != 0;
+  Prepared P(mask.dims());
+  prepare(mask, P, 2, {}, false);
+  const Buckets B = bucket_by_base(P);
+  ASSERT_EQ(B.start.size(), static_cast<size_t>(P.nl) + 1);
+  EXPECT_EQ(B.start.back(), static_cast<uint32_t>(P.k));
+  std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
+  for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
+    if (P.obj.test(pos)) expect[P.b[P.obj.rank(pos)]].push_back(pos);
+  for (int64_t l = 0; l < P.nl; ++l) {
+    std::vector<int64_t> got;
+    for (uint32_t m = B.start[static_cast<size_t>(l)]; m < B.start[static_cast<size_t>(l) + 1]; ++m)
+      got.push_back(B.members[m]);
+    EXPECT_EQ(got, expect[static_cast<size_t>(l)]) << l;
+    EXPECT_EQ(B.has_work(static_cast<uint32_t>(l)), !got.empty());
+  }
+}
+
+TEST(GeodesicPhases, TargetsAreTheLowerNeighboursAndTheBackgroundUpperOnes) {
+  const SingleVoxel s;
+  std::vector<uint32_t> t;
+  for_each_target(s.P, s.P.dom.pos(3, 3, 3), [&](uint32_t c) { t.push_back(c); });
+  EXPECT_EQ(t, (std::vector<uint32_t>{s.lid(2, 3, 3), s.lid(4, 3, 3), s.lid(3, 2, 3), s.lid(3, 4, 3), s.lid(3, 3, 2),
+                                      s.lid(3, 3, 4)}));
+  // An object upper neighbour is skipped; an object lower neighbour gives its base.
+  VolumeU8 mask(Dims{4, 3, 3}, 0);
+  mask(1, 1, 1) = mask(2, 1, 1) = 1;
+  Prepared P(mask.dims());
+  prepare(mask, P, 1, {}, true);
+  std::vector<uint32_t> a, b;
+  for_each_target(P, P.dom.pos(3, 3, 3), [&](uint32_t c) { a.push_back(c); });
+  for_each_target(P, P.dom.pos(4, 3, 3), [&](uint32_t c) { b.push_back(c); });
+  EXPECT_EQ(a.size(), 5u);
+  ASSERT_EQ(b.size(), 6u);
+  EXPECT_EQ(b[0], P.b[P.obj.rank(P.dom.pos(3, 3, 3))]);
+}
+
+TEST(GeodesicPhases, OwnSearchMeasuresSixPathsInTheLayer) {
+  const SingleVoxel s;
+  Scratch S(static_cast<size_t>(s.P.nl), 0);
+  const uint32_t src = s.lid(3, 3, 2);
+  const std::vector<uint32_t> want = {s.lid(3, 3, 4), s.lid(2, 3, 2), s.lid(2, 3, 3)};
+  std::vector<uint32_t> wd;
+  // Around the voxel to the opposite side: 4 steps; a neighbour: 1; an edge-adjacent voxel: 2.
+  EXPECT_GT(own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, wd), 0);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
+  for (uint8_t m : S.mark) EXPECT_EQ(m, 0);  // marks cleared
+  // With limit 3 the opposite side is not reached.
+  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 3, want, wd);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{kNone, 1, 2}));
+}
+
+TEST(GeodesicPhases, PivotSearchKeepsDistancesInOrder) {
+  const SingleVoxel s;
+  Scratch S(static_cast<size_t>(s.P.nl), 10);
+  const uint32_t src = s.lid(3, 3, 2);
+  const int64_t visited = pivot_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 2);
+  EXPECT_EQ(visited, static_cast<int64_t>(S.pqueue.size()));
+  ASSERT_FALSE(S.pqueue.empty());
+  EXPECT_EQ(S.pqueue.front(), src);
+  EXPECT_EQ(S.pivot_at(src), 0u);
+  EXPECT_EQ(S.pivot_at(s.lid(2, 3, 2)), 1u);
+  EXPECT_EQ(S.pivot_at(s.lid(2, 3, 3)), 2u);
+  EXPECT_FALSE(S.pivot_visited(s.lid(3, 3, 4)));  // 4 > limit
+  for (size_t i = 1; i < S.pqueue.size(); ++i) EXPECT_LE(S.pivot_at(S.pqueue[i - 1]), S.pivot_at(S.pqueue[i]));
+  for (uint32_t v : S.pqueue) EXPECT_LE(S.pivot_at(v), 2u);
+  // A second search resets the first one's distances.
+  pivot_bfs(s.P, S, s.lid(3, 3, 4), s.P.dom.pos(3, 3, 4), 0);
+  EXPECT_EQ(S.pqueue.size(), 1u);
+  EXPECT_FALSE(S.pivot_visited(src));
+}
+
+TEST(GeodesicPhases, SearchOverAllBasesAndThreshold) {
+  // The single voxel's importance: max over its targets of g(b, target) = 4 (the opposite side).
+  for (uint32_t t : {20u, 3u}) {
+    const SingleVoxel s;
+    const Buckets B = bucket_by_base(s.P);
+    VolumeF32 imp(s.mask.grid(), 0.0f);
+    SearchShared sh(s.P, B, s.mask, imp.data(), t, false);
+    EXPECT_EQ(sh.pivot_margin, std::max<uint32_t>(2, t / 4));
+    search_bases(sh, 2, {});
+    EXPECT_EQ(sh.n_bases.load(), 1);
+    EXPECT_EQ(sh.done_bases.load(), 1);
+    EXPECT_EQ(imp(1, 1, 1), static_cast<float>(std::min<uint32_t>(4, t)));
+    EXPECT_EQ(imp(0, 0, 0), 0.0f);
+    VolumeU8 skel(s.mask.grid(), 7);
+    threshold_surface(imp, skel, t, 2);
+    for (int64_t i = 0; i < skel.size(); ++i) EXPECT_EQ(skel[i], i == s.mask.index(1, 1, 1) && t <= 4 ? 1 : 0);
+  }
+}

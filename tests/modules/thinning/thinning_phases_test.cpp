@@ -1,0 +1,321 @@
+// The phases of thin_doht on their own (thinning_phases.hpp): level ranking, the initial scan and
+// queue, the smooth variant's check / direction choice / recheck, end-point importance, the basic
+// loop and the statistics after thinning.
+#include "thinning/thinning_phases.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "shapes.hpp"
+
+using namespace skel;
+using namespace skel::thinning;
+using namespace skel::thinning::detail;
+
+namespace {
+
+template <class T>
+Levels<T> levels_of(const std::vector<T>& values) {
+  std::vector<uint64_t> keys;
+  for (T v : values) keys.push_back(order_key(v));
+  return Levels<T>(values.data(), keys);
+}
+
+// The thinning state of `mask` as scan_planes leaves it, and the planes.
+struct Scanned {
+  VolumeU8 st;
+  std::vector<PlaneScan> planes;
+};
+template <class T>
+Scanned scan(const VolumeU8& mask, const Volume<T>& priority, const VolumeU8* locked = nullptr, int threads = 1) {
+  Scanned s{VolumeU8(mask.grid(), 0), {}};
+  s.planes = scan_planes(mask, priority.data(), locked, s.st.data(), threads);
+  return s;
+}
+
+}  // namespace
+
+TEST(ThinningPhases, LevelsRankFloatPrioritiesByDistinctValue) {
+  // -0 and +0 are one value; duplicates share a level; ranks follow the order of the values.
+  const std::vector<float> pr = {0.5f, -0.0f, 0.0f, 2.5f, 0.5f, -1.0f};
+  const Levels<float> lv = levels_of(pr);
+  EXPECT_EQ(lv.count(), 4);
+  const std::vector<uint32_t> expect = {2, 1, 1, 3, 2, 0};
+  for (size_t i = 0; i < pr.size(); ++i) EXPECT_EQ(lv.level(static_cast<int64_t>(i)), expect[i]) << i;
+}
+
+TEST(ThinningPhases, LevelsOfIntegersUseTheValueOrTheRank) {
+  // A small range maps value - min directly (levels may be empty).
+  const std::vector<uint16_t> small = {15, 10, 12, 10};
+  const Levels<uint16_t> a = levels_of(small);
+  EXPECT_EQ(a.count(), 6);
+  EXPECT_EQ(a.level(0), 5u);
+  EXPECT_EQ(a.level(1), 0u);
+  EXPECT_EQ(a.level(2), 2u);
+  // A sparse range is ranked; signed values keep their order.
+  const std::vector<int32_t> sparse = {1 << 30, -(1 << 30), 7, 1 << 30};
+  const Levels<int32_t> b = levels_of(sparse);
+  EXPECT_EQ(b.count(), 3);
+  EXPECT_EQ(b.level(0), 2u);
+  EXPECT_EQ(b.level(1), 0u);
+  EXPECT_EQ(b.level(2), 1u);
+  EXPECT_EQ(b.level(3), 2u);
+}
+
+TEST(ThinningPhases, ScanSetsFlagsAndFindsTheBoundaryInRasterOrder) {
+  // A 3x3x3 cube at (1..3)^3 in 5^3 plus one voxel on the array face; the cube's corner (1,1,1) is
+  // locked.
+  VolumeU8 mask(Dims{5, 5, 5}, 0);
+  for (int z = 1; z <= 3; ++z)
+    for (int y = 1; y <= 3; ++y)
+      for (int x = 1; x <= 3; ++x) mask(x, y, z) = 1;
+  mask(4, 2, 2) = 1;
+  VolumeU8 locked(mask.grid(), 0);
+  locked(1, 1, 1) = 1;
+  VolumeF32 pr(mask.grid(), 1.0f);
+  const Scanned s = scan(mask, pr, &locked);
+  ASSERT_EQ(s.planes.size(), 5u);
+  std::vector<int64_t> boundary;
+  int64_t objects = 0;
+  for (const auto& p : s.planes) {
+    boundary.insert(boundary.end(), p.boundary.begin(), p.boundary.end());
+    objects += p.objects;
+    EXPECT_FALSE(p.nan);
+  }
+  EXPECT_EQ(objects, 28);
+  // Every object voxel except the cube's centre and (3,2,2) (covered by the face voxel) has a
+  // background 6-neighbour; the face voxel is on the array face; the locked corner is never queued.
+  std::vector<int64_t> expect;
+  for (int64_t i = 0; i < mask.size(); ++i)
+    if (mask[i] && i != mask.index(2, 2, 2) && i != mask.index(3, 2, 2) && i != mask.index(1, 1, 1))
+      expect.push_back(i);
+  EXPECT_EQ(boundary, expect);
+  for (int64_t z = 0; z < 5; ++z)
+    for (int64_t y = 0; y < 5; ++y)
+      for (int64_t x = 0; x < 5; ++x) {
+        const uint8_t v = s.st(x, y, z);
+        const bool face = x == 0 || y == 0 || z == 0 || x == 4 || y == 4 || z == 4;
+        EXPECT_EQ((v & kObject) != 0, mask(x, y, z) != 0);
+        EXPECT_EQ((v & kBorder) != 0, face);
+        EXPECT_EQ((v & kLocked) != 0, locked(x, y, z) != 0);
+        EXPECT_EQ(v & (kQueued | kVisited | kDirty), 0);
+      }
+}
+
+TEST(ThinningPhases, ScanReportsNaNPriorities) {
+  VolumeU8 mask(Dims{3, 3, 3}, 0);
+  mask(1, 1, 1) = 1;
+  mask(0, 0, 2) = 1;
+  VolumeF32 pr(mask.grid(), 0.0f);
+  pr(1, 1, 1) = std::numeric_limits<float>::quiet_NaN();
+  pr(0, 0, 0) = std::numeric_limits<float>::quiet_NaN();  // background: ignored
+  Scanned s = scan(mask, pr);
+  EXPECT_TRUE(s.planes[1].nan);
+  EXPECT_FALSE(s.planes[0].nan);
+  EXPECT_FALSE(s.planes[2].nan);
+  int64_t objects = 0;
+  EXPECT_THROW(gather_keys(s.planes, objects), InputError);
+}
+
+TEST(ThinningPhases, InitialQueueHoldsTheBoundaryPerLevelInRasterOrder) {
+  const VolumeU8 mask = test::random_blobs(24, 5, 0.5);
+  const VolumeU32 pr = test::chamfer345(mask);
+  std::vector<std::vector<int64_t>> first;
+  for (int threads : {1, 3}) {
+    Scanned s = scan(mask, pr, nullptr, threads);
+    std::vector<int64_t> boundary;
+    for (const auto& p : s.planes) boundary.insert(boundary.end(), p.boundary.begin(), p.boundary.end());
+    int64_t objects = 0;
+    const Levels<uint32_t> lv(pr.data(), gather_keys(s.planes, objects));
+    BucketQueue q(lv.count());
+    fill_initial_queue(s.planes, lv, s.st.data(), mask.nz(), threads, q);
+    // Expected: the boundary voxels (raster order) split by level, order kept.
+    std::vector<std::vector<int64_t>> expect(static_cast<size_t>(lv.count()));
+    for (int64_t i : boundary) expect[lv.level(i)].push_back(i);
+    std::vector<std::vector<int64_t>> got;
+    for (const auto& b : q.bucket) got.emplace_back(b.begin(), b.end());
+    EXPECT_EQ(got, expect) << threads;
+    EXPECT_EQ(q.size, static_cast<int64_t>(boundary.size()));
+    EXPECT_EQ(q.lowest, 0);
+    for (const auto& p : s.planes) EXPECT_TRUE(p.boundary.empty());
+    int64_t queued = 0;
+    for (int64_t i = 0; i < mask.size(); ++i) queued += (s.st[i] & kQueued) != 0;
+    EXPECT_EQ(queued, static_cast<int64_t>(boundary.size()));
+    if (first.empty()) first = got;
+    else EXPECT_EQ(got, first);
+  }
+}
+
+TEST(ThinningPhases, SubIterationsRotateThroughTheDirections) {
+  // Order up, down, north, south, east, west = +z, -z, +y, -y, +x, -x = bits 4, 5, 2, 3, 0, 1,
+  // starting at position iteration % 6.
+  const std::vector<int> order = {4, 5, 2, 3, 0, 1};
+  for (int64_t it = 0; it < 12; ++it) EXPECT_EQ(choose_subiteration(63u, it), order[static_cast<size_t>(it % 6)]);
+  EXPECT_EQ(choose_subiteration(1u, 0), 0);   // only +x present
+  EXPECT_EQ(choose_subiteration(3u, 1), 0);   // +x and -x: +x comes first from position 1
+  EXPECT_EQ(choose_subiteration(3u, 5), 1);   // from position 5: -x
+  EXPECT_EQ(choose_subiteration(0u, 3), -1);
+}
+
+TEST(ThinningPhases, CandidateDirectionsOfAnEndPoint) {
+  // One object neighbour below (-z): only the up mask matches (background above, object below).
+  const uint32_t below = 1u << neighbour_bit(0, 0, -1);
+  EXPECT_EQ(matched_directions(below, direction_masks()), 1u << 4);
+  EXPECT_EQ(thinning_directions(below), 1u << 4);
+  EXPECT_EQ(candidate_directions(below, direction_masks()), (1u << 4) | 64u);  // end point: bit 6
+  // Two neighbours below: not an end point.
+  const uint32_t two = below | 1u << neighbour_bit(1, 0, -1);
+  const uint32_t d = candidate_directions(two, direction_masks());
+  EXPECT_EQ(d & 64u, 0u);
+  EXPECT_EQ(d, thinning_directions(two));
+  EXPECT_NE(d & (1u << 4), 0u);
+}
+
+TEST(ThinningPhases, EndPointImportanceCountsTheBranchUpToTheJunction) {
+  // A line x = 0..6 at y = 1 and a branch (3, 2..4) off its middle, all at z = 1 in 9x7x3.
+  VolumeU8 mask(Dims{9, 7, 3}, 0);
+  for (int x = 0; x <= 6; ++x) mask(x, 1, 1) = 1;
+  for (int y = 2; y <= 4; ++y) mask(3, y, 1) = 1;
+  VolumeF32 pr(mask.grid(), 0.0f);
+  Scanned s = scan(mask, pr);
+  // The branch: (3,4) and (3,3) are end points in turn; (3,2) touches three line voxels.
+  EXPECT_EQ(Thinner(s.st.data(), mask.dims(), 5).importance(mask.index(3, 4, 1)), 2);
+  // The line's end (0,1): (0,1), (1,1); then (2,1) has two further neighbours ((3,1) and (3,2)).
+  EXPECT_EQ(Thinner(s.st.data(), mask.dims(), 5).importance(mask.index(0, 1, 1)), 2);
+  // Counting stops at l + 1.
+  EXPECT_EQ(Thinner(s.st.data(), mask.dims(), 1).importance(mask.index(3, 4, 1)), 2);
+  // An isolated line of five voxels: every voxel after the first is an end point in turn, the last
+  // has no further neighbour.
+  VolumeU8 line(Dims{7, 3, 3}, 0);
+  for (int x = 1; x <= 5; ++x) line(x, 1, 1) = 1;
+  Scanned t = scan(line, VolumeF32(line.grid(), 0.0f));
+  EXPECT_EQ(Thinner(t.st.data(), line.dims(), 10).importance(line.index(1, 1, 1)), 4);
+  EXPECT_EQ(Thinner(t.st.data(), line.dims(), 2).importance(line.index(1, 1, 1)), 3);
+  // deletable(): with l = 3 the end point of the five-voxel line is kept (importance 4 > 3).
+  uint32_t nb = 0;
+  EXPECT_FALSE(Thinner(t.st.data(), line.dims(), 3).deletable(line.index(1, 1, 1), nb));
+  EXPECT_TRUE(Thinner(t.st.data(), line.dims(), 4).deletable(line.index(1, 1, 1), nb));
+  EXPECT_FALSE(Thinner(t.st.data(), line.dims(), 0).deletable(line.index(3, 1, 1), nb));  // not simple
+}
+
+TEST(ThinningPhases, SmoothCheckFlagAndRecheckOnALine) {
+  // A three-voxel line along x, one priority level, l = 0: both ends are deletable end points (-x and
+  // +x), the middle voxel is not simple.
+  VolumeU8 mask(Dims{5, 5, 5}, 0);
+  for (int x = 1; x <= 3; ++x) mask(x, 2, 2) = 1;
+  VolumeF32 pr(mask.grid(), 1.0f);
+  Scanned s = scan(mask, pr);
+  int64_t objects = 0;
+  const Levels<float> lv(pr.data(), gather_keys(s.planes, objects));
+  ThinningStatistics stats;
+  stats.object_voxels = objects;
+  Thinner th(s.st.data(), mask.dims(), 0);
+  BucketQueue q(lv.count());
+  fill_initial_queue(s.planes, lv, s.st.data(), mask.nz(), 1, q);
+  const Interrupter irq;
+  Removal<float> r(s.st.data(), th, lv, q, pr.data(), stats, 1, irq);
+
+  BigVector<int64_t> tv;
+  r.take_level(0, tv);
+  const int64_t a = mask.index(1, 2, 2), m = mask.index(2, 2, 2), b = mask.index(3, 2, 2);
+  ASSERT_EQ(std::vector<int64_t>(tv.begin(), tv.end()), (std::vector<int64_t>{a, m, b}));
+  EXPECT_EQ(q.size, 0);
+  BigVector<uint8_t> dirs(3, 0);
+  EXPECT_EQ(r.check(tv, dirs), 3);
+  EXPECT_EQ(std::vector<uint8_t>(dirs.begin(), dirs.end()), (std::vector<uint8_t>{2 | 64, 0, 1 | 64}));
+
+  int64_t nc = 0;
+  const uint32_t x_set = r.flag(tv, dirs, 3, nc);
+  EXPECT_EQ(x_set, 3u);
+  ASSERT_EQ(nc, 2);
+  EXPECT_EQ(static_cast<uint64_t>(tv[0]), static_cast<uint64_t>(a) | uint64_t{2 | 64} << 56);
+  EXPECT_EQ(static_cast<uint64_t>(tv[1]), static_cast<uint64_t>(b) | uint64_t{1 | 64} << 56);
+  EXPECT_TRUE(s.st[a] & kQueued);
+  EXPECT_FALSE(s.st[m] & kQueued);
+
+  // Sub-iteration 1 takes +x (bit 0): the left end goes back to the level without a cached direction
+  // (end points are never cached), the right end is removed, which queues the middle voxel (dirty).
+  const int d = choose_subiteration(x_set, 1);
+  ASSERT_EQ(d, 0);
+  r.recheck(tv, nc, 1u << d, 0);
+  EXPECT_FALSE(s.st[b] & kObject);
+  EXPECT_EQ(stats.removed, 1);
+  std::vector<int64_t> requeued(q.bucket[0].begin(), q.bucket[0].end());
+  EXPECT_EQ(requeued, (std::vector<int64_t>{a, m}));
+  EXPECT_TRUE(s.st[m] & kDirty);
+}
+
+TEST(ThinningPhases, BasicLoopReducesACubeToOneVoxel) {
+  VolumeU8 mask(Dims{5, 5, 5}, 0);
+  for (int z = 1; z <= 3; ++z)
+    for (int y = 1; y <= 3; ++y)
+      for (int x = 1; x <= 3; ++x) mask(x, y, z) = 1;
+  const VolumeU32 pr = test::chamfer345(mask);
+  Scanned s = scan(mask, pr);
+  ThinningStatistics stats;
+  const Levels<uint32_t> lv(pr.data(), gather_keys(s.planes, stats.object_voxels));
+  Thinner th(s.st.data(), mask.dims(), 0);
+  BucketQueue q(lv.count());
+  fill_initial_queue(s.planes, lv, s.st.data(), mask.nz(), 1, q);
+  const Interrupter irq;
+  Removal<uint32_t>(s.st.data(), th, lv, q, pr.data(), stats, 1, irq).run_basic();
+  EXPECT_EQ(stats.removed, 26);
+  EXPECT_GE(stats.tests, 26);
+  EXPECT_EQ(q.size, 0);
+  const std::vector<int64_t> skel = collect_skeleton(s.st.data(), mask.dims(), 1);
+  ASSERT_EQ(skel.size(), 1u);
+  EXPECT_FALSE(s.st[skel[0]] & kQueued);
+}
+
+TEST(ThinningPhases, SkeletonStatistics) {
+  // A 3x3x3 cube (one interior voxel), a two-voxel line (two end points), a locked voxel.
+  VolumeU8 mask(Dims{12, 5, 5}, 0);
+  for (int z = 1; z <= 3; ++z)
+    for (int y = 1; y <= 3; ++y)
+      for (int x = 1; x <= 3; ++x) mask(x, y, z) = 1;
+  mask(6, 2, 2) = mask(7, 2, 2) = 1;
+  mask(10, 2, 2) = 1;
+  VolumeU8 locked(mask.grid(), 0);
+  locked(10, 2, 2) = 1;
+  Scanned s = scan(mask, VolumeF32(mask.grid(), 0.0f), &locked);
+  const std::vector<int64_t> skel = collect_skeleton(s.st.data(), mask.dims(), 2);
+  std::vector<int64_t> expect;
+  for (int64_t i = 0; i < mask.size(); ++i)
+    if (mask[i]) expect.push_back(i);
+  EXPECT_EQ(skel, expect);
+  ThinningStatistics stats;
+  count_skeleton(Thinner(s.st.data(), mask.dims(), 2), s.st.data(), skel, mask.dims(), stats);
+  EXPECT_EQ(stats.skeleton_voxels, 30);
+  EXPECT_EQ(stats.locked_voxels, 1);
+  EXPECT_EQ(stats.kept_end_points, 2);
+  EXPECT_EQ(stats.interior_voxels, 1);
+  finish_state(s.st.data(), skel, mask.dims(), 2);
+  for (int64_t i = 0; i < mask.size(); ++i) EXPECT_EQ(s.st[i], mask[i]);
+}
+
+TEST(ThinningPhases, StuckComponentsAreContractibleAndUnanchored) {
+  // A two-voxel line, a locked two-voxel line, a single voxel and an 8-voxel square ring (a tunnel).
+  VolumeU8 mask(Dims{16, 6, 3}, 0);
+  mask(1, 1, 1) = mask(2, 1, 1) = 1;
+  mask(5, 1, 1) = mask(6, 1, 1) = 1;
+  mask(9, 1, 1) = 1;
+  for (int y = 1; y <= 3; ++y)
+    for (int x = 11; x <= 13; ++x)
+      if (x != 12 || y != 2) mask(x, y, 1) = 1;
+  VolumeU8 locked(mask.grid(), 0);
+  locked(5, 1, 1) = 1;
+  for (int l : {0, 2}) {
+    Scanned s = scan(mask, VolumeF32(mask.grid(), 0.0f), &locked);
+    const std::vector<int64_t> skel = collect_skeleton(s.st.data(), mask.dims(), 1);
+    ThinningStatistics stats;
+    count_stuck(Thinner(s.st.data(), mask.dims(), l), s.st.data(), skel, mask.dims(), l, stats);
+    // l = 0 keeps no end points, so only the free two-voxel line is stuck; with l > 0 its end points
+    // anchor it.
+    EXPECT_EQ(stats.stuck_components, l == 0 ? 1 : 0) << l;
+    EXPECT_EQ(stats.stuck_voxels, l == 0 ? 2 : 0) << l;
+    for (int64_t i : skel) EXPECT_TRUE(s.st[i] & kVisited);
+  }
+}
