@@ -540,15 +540,17 @@ std::set<std::string> Pipeline::upstream_closure(const std::vector<std::string>&
   return seen;
 }
 
-std::vector<std::string> Pipeline::topological_order() const {
-  // Kahn's algorithm, picking the earliest node in file order among the ready ones.
+namespace {
+// Kahn's algorithm, picking the earliest node in file order among the ready ones. Returns node
+// indices in order; `left` gets the nodes that never became ready (on or behind a cycle).
+std::vector<size_t> kahn_order(const std::vector<PipelineNode>& nodes, std::vector<size_t>& left) {
   std::map<std::string, size_t> index;
-  for (size_t i = 0; i < nodes_.size(); ++i) index[nodes_[i].id] = i;
-  std::vector<int> indeg(nodes_.size(), 0);
-  std::vector<std::vector<size_t>> users(nodes_.size());
-  for (size_t i = 0; i < nodes_.size(); ++i) {
+  for (size_t i = 0; i < nodes.size(); ++i) index[nodes[i].id] = i;
+  std::vector<int> indeg(nodes.size(), 0);
+  std::vector<std::vector<size_t>> users(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) {
     std::set<size_t> deps;
-    for (const auto& [port, ref] : nodes_[i].inputs) {
+    for (const auto& [port, ref] : nodes[i].inputs) {
       auto it = index.find(ref.node);
       if (it != index.end()) deps.insert(it->second);
     }
@@ -558,23 +560,36 @@ std::vector<std::string> Pipeline::topological_order() const {
     }
   }
   std::set<size_t> ready;
-  for (size_t i = 0; i < nodes_.size(); ++i)
+  for (size_t i = 0; i < nodes.size(); ++i)
     if (indeg[i] == 0) ready.insert(i);
-  std::vector<std::string> order;
+  std::vector<size_t> order;
   while (!ready.empty()) {
     size_t i = *ready.begin();
     ready.erase(ready.begin());
-    order.push_back(nodes_[i].id);
+    order.push_back(i);
     for (size_t u : users[i])
       if (--indeg[u] == 0) ready.insert(u);
   }
-  if (order.size() != nodes_.size()) {
-    std::string cyc;
-    for (size_t i = 0; i < nodes_.size(); ++i)
-      if (indeg[i] > 0) { if (!cyc.empty()) cyc += ", "; cyc += nodes_[i].id; }
-    throw InputError(file_ + ": the pipeline has a cycle through nodes " + cyc);
-  }
+  left.clear();
+  for (size_t i = 0; i < nodes.size(); ++i)
+    if (indeg[i] > 0) left.push_back(i);
   return order;
+}
+
+std::string cycle_message(const std::vector<PipelineNode>& nodes, const std::vector<size_t>& left) {
+  std::string cyc;
+  for (size_t i : left) { if (!cyc.empty()) cyc += ", "; cyc += nodes[i].id; }
+  return "the pipeline has a cycle through nodes " + cyc;
+}
+}  // namespace
+
+std::vector<std::string> Pipeline::topological_order() const {
+  std::vector<size_t> left;
+  const std::vector<size_t> order = kahn_order(nodes_, left);
+  if (!left.empty()) throw InputError(file_ + ": " + cycle_message(nodes_, left));
+  std::vector<std::string> ids;
+  for (size_t i : order) ids.push_back(nodes_[i].id);
+  return ids;
 }
 
 bool Pipeline::operator==(const Pipeline& o) const {
@@ -715,11 +730,10 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
       if (ip.required && !n.inputs.count(ip.name))
         add(n, n.pos, "required input '" + ip.name + "' (" + join_types(ip.types) + ") is not connected");
   }
-  try {
-    (void)p.topological_order();
-  } catch (const InputError& e) {
-    ds.push_back({"", {}, "", e.what()});
-  }
+  // A cycle is reported at the first of its nodes in the file.
+  std::vector<size_t> left;
+  (void)kahn_order(p.nodes(), left);
+  if (!left.empty()) ds.push_back({p.file(), p.nodes()[left.front()].pos, "", cycle_message(p.nodes(), left)});
   return ds;
 }
 
