@@ -313,7 +313,7 @@ std::vector<std::map<std::string, DataPtr>> Executor::Impl::lookup_cache(Executi
 
 // ---------------------------------------------------------------- phases 3 and 4: run nodes, schedule
 // The state of one run: nodes waiting, ready, running, their results, the first error, the output
-// files written so far. Worker threads share it under `m`.
+// files written so far. Worker threads share it under `m_`.
 class Executor::Scheduler {
 public:
   Scheduler(Impl& im, const ExecutionPlan& plan, const ExecOptions& opt,
