@@ -265,7 +265,12 @@ int cmd_run(const std::vector<std::string>& args) {
       auto dot = s.find('.');
       if (eq == std::string::npos || dot == std::string::npos || dot > eq)
         throw InputError("--set " + s + ": expected node.param=value");
-      opt.overrides[s.substr(0, dot)][s.substr(dot + 1, eq - dot - 1)] = parse_param_text(s.substr(eq + 1));
+      if (dot == 0 || eq == dot + 1) throw InputError("--set " + s + ": expected node.param=value");
+      try {
+        opt.overrides[s.substr(0, dot)][s.substr(dot + 1, eq - dot - 1)] = parse_param_text(s.substr(eq + 1));
+      } catch (const InputError& e) {
+        throw InputError("--set " + s + ": " + e.what());
+      }
     } else if (a == "--threads") {
       const std::string& v = need(i, "--threads");
       try {

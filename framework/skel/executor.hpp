@@ -62,6 +62,24 @@ struct RunReport {
   [[nodiscard]] std::string to_json() const;
 };
 
+// What a run will do, decided before anything runs (Executor::plan, and the first phase of run).
+struct PlannedNode {
+  std::string id, module;
+  uint64_t cache_key = 0;         // module + effective parameters + the upstream nodes' keys
+  bool cached = false;            // the cache holds its results (and its files exist): it will not run
+  std::vector<size_t> inputs_from;  // indices (in ExecutionPlan::nodes) of the nodes it reads from
+  std::vector<size_t> users;        // indices of the nodes reading its outputs
+};
+
+struct ExecutionPlan {
+  Pipeline pipeline;               // the pipeline that runs: overrides applied, validated
+  std::vector<PlannedNode> nodes;  // what the targets need (all nodes if none), in topological order
+  int threads = 0;                 // thread budget
+  std::filesystem::path input_base, output_base;  // relative input / output paths resolve here
+  // Index in `nodes`, or -1.
+  [[nodiscard]] int64_t index_of(const std::string& id) const;
+};
+
 class Executor {
 public:
   explicit Executor(const Registry& registry = Registry::instance());
@@ -70,9 +88,13 @@ public:
   Executor& operator=(const Executor&) = delete;
 
   // Validates, then runs. Throws InputError (invalid pipeline/input: nothing ran), Error (a node
-  // failed; message names the node), Cancelled. Output files are renamed into place only when the
+  // failed: the message reads "file:line:col: node 'id' (module): ..." and Error::site() holds the
+  // node), Cancelled. Output files are renamed into place only when the
   // whole run succeeds; otherwise none is left. The report is filled in every case (see last_report).
   RunReport run(const Pipeline& pipeline, const ExecOptions& options = {});
+  // The first phase of run() on its own: applies the overrides, validates (throws as run() does),
+  // orders what the targets need and marks what the cache already holds. Runs nothing.
+  [[nodiscard]] ExecutionPlan plan(const Pipeline& pipeline, const ExecOptions& options = {}) const;
   // Requests cancellation of the current run (thread-safe; the run stops within about a second).
   void cancel();
 
@@ -87,6 +109,7 @@ public:
 
 private:
   struct Impl;
+  class Scheduler;  // one run's state: ready nodes, results, first error, output files
   std::unique_ptr<Impl> impl_;
   std::atomic<int64_t> modules_run_{0};
 };

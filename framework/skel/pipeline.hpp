@@ -43,6 +43,9 @@ struct PipelineNode {
   // Where things were in the YAML file (for messages).
   SourcePos pos, module_pos;
   std::map<std::string, SourcePos> param_pos, input_pos;
+  // Parameters set outside the file, with where they came from (e.g. "--set seg.low=0.5"): their
+  // messages name that origin instead of a file position that holds another value.
+  std::map<std::string, std::string> param_origin;
 };
 
 struct Diagnostic {
@@ -109,6 +112,9 @@ private:
   std::string file_ = "<pipeline>";
   std::filesystem::path base_dir_ = ".";
 };
+
+// " (did you mean 'x'?)" for the candidate closest to `name` (edit distance 1 or 2); "" if none is.
+std::string did_you_mean(const std::string& name, const std::vector<std::string>& candidates);
 
 // Parses a value written as YAML text ("0.5", "true", "rods", "[128, 128, 64]"), as `--set` and the
 // GUI need; throws InputError on malformed text.

@@ -29,6 +29,49 @@ void advise_huge_pages(void* data, size_t bytes) {
   if (e > b) (void)madvise(reinterpret_cast<void*>(b), e - b, MADV_HUGEPAGE);
 }
 
+std::string location_prefix(const std::string& file, int line, int column) {
+  std::string s = file;
+  if (line > 0) {
+    if (!s.empty()) s += ':';
+    s += std::to_string(line);
+    s += ':';
+    s += std::to_string(column);
+  }
+  if (!s.empty()) s += ": ";
+  return s;
+}
+
+std::string ErrorSite::context() const {
+  return (line > 0 ? location_prefix(file, line, column) : std::string()) + "node '" + node + "' (" + module + ")";
+}
+
+Error::Error(ErrorSite site)
+    : std::runtime_error(site.context() + ": " + site.message),
+      site_(std::make_shared<const ErrorSite>(std::move(site))) {}
+
+void rethrow_at(ErrorSite site) {
+  try {
+    throw;
+  } catch (const Cancelled&) {
+    throw;  // cancellation needs no place
+  } catch (const InputError& e) {
+    site.message = e.what();
+    throw InputError(std::move(site));
+  } catch (const Error& e) {
+    site.message = e.what();
+    throw Error(std::move(site));
+  } catch (const std::bad_alloc&) {
+    site.message = "out of memory";
+    throw Error(std::move(site));
+  } catch (const std::exception& e) {
+    site.message = e.what();
+    throw Error(std::move(site));
+  } catch (...) {
+    site.message = "unknown error";
+    throw Error(std::move(site));
+  }
+}
+
 void rethrow_with_context(const std::string& context) {
   try {
     throw;

@@ -128,6 +128,9 @@ struct Executor::Impl {
 
   explicit Impl(const Registry& r) : registry(r) {}
 
+  ExecutionPlan make_plan(const Pipeline& pipeline, const ExecOptions& options) const;
+  std::vector<std::map<std::string, DataPtr>> lookup_cache(ExecutionPlan& plan) const;
+
   // Cache keys of every node (module + effective params + upstream keys), in topological order.
   std::map<std::string, uint64_t> keys(const Pipeline& p, const std::vector<std::string>& order,
                                        const std::map<std::string, ParamMap>* overrides) const {
@@ -208,292 +211,417 @@ std::set<std::string> Executor::up_to_date(const Pipeline& p) const {
   return r;
 }
 
-RunReport Executor::run(const Pipeline& pipeline_in, const ExecOptions& opt) {
-  std::lock_guard run_lock(impl_->run_mutex);
-  Impl& im = *impl_;
-  im.cancel.store(false);
-  const auto t_start = std::chrono::steady_clock::now();
-  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
+int64_t ExecutionPlan::index_of(const std::string& id) const {
+  for (size_t i = 0; i < nodes.size(); ++i)
+    if (nodes[i].id == id) return static_cast<int64_t>(i);
+  return -1;
+}
 
-  // Apply overrides to a copy, then validate everything before any work.
-  Pipeline p = pipeline_in;
-  for (const auto& [node, params] : opt.overrides) {
-    if (!p.find(node)) throw InputError("--set: no node '" + node + "' in " + p.file());
-    for (const auto& [name, v] : params) p.set_param(node, name, v);
+namespace {
+
+std::vector<std::string> node_ids(const Pipeline& p) {
+  std::vector<std::string> ids;
+  for (const auto& n : p.nodes()) ids.push_back(n.id);
+  return ids;
+}
+
+// Applies `--set` overrides to `p`, remembering where each value came from so that validation
+// reports a bad one as "--set node.param=value: ..." rather than at the file's own value.
+void apply_overrides(Pipeline& p, const std::map<std::string, ParamMap>& overrides) {
+  for (const auto& [node, params] : overrides) {
+    PipelineNode* n = p.find(node);
+    if (!n) {
+      const std::string first = params.empty() ? std::string() : "." + params.begin()->first + "=" +
+                                                                       format_value(params.begin()->second);
+      throw InputError("--set " + node + first + ": no node '" + node + "' in " + p.file() +
+                       did_you_mean(node, node_ids(p)));
+    }
+    for (const auto& [name, v] : params) {
+      p.set_param(node, name, v);
+      n->param_origin[name] = "--set " + node + "." + name + "=" + format_value(v);
+    }
   }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- phase 1: plan
+ExecutionPlan Executor::plan(const Pipeline& pipeline, const ExecOptions& options) const {
+  ExecutionPlan plan = impl_->make_plan(pipeline, options);
+  (void)impl_->lookup_cache(plan);
+  return plan;
+}
+
+ExecutionPlan Executor::Impl::make_plan(const Pipeline& pipeline_in, const ExecOptions& opt) const {
+  const Impl& im = *this;
+  // Apply overrides to a copy, then validate everything before any work.
+  ExecutionPlan plan;
+  plan.pipeline = pipeline_in;
+  Pipeline& p = plan.pipeline;
+  apply_overrides(p, opt.overrides);
   for (const auto& t : opt.targets)
-    if (!p.find(t)) throw InputError("no node '" + t + "' in " + p.file());
+    if (!p.find(t)) throw InputError("no node '" + t + "' in " + p.file() + did_you_mean(t, node_ids(p)));
   validate_or_throw(p, im.registry);
   const std::vector<std::string> order_all = p.topological_order();
   const std::set<std::string> wanted = p.upstream_closure(opt.targets);
-  std::vector<std::string> order;
-  for (const auto& id : order_all)
-    if (wanted.count(id)) order.push_back(id);
   const auto keys = im.keys(p, order_all, nullptr);
-  const int threads = effective_threads(opt.threads);
-  const fs::path input_base = p.base_dir();
-  const fs::path output_base = opt.output_dir.empty() ? p.base_dir() : fs::absolute(opt.output_dir);
-
-  RunReport report;
-  report.pipeline = p.file();
-  report.threads = threads;
-
-  // Dependency bookkeeping.
-  const size_t n_nodes = order.size();
-  std::vector<const PipelineNode*> node_of(n_nodes);
-  {
-    std::unordered_map<std::string, const PipelineNode*> by_id;
-    for (const auto& n : p.nodes()) by_id[n.id] = &n;
-    for (size_t i = 0; i < n_nodes; ++i) node_of[i] = by_id.at(order[i]);
+  for (const auto& id : order_all) {
+    if (!wanted.count(id)) continue;
+    PlannedNode pn;
+    pn.id = id;
+    pn.module = p.find(id)->module;
+    pn.cache_key = keys.at(id);
+    plan.nodes.push_back(std::move(pn));
   }
+  plan.threads = effective_threads(opt.threads);
+  plan.input_base = p.base_dir();
+  plan.output_base = opt.output_dir.empty() ? p.base_dir() : fs::absolute(opt.output_dir);
+
+  // Dependencies: each distinct upstream node once.
   std::unordered_map<std::string, size_t> idx;
-  for (size_t i = 0; i < n_nodes; ++i) idx[order[i]] = i;
-  std::vector<std::vector<size_t>> users(n_nodes);
-  std::vector<int> pending(n_nodes, 0), consumers(n_nodes, 0);
-  for (size_t i = 0; i < n_nodes; ++i) {
+  for (size_t i = 0; i < plan.nodes.size(); ++i) idx[plan.nodes[i].id] = i;
+  for (size_t i = 0; i < plan.nodes.size(); ++i) {
     std::set<size_t> deps;
-    for (const auto& [port, ref] : node_of[i]->inputs) deps.insert(idx.at(ref.node));
+    for (const auto& [port, ref] : p.find(plan.nodes[i].id)->inputs) deps.insert(idx.at(ref.node));
     for (size_t d : deps) {
-      users[d].push_back(i);
-      ++pending[i];
-      ++consumers[d];
+      plan.nodes[d].users.push_back(i);
+      plan.nodes[i].inputs_from.push_back(d);
+    }
+  }
+  return plan;
+}
+
+// ---------------------------------------------------------------- phase 2: cache lookup
+// Marks the planned nodes whose results are cached (and whose output files still exist) and returns
+// those results (empty maps for the others).
+std::vector<std::map<std::string, DataPtr>> Executor::Impl::lookup_cache(ExecutionPlan& plan) const {
+  std::vector<std::map<std::string, DataPtr>> results(plan.nodes.size());
+  std::lock_guard lock(cache_mutex);
+  for (size_t i = 0; i < plan.nodes.size(); ++i) {
+    PlannedNode& n = plan.nodes[i];
+    n.cached = false;
+    auto c = cache.find(n.cache_key);
+    if (c == cache.end()) continue;
+    bool files_ok = std::all_of(c->second.files.begin(), c->second.files.end(),
+                                [](const std::string& f) { return fs::exists(f); });
+    if (!files_ok) continue;
+    n.cached = true;
+    results[i] = c->second.outputs;
+  }
+  return results;
+}
+
+// ---------------------------------------------------------------- phases 3 and 4: run nodes, schedule
+// The state of one run: nodes waiting, ready, running, their results, the first error, the output
+// files written so far. Worker threads share it under `m_`.
+class Executor::Scheduler {
+public:
+  Scheduler(Impl& im, const ExecutionPlan& plan, const ExecOptions& opt,
+            std::vector<std::map<std::string, DataPtr>> results, std::atomic<int64_t>& modules_run, RunReport& report)
+      : im_(im), plan_(plan), opt_(opt), modules_run_(modules_run), report_(report), n_(plan.nodes.size()),
+        results_(std::move(results)), progress_(n_, 0.0), state_(n_, NodeState::Waiting), pending_(n_, 0),
+        consumers_(n_, 0) {
+    for (size_t i = 0; i < n_; ++i) {
+      node_of_.push_back(plan.pipeline.find(plan.nodes[i].id));
+      idx_[plan.nodes[i].id] = i;
+      pending_[i] = static_cast<int>(plan.nodes[i].inputs_from.size());
+      consumers_[i] = static_cast<int>(plan.nodes[i].users.size());
+    }
+    for (size_t i = 0; i < n_; ++i) {
+      status(i, NodeState::Waiting, 0.0, {});
+      if (pending_[i] == 0) ready_.push_back(i);
     }
   }
 
-  std::mutex m;
-  std::condition_variable cv;
-  std::deque<size_t> ready;
-  std::vector<std::map<std::string, DataPtr>> results(n_nodes);
-  std::vector<double> progress(n_nodes, 0.0);
-  std::vector<NodeState> state(n_nodes, NodeState::Waiting);
-  size_t finished = 0, running = 0;
-  std::exception_ptr first_error;
-  std::string first_error_node;
-  detail::OutputFiles files;
+  // Runs every node on a pool of workers; returns when all are done, or on the first error or a
+  // cancellation once the running nodes have stopped.
+  void run_all();
+  // Phase 5: renames the output files into place and caches what ran (GUI), or removes the files
+  // and rethrows the first error with its node's place in the pipeline file.
+  void conclude(double seconds);
 
-  auto status = [&](size_t i, NodeState s, double prog, const std::string& msg) {
-    if (opt.on_status) opt.on_status(order[i], NodeStatus{s, prog, msg});
-  };
-  auto overall = [&]() {  // call with m held
-    if (!opt.on_progress || n_nodes == 0) return;
+private:
+  std::map<std::string, DataPtr> gather_inputs(size_t i);
+  void run_module(size_t i, std::map<std::string, DataPtr> inputs, NodeReport& nr);
+  void run_node(size_t i);
+  void node_done(size_t i, NodeReport nr);
+  void node_failed(size_t i);
+  void release_inputs(size_t i);
+  void store_in_cache();
+
+  void status(size_t i, NodeState s, double prog, const std::string& msg) const {
+    if (opt_.on_status) opt_.on_status(plan_.nodes[i].id, NodeStatus{s, prog, msg});
+  }
+  void overall() const {  // call with m_ held
+    if (!opt_.on_progress || n_ == 0) return;
     double sum = 0;
-    for (size_t i = 0; i < n_nodes; ++i)
-      sum += (state[i] == NodeState::Done || state[i] == NodeState::Cached) ? 1.0 : progress[i];
-    opt.on_progress(sum / static_cast<double>(n_nodes));
-  };
-
-  // Nodes whose results are cached (and whose output files still exist) do not run.
-  std::vector<bool> from_cache(n_nodes, false);
-  {
-    std::lock_guard lock(im.cache_mutex);
-    for (size_t i = 0; i < n_nodes; ++i) {
-      auto c = im.cache.find(keys.at(order[i]));
-      if (c == im.cache.end()) continue;
-      bool files_ok = std::all_of(c->second.files.begin(), c->second.files.end(),
-                                  [](const std::string& f) { return fs::exists(f); });
-      if (!files_ok) continue;
-      from_cache[i] = true;
-      results[i] = c->second.outputs;
-    }
-  }
-  for (size_t i = 0; i < n_nodes; ++i) {
-    status(i, NodeState::Waiting, 0.0, {});
-    if (pending[i] == 0) ready.push_back(i);
+    for (size_t i = 0; i < n_; ++i)
+      sum += (state_[i] == NodeState::Done || state_[i] == NodeState::Cached) ? 1.0 : progress_[i];
+    opt_.on_progress(sum / static_cast<double>(n_));
   }
 
-  auto release_inputs = [&](size_t i) {  // m held; headless: drop results nobody needs any more
-    for (const auto& [port, ref] : node_of[i]->inputs) {
-      size_t d = idx.at(ref.node);
-      (void)port;
-      if (--consumers[d] == 0 && !opt.keep_outputs && std::find(opt.targets.begin(), opt.targets.end(), order[d]) == opt.targets.end())
-        results[d].clear();
-    }
-  };
+  Impl& im_;
+  const ExecutionPlan& plan_;
+  const ExecOptions& opt_;
+  std::atomic<int64_t>& modules_run_;
+  RunReport& report_;
+  const size_t n_;
+  std::vector<const PipelineNode*> node_of_;
+  std::unordered_map<std::string, size_t> idx_;  // node id -> index in plan_.nodes
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<size_t> ready_;
+  std::vector<std::map<std::string, DataPtr>> results_;
+  std::vector<double> progress_;
+  std::vector<NodeState> state_;
+  std::vector<int> pending_, consumers_;
+  size_t finished_ = 0, running_ = 0;
+  std::exception_ptr first_error_;
+  int64_t first_error_node_ = -1;  // -1: none, or the error is a cancellation
+  detail::OutputFiles files_;
+};
 
-  auto run_node = [&](size_t i) {
-    const PipelineNode& node = *node_of[i];
-    const ModuleSpec& spec = *im.registry.find(node.module);
-    NodeReport nr;
-    nr.id = node.id;
-    nr.module = node.module;
-    const auto t0 = std::chrono::steady_clock::now();
-    try {
-      std::map<std::string, DataPtr> inputs;
-      {
-        std::lock_guard lock(m);
-        for (const auto& [port, ref] : node.inputs) {
-          const auto& r = results[idx.at(ref.node)];
-          auto it = r.find(ref.port);
-          if (it == r.end() || !it->second)
-            throw InputError("input '" + port + "': node '" + ref.node + "' produced no output '" + ref.port + "'");
-          const PortSpec* ip = spec.find_input(port);
-          if (std::find(ip->types.begin(), ip->types.end(), it->second->type_id()) == ip->types.end())
-            throw InputError("input '" + port + "': got " + it->second->type_id() + " from " + ref.str() +
-                             ", but the port takes " + [&] {
-                               std::string s;
-                               for (const auto& t : ip->types) { if (!s.empty()) s += "|"; s += t; }
-                               return s;
-                             }());
-          inputs[port] = it->second;
-        }
-      }
-      if (from_cache[i]) {
-        nr.cached = true;
-      } else {
-        ParamMap eff = effective_params(node, spec);
-        auto last_report = std::make_shared<std::atomic<int64_t>>(0);
-        Interrupter intr(
-            [&, i, last_report](double f) {
-              const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
-                                      std::chrono::steady_clock::now().time_since_epoch()).count();
-              int64_t prev = last_report->load();
-              if (now - prev < 50 && f < 1.0) return;
-              last_report->store(now);
-              std::lock_guard lock(m);
-              progress[i] = f;
-              status(i, NodeState::Running, f, {});
-              overall();
-            },
-            &im.cancel);
-        std::vector<std::string> warnings;
-        detail::NodeContext ctx(spec, node.id, std::move(inputs), std::move(eff), threads, intr, input_base,
-                                output_base, files, [&, i](const std::string& w) {
-                                  if (opt.on_warning) opt.on_warning(order[i], w);
-                                });
-        status(i, NodeState::Running, 0.0, {});
-        auto mod = im.registry.create(node.module);
-        ++modules_run_;
-        mod->run(ctx);
-        intr.check();
-        std::lock_guard lock(m);
-        results[i] = std::move(ctx.outputs());
-        nr.warnings = ctx.warnings();
-        nr.outputs_written = ctx.written();
-      }
-      nr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      nr.peak_rss_mib = peak_rss_mib();
-      // Reading /proc costs ~10 µs: skip it for nodes too short to change the resident set much.
-      if (nr.seconds > 0.01) nr.rss_mib = current_rss_mib();
-      std::lock_guard lock(m);
-      for (const auto& [port, d] : results[i])
-        if (d) nr.output_bytes[port] = d->bytes();
-      state[i] = from_cache[i] ? NodeState::Cached : NodeState::Done;
-      progress[i] = 1.0;
-      status(i, state[i], 1.0, nr.warnings.empty() ? std::string() : nr.warnings.back());
-      report.nodes.push_back(std::move(nr));
-      release_inputs(i);
-      for (size_t u : users[i])
-        if (--pending[u] == 0) ready.push_back(u);
-      overall();
-    } catch (...) {
-      std::lock_guard lock(m);
-      bool cancelled = false;
-      try {
-        throw;
-      } catch (const Cancelled&) {
-        cancelled = true;
-      } catch (...) {
-      }
-      state[i] = cancelled ? NodeState::Cancelled : NodeState::Error;
-      std::string msg;
-      try {
-        throw;
-      } catch (const std::exception& e) {
-        msg = e.what();
-      } catch (...) {
-        msg = "unknown error";
-      }
-      status(i, state[i], progress[i], msg);
-      if (!first_error || (!cancelled && first_error_node.empty())) {
-        if (!cancelled || !first_error) {
-          first_error = std::current_exception();
-          first_error_node = cancelled ? std::string() : node.id;
-        }
-      }
-      im.cancel.store(true);  // stop the others
-    }
-  };
+// The inputs of node i from its upstream results, checked against the port's types.
+std::map<std::string, DataPtr> Executor::Scheduler::gather_inputs(size_t i) {
+  const PipelineNode& node = *node_of_[i];
+  const ModuleSpec& spec = *im_.registry.find(node.module);
+  std::map<std::string, DataPtr> inputs;
+  std::lock_guard lock(m_);
+  for (const auto& [port, ref] : node.inputs) {
+    const auto& r = results_[idx_.at(ref.node)];
+    auto it = r.find(ref.port);
+    if (it == r.end() || !it->second)
+      throw InputError("input '" + port + "': node '" + ref.node + "' produced no output '" + ref.port + "'");
+    const PortSpec* ip = spec.find_input(port);
+    if (std::find(ip->types.begin(), ip->types.end(), it->second->type_id()) == ip->types.end())
+      throw InputError("input '" + port + "': got " + it->second->type_id() + " from " + ref.str() +
+                       ", but the port takes " + [&] {
+                         std::string s;
+                         for (const auto& t : ip->types) { if (!s.empty()) s += "|"; s += t; }
+                         return s;
+                       }());
+    inputs[port] = it->second;
+  }
+  return inputs;
+}
 
-  // Scheduler: a pool of `node_workers` threads pulls ready nodes; each node gets the whole thread
-  // budget (TBB's global scheduler keeps the total number of busy threads at the hardware count).
-  const size_t node_workers = std::min<size_t>(static_cast<size_t>(std::clamp(threads, 1, 4)), std::max<size_t>(n_nodes, 1));
+// Calls the module's run() with progress, cancellation and warnings wired to the run.
+void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> inputs, NodeReport& nr) {
+  const PipelineNode& node = *node_of_[i];
+  const ModuleSpec& spec = *im_.registry.find(node.module);
+  ParamMap eff = effective_params(node, spec);
+  auto last_report = std::make_shared<std::atomic<int64_t>>(0);
+  Interrupter intr(
+      [this, i, last_report](double f) {
+        const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
+                                std::chrono::steady_clock::now().time_since_epoch()).count();
+        int64_t prev = last_report->load();
+        if (now - prev < 50 && f < 1.0) return;
+        last_report->store(now);
+        std::lock_guard lock(m_);
+        progress_[i] = f;
+        status(i, NodeState::Running, f, {});
+        overall();
+      },
+      &im_.cancel);
+  detail::NodeContext ctx(spec, node.id, std::move(inputs), std::move(eff), plan_.threads, intr, plan_.input_base,
+                          plan_.output_base, files_, [this, i](const std::string& w) {
+                            if (opt_.on_warning) opt_.on_warning(plan_.nodes[i].id, w);
+                          });
+  status(i, NodeState::Running, 0.0, {});
+  auto mod = im_.registry.create(node.module);
+  ++modules_run_;
+  mod->run(ctx);
+  intr.check();
+  std::lock_guard lock(m_);
+  results_[i] = std::move(ctx.outputs());
+  nr.warnings = ctx.warnings();
+  nr.outputs_written = ctx.written();
+}
+
+void Executor::Scheduler::run_node(size_t i) {
+  const PipelineNode& node = *node_of_[i];
+  NodeReport nr;
+  nr.id = node.id;
+  nr.module = node.module;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    auto inputs = gather_inputs(i);
+    if (plan_.nodes[i].cached) nr.cached = true;
+    else run_module(i, std::move(inputs), nr);
+    nr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    nr.peak_rss_mib = peak_rss_mib();
+    // Reading /proc costs ~10 µs: skip it for nodes too short to change the resident set much.
+    if (nr.seconds > 0.01) nr.rss_mib = current_rss_mib();
+    node_done(i, std::move(nr));
+  } catch (...) {
+    node_failed(i);
+  }
+}
+
+// Records a finished node and makes its users ready.
+void Executor::Scheduler::node_done(size_t i, NodeReport nr) {
+  std::lock_guard lock(m_);
+  for (const auto& [port, d] : results_[i])
+    if (d) nr.output_bytes[port] = d->bytes();
+  state_[i] = plan_.nodes[i].cached ? NodeState::Cached : NodeState::Done;
+  progress_[i] = 1.0;
+  status(i, state_[i], 1.0, nr.warnings.empty() ? std::string() : nr.warnings.back());
+  report_.nodes.push_back(std::move(nr));
+  release_inputs(i);
+  for (size_t u : plan_.nodes[i].users)
+    if (--pending_[u] == 0) ready_.push_back(u);
+  overall();
+}
+
+// Records the exception being handled: the first real error wins over cancellations; stops the others.
+void Executor::Scheduler::node_failed(size_t i) {
+  std::lock_guard lock(m_);
+  bool cancelled = false;
+  try {
+    throw;
+  } catch (const Cancelled&) {
+    cancelled = true;
+  } catch (...) {
+  }
+  state_[i] = cancelled ? NodeState::Cancelled : NodeState::Error;
+  std::string msg;
+  try {
+    throw;
+  } catch (const std::exception& e) {
+    msg = e.what();
+  } catch (...) {
+    msg = "unknown error";
+  }
+  status(i, state_[i], progress_[i], msg);
+  if (!first_error_ || (!cancelled && first_error_node_ < 0)) {
+    if (!cancelled || !first_error_) {
+      first_error_ = std::current_exception();
+      first_error_node_ = cancelled ? -1 : static_cast<int64_t>(i);
+    }
+  }
+  im_.cancel.store(true);  // stop the others
+}
+
+// m_ held; headless: drop results nobody needs any more. Counted per upstream node (not per port),
+// as consumers_ is: a node reading two ports of one node must not free it for its other users.
+void Executor::Scheduler::release_inputs(size_t i) {
+  for (size_t d : plan_.nodes[i].inputs_from) {
+    if (--consumers_[d] == 0 && !opt_.keep_outputs &&
+        std::find(opt_.targets.begin(), opt_.targets.end(), plan_.nodes[d].id) == opt_.targets.end())
+      results_[d].clear();
+  }
+}
+
+// A pool of `node_workers` threads pulls ready nodes; each node gets the whole thread budget (TBB's
+// global scheduler keeps the total number of busy threads at the hardware count).
+void Executor::Scheduler::run_all() {
+  const size_t node_workers =
+      std::min<size_t>(static_cast<size_t>(std::clamp(plan_.threads, 1, 4)), std::max<size_t>(n_, 1));
   std::vector<std::thread> pool;
-  auto stop_now = [&] { return im.cancel.load(); };
+  auto stop_now = [&] { return im_.cancel.load(); };
   for (size_t w = 0; w < node_workers; ++w) {
     pool.emplace_back([&] {
-      std::unique_lock lock(m);
+      std::unique_lock lock(m_);
       for (;;) {
-        cv.wait(lock, [&] { return finished == n_nodes || stop_now() || !ready.empty(); });
-        if (finished == n_nodes || stop_now()) return;
-        size_t i = ready.front();
-        ready.pop_front();
-        ++running;
+        cv_.wait(lock, [&] { return finished_ == n_ || stop_now() || !ready_.empty(); });
+        if (finished_ == n_ || stop_now()) return;
+        size_t i = ready_.front();
+        ready_.pop_front();
+        ++running_;
         lock.unlock();
         run_node(i);
         lock.lock();
-        --running;
-        ++finished;
-        cv.notify_all();
+        --running_;
+        ++finished_;
+        cv_.notify_all();
       }
     });
   }
   {
-    std::unique_lock lock(m);
-    while (finished < n_nodes && !(stop_now() && running == 0)) {
-      if (opt.cancel && opt.cancel->load()) im.cancel.store(true);
-      if (stop_now()) cv.notify_all();
-      cv.wait_for(lock, std::chrono::milliseconds(50));
+    std::unique_lock lock(m_);
+    while (finished_ < n_ && !(stop_now() && running_ == 0)) {
+      if (opt_.cancel && opt_.cancel->load()) im_.cancel.store(true);
+      if (stop_now()) cv_.notify_all();
+      cv_.wait_for(lock, std::chrono::milliseconds(50));
     }
-    cv.notify_all();
+    cv_.notify_all();
   }
   for (auto& t : pool) t.join();
+}
 
-  report.seconds = elapsed();
-  report.peak_rss_mib = peak_rss_mib();
-  const bool cancelled = im.cancel.load() || (opt.cancel && opt.cancel->load());
-  if (first_error || cancelled) {
-    files.rollback();
-    for (size_t i = 0; i < n_nodes; ++i)
-      if (state[i] == NodeState::Waiting) status(i, NodeState::Cancelled, 0.0, {});
-    report.ok = false;
-    std::exception_ptr err = first_error;
-    try {
-      if (err) std::rethrow_exception(err);
-      throw Cancelled();
-    } catch (const Cancelled& e) {
-      report.error = "cancelled";
-    } catch (const std::exception& e) {
-      report.error = e.what();
-    }
-    {
-      std::lock_guard lock(im.cache_mutex);
-      im.last = report;
-    }
-    if (!err) throw Cancelled();
+// Caches what ran when outputs are kept (GUI); headless runs free intermediates instead.
+void Executor::Scheduler::store_in_cache() {
+  std::lock_guard lock(im_.cache_mutex);
+  for (size_t i = 0; i < n_; ++i) {
+    if (plan_.nodes[i].cached) continue;
+    Impl::CacheEntry e;
+    for (const auto& nr : report_.nodes)
+      if (nr.id == plan_.nodes[i].id) e.files = nr.outputs_written;
+    if (opt_.keep_outputs) e.outputs = results_[i];
+    if (opt_.keep_outputs) im_.cache[plan_.nodes[i].cache_key] = std::move(e);
+  }
+  im_.last = report_;
+}
+
+void Executor::Scheduler::conclude(double seconds) {
+  report_.seconds = seconds;
+  report_.peak_rss_mib = peak_rss_mib();
+  const bool cancelled = im_.cancel.load() || (opt_.cancel && opt_.cancel->load());
+  if (!first_error_ && !cancelled) {
+    files_.commit();
+    report_.ok = true;
+    store_in_cache();
+    return;
+  }
+  files_.rollback();
+  for (size_t i = 0; i < n_; ++i)
+    if (state_[i] == NodeState::Waiting) status(i, NodeState::Cancelled, 0.0, {});
+  report_.ok = false;
+  // The error to throw: a node's error at the node's place in the pipeline file.
+  std::exception_ptr err = first_error_;
+  if (err && first_error_node_ >= 0) {
+    const PipelineNode& n = *node_of_[static_cast<size_t>(first_error_node_)];
     try {
       std::rethrow_exception(err);
     } catch (...) {
-      if (first_error_node.empty()) throw;
-      const PipelineNode* n = p.find(first_error_node);
-      rethrow_with_context("node '" + first_error_node + "' (" + n->module + ")");
+      try {
+        rethrow_at(ErrorSite{plan_.pipeline.file(), n.pos.line, n.pos.column, n.id, n.module, {}});
+      } catch (...) {
+        err = std::current_exception();
+      }
     }
   }
-  files.commit();
-  report.ok = true;
+  try {
+    if (err) std::rethrow_exception(err);
+    throw Cancelled();
+  } catch (const Cancelled&) {
+    report_.error = "cancelled";
+  } catch (const std::exception& e) {
+    report_.error = e.what();
+  }
   {
-    std::lock_guard lock(im.cache_mutex);
-    // Cache what ran when outputs are kept (GUI); headless runs free intermediates instead.
-    for (size_t i = 0; i < n_nodes; ++i) {
-      const uint64_t key = keys.at(order[i]);
-      if (from_cache[i]) continue;
-      Impl::CacheEntry e;
-      for (const auto& nr : report.nodes)
-        if (nr.id == order[i]) e.files = nr.outputs_written;
-      if (opt.keep_outputs) e.outputs = results[i];
-      if (opt.keep_outputs) im.cache[key] = std::move(e);
-    }
-    im.last = report;
+    std::lock_guard lock(im_.cache_mutex);
+    im_.last = report_;
   }
+  if (!err) throw Cancelled();
+  std::rethrow_exception(err);
+}
+
+// ---------------------------------------------------------------- run: the phases in order
+RunReport Executor::run(const Pipeline& pipeline, const ExecOptions& opt) {
+  std::lock_guard run_lock(impl_->run_mutex);
+  Impl& im = *impl_;
+  im.cancel.store(false);
+  const auto t_start = std::chrono::steady_clock::now();
+
+  ExecutionPlan plan = im.make_plan(pipeline, opt);
+  RunReport report;
+  report.pipeline = plan.pipeline.file();
+  report.threads = plan.threads;
+  Scheduler run(im, plan, opt, im.lookup_cache(plan), modules_run_, report);
+  run.run_all();
+  run.conclude(std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());
   return report;
 }
 

@@ -22,14 +22,7 @@ std::optional<PortRef> parse_port_ref(const std::string& text) {
 }
 
 std::string Diagnostic::format() const {
-  std::string s;
-  if (!file.empty()) {
-    s += file;
-    if (pos.known()) s += ":" + std::to_string(pos.line) + ":" + std::to_string(pos.column);
-    s += ": ";
-  } else if (pos.known()) {
-    s += std::to_string(pos.line) + ":" + std::to_string(pos.column) + ": ";
-  }
+  std::string s = location_prefix(file, pos.line, pos.column);
   if (!node.empty()) s += "node '" + node + "': ";
   return s + message;
 }
@@ -44,7 +37,8 @@ SourcePos pos_of(const YAML::Node& n) {
 }
 
 [[noreturn]] void fail(const std::string& file, SourcePos pos, const std::string& msg) {
-  Diagnostic d{file, pos, "", msg};
+  // Without a file (a value given alone, as by --set) a line:column would be one inside the value.
+  Diagnostic d{file, file.empty() ? SourcePos{} : pos, "", msg};
   throw InputError(d.format());
 }
 
@@ -408,6 +402,19 @@ void Pipeline::save(const fs::path& path) {
   });
   file_ = path.string();
   base_dir_ = fs::absolute(path).parent_path();
+  // Positions now refer to the file just written, so that run-time errors point into it.
+  Pipeline saved;
+  try {
+    saved = parse(text, file_, base_dir_);
+  } catch (const Error&) {
+  }
+  for (auto& n : nodes_) {
+    const PipelineNode* s = saved.find(n.id);
+    n.pos = s ? s->pos : SourcePos{};
+    n.module_pos = s ? s->module_pos : SourcePos{};
+    n.param_pos = s ? s->param_pos : std::map<std::string, SourcePos>{};
+    n.input_pos = s ? s->input_pos : std::map<std::string, SourcePos>{};
+  }
 }
 
 // ---------------------------------------------------------------- editing
@@ -533,15 +540,17 @@ std::set<std::string> Pipeline::upstream_closure(const std::vector<std::string>&
   return seen;
 }
 
-std::vector<std::string> Pipeline::topological_order() const {
-  // Kahn's algorithm, picking the earliest node in file order among the ready ones.
+namespace {
+// Kahn's algorithm, picking the earliest node in file order among the ready ones. Returns node
+// indices in order; `left` gets the nodes that never became ready (on or behind a cycle).
+std::vector<size_t> kahn_order(const std::vector<PipelineNode>& nodes, std::vector<size_t>& left) {
   std::map<std::string, size_t> index;
-  for (size_t i = 0; i < nodes_.size(); ++i) index[nodes_[i].id] = i;
-  std::vector<int> indeg(nodes_.size(), 0);
-  std::vector<std::vector<size_t>> users(nodes_.size());
-  for (size_t i = 0; i < nodes_.size(); ++i) {
+  for (size_t i = 0; i < nodes.size(); ++i) index[nodes[i].id] = i;
+  std::vector<int> indeg(nodes.size(), 0);
+  std::vector<std::vector<size_t>> users(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) {
     std::set<size_t> deps;
-    for (const auto& [port, ref] : nodes_[i].inputs) {
+    for (const auto& [port, ref] : nodes[i].inputs) {
       auto it = index.find(ref.node);
       if (it != index.end()) deps.insert(it->second);
     }
@@ -551,23 +560,36 @@ std::vector<std::string> Pipeline::topological_order() const {
     }
   }
   std::set<size_t> ready;
-  for (size_t i = 0; i < nodes_.size(); ++i)
+  for (size_t i = 0; i < nodes.size(); ++i)
     if (indeg[i] == 0) ready.insert(i);
-  std::vector<std::string> order;
+  std::vector<size_t> order;
   while (!ready.empty()) {
     size_t i = *ready.begin();
     ready.erase(ready.begin());
-    order.push_back(nodes_[i].id);
+    order.push_back(i);
     for (size_t u : users[i])
       if (--indeg[u] == 0) ready.insert(u);
   }
-  if (order.size() != nodes_.size()) {
-    std::string cyc;
-    for (size_t i = 0; i < nodes_.size(); ++i)
-      if (indeg[i] > 0) { if (!cyc.empty()) cyc += ", "; cyc += nodes_[i].id; }
-    throw InputError(file_ + ": the pipeline has a cycle through nodes " + cyc);
-  }
+  left.clear();
+  for (size_t i = 0; i < nodes.size(); ++i)
+    if (indeg[i] > 0) left.push_back(i);
   return order;
+}
+
+std::string cycle_message(const std::vector<PipelineNode>& nodes, const std::vector<size_t>& left) {
+  std::string cyc;
+  for (size_t i : left) { if (!cyc.empty()) cyc += ", "; cyc += nodes[i].id; }
+  return "the pipeline has a cycle through nodes " + cyc;
+}
+}  // namespace
+
+std::vector<std::string> Pipeline::topological_order() const {
+  std::vector<size_t> left;
+  const std::vector<size_t> order = kahn_order(nodes_, left);
+  if (!left.empty()) throw InputError(file_ + ": " + cycle_message(nodes_, left));
+  std::vector<std::string> ids;
+  for (size_t i : order) ids.push_back(nodes_[i].id);
+  return ids;
 }
 
 bool Pipeline::operator==(const Pipeline& o) const {
@@ -612,7 +634,14 @@ size_t edit_distance(const std::string& a, const std::string& b) {
   }
   return prev[b.size()];
 }
-std::string suggest(const std::string& name, const std::vector<std::string>& candidates) {
+std::string join_types(const std::vector<std::string>& ts) {
+  std::string s;
+  for (const auto& t : ts) { if (!s.empty()) s += "|"; s += t; }
+  return s;
+}
+}  // namespace
+
+std::string did_you_mean(const std::string& name, const std::vector<std::string>& candidates) {
   std::string best;
   size_t bd = 3;
   for (const auto& c : candidates) {
@@ -621,24 +650,24 @@ std::string suggest(const std::string& name, const std::vector<std::string>& can
   }
   return best.empty() ? std::string() : " (did you mean '" + best + "'?)";
 }
-std::string join_types(const std::vector<std::string>& ts) {
-  std::string s;
-  for (const auto& t : ts) { if (!s.empty()) s += "|"; s += t; }
-  return s;
-}
-}  // namespace
 
 std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
   std::vector<Diagnostic> ds;
   auto add = [&](const PipelineNode& n, SourcePos pos, std::string msg) {
     ds.push_back({p.file(), pos.known() ? pos : n.pos, n.id, std::move(msg)});
   };
+  // A parameter set outside the file (--set) is reported at its origin, not at the file's value.
+  auto add_param = [&](const PipelineNode& n, const std::string& name, SourcePos pos, std::string msg) {
+    auto o = n.param_origin.find(name);
+    if (o == n.param_origin.end()) add(n, pos, std::move(msg));
+    else ds.push_back({o->second, {}, n.id, std::move(msg)});
+  };
   std::vector<std::string> module_names;
   for (const auto* s : registry.specs()) module_names.push_back(s->name());
   for (const auto& n : p.nodes()) {
     const ModuleSpec* spec = registry.find(n.module);
     if (!spec) {
-      add(n, n.module_pos, "unknown module '" + n.module + "'" + suggest(n.module, module_names) +
+      add(n, n.module_pos, "unknown module '" + n.module + "'" + did_you_mean(n.module, module_names) +
                                " (`skelflow modules` lists them)");
       continue;
     }
@@ -649,16 +678,16 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
       SourcePos pos = n.param_pos.count(name) ? n.param_pos.at(name) : n.pos;
       const ParamSpec* ps = spec->find_param(name);
       if (!ps) {
-        add(n, pos, "unknown parameter '" + name + "' of " + n.module + suggest(name, pnames));
+        add_param(n, name, pos, "unknown parameter '" + name + "' of " + n.module + did_you_mean(name, pnames));
         continue;
       }
       auto c = coerce_param(*ps, value);
       if (!c) {
-        add(n, pos, "param '" + name + "': expected " + to_string(ps->type) + ", got '" + format_value(value) + "'");
+        add_param(n, name, pos, "param '" + name + "': expected " + to_string(ps->type) + ", got '" + format_value(value) + "'");
         continue;
       }
       std::string m = ps->check(*c);
-      if (!m.empty()) add(n, pos, "param '" + name + "': " + m);
+      if (!m.empty()) add_param(n, name, pos, "param '" + name + "': " + m);
     }
     for (const auto& ps : spec->params()) {
       if (ps.type == ParamType::Path && !ps.optional_value && !n.params.count(ps.name) &&
@@ -672,7 +701,7 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
       SourcePos pos = n.input_pos.count(port) ? n.input_pos.at(port) : n.pos;
       const PortSpec* ip = spec->find_input(port);
       if (!ip) {
-        add(n, pos, "unknown input port '" + port + "' of " + n.module + suggest(port, inames));
+        add(n, pos, "unknown input port '" + port + "' of " + n.module + did_you_mean(port, inames));
         continue;
       }
       const PipelineNode* src = p.find(ref.node);
@@ -687,7 +716,7 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
         std::vector<std::string> onames;
         for (const auto& o : ss->outputs()) onames.push_back(o.name);
         add(n, pos, "input '" + port + "': node '" + ref.node + "' (" + src->module + ") has no output '" +
-                        ref.port + "'" + suggest(ref.port, onames));
+                        ref.port + "'" + did_you_mean(ref.port, onames));
         continue;
       }
       bool ok = false;
@@ -701,11 +730,10 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
       if (ip.required && !n.inputs.count(ip.name))
         add(n, n.pos, "required input '" + ip.name + "' (" + join_types(ip.types) + ") is not connected");
   }
-  try {
-    (void)p.topological_order();
-  } catch (const InputError& e) {
-    ds.push_back({"", {}, "", e.what()});
-  }
+  // A cycle is reported at the first of its nodes in the file.
+  std::vector<size_t> left;
+  (void)kahn_order(p.nodes(), left);
+  if (!left.empty()) ds.push_back({p.file(), p.nodes()[left.front()].pos, "", cycle_message(p.nodes(), left)});
   return ds;
 }
 

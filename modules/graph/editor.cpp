@@ -190,10 +190,19 @@ Journal parse_journal(const std::string& text, const std::string& name) {
   }
   if (!root.IsMap() || !root["skelflow_edits"])
     throw InputError(name + ": not an edit journal (expected 'skelflow_edits: 1' and 'ops:')");
-  if (root["skelflow_edits"].as<std::string>() != "1")
-    throw InputError(where(root["skelflow_edits"]) + ": unsupported journal version");
+  if (!root["skelflow_edits"].IsScalar() || root["skelflow_edits"].Scalar() != "1")
+    throw InputError(where(root["skelflow_edits"]) + ": unsupported journal version" +
+                     (root["skelflow_edits"].IsScalar() ? " '" + root["skelflow_edits"].Scalar() + "'" : std::string()) +
+                     " (this Skelflow reads version 1)");
   Journal j;
-  if (root["tolerance"]) j.tolerance = root["tolerance"].as<double>();
+  if (const YAML::Node t = root["tolerance"]) {
+    try {
+      j.tolerance = t.as<double>();
+    } catch (const YAML::Exception&) {
+      throw InputError(where(t) + ": 'tolerance' must be a number" +
+                       (t.IsScalar() ? ", got '" + t.Scalar() + "'" : std::string()));
+    }
+  }
   const YAML::Node ops = root["ops"];
   if (!ops) return j;
   if (!ops.IsSequence()) throw InputError(where(ops) + ": 'ops' must be a list");
@@ -211,29 +220,47 @@ Journal parse_journal(const std::string& text, const std::string& name) {
   for (const auto& n : ops) {
     if (!n.IsMap() || !n["op"]) throw InputError(where(n) + ": each entry needs 'op'");
     EditOp o;
-    o.op = n["op"].as<std::string>();
-    if (std::find(known.begin(), known.end(), o.op) == known.end())
-      throw InputError(where(n["op"]) + ": unknown op '" + o.op + "'");
-    try {
-      if (const auto a = n["at"]) {
-        if (a.IsSequence() && a.size() > 0 && a[0].IsSequence()) {
-          for (const auto& p : a) o.at.push_back(vec(p, "at"));
-        } else {
-          o.at.push_back(vec(a, "at"));
-        }
+    if (!n["op"].IsScalar()) throw InputError(where(n["op"]) + ": 'op' must be a name");
+    o.op = n["op"].Scalar();
+    if (std::find(known.begin(), known.end(), o.op) == known.end()) {
+      std::string list;
+      for (const auto& k : known) {
+        if (!list.empty()) list += ", ";
+        list += k;
       }
-      if (n["from"]) o.from = vec(n["from"], "from");
-      if (n["to"]) o.to = vec(n["to"], "to");
-      if (n["route"]) o.route = n["route"].as<std::string>();
-      if (n["level"]) o.level = n["level"].as<std::string>();
-      if (n["attribute"]) o.attribute = n["attribute"].as<std::string>();
-      if (n["value"]) o.value = n["value"].as<double>();
-      if (n["max_length"]) o.length = n["max_length"].as<double>();
-      if (n["radius_factor"]) o.radius_factor = n["radius_factor"].as<double>();
-      if (n["max_distance"]) o.length = n["max_distance"].as<double>();
-    } catch (const YAML::Exception& e) {
-      throw InputError(where(n) + ": " + e.msg);
+      throw InputError(where(n["op"]) + ": unknown op '" + o.op + "' (expected one of " + list + ")");
     }
+    // Values by key, with messages naming the key and the entry's line.
+    auto number = [&](const char* key) {
+      const YAML::Node v = n[key];
+      try {
+        return v.as<double>();
+      } catch (const YAML::Exception&) {
+        throw InputError(where(v) + ": '" + key + "' must be a number" +
+                         (v.IsScalar() ? ", got '" + v.Scalar() + "'" : std::string()));
+      }
+    };
+    auto name = [&](const char* key) {
+      const YAML::Node v = n[key];
+      if (!v.IsScalar()) throw InputError(where(v) + ": '" + key + "' must be a name");
+      return v.Scalar();
+    };
+    if (const auto a = n["at"]) {
+      if (a.IsSequence() && a.size() > 0 && a[0].IsSequence()) {
+        for (const auto& p : a) o.at.push_back(vec(p, "at"));
+      } else {
+        o.at.push_back(vec(a, "at"));
+      }
+    }
+    if (n["from"]) o.from = vec(n["from"], "from");
+    if (n["to"]) o.to = vec(n["to"], "to");
+    if (n["route"]) o.route = name("route");
+    if (n["level"]) o.level = name("level");
+    if (n["attribute"]) o.attribute = name("attribute");
+    if (n["value"]) o.value = number("value");
+    if (n["max_length"]) o.length = number("max_length");
+    if (n["radius_factor"]) o.radius_factor = number("radius_factor");
+    if (n["max_distance"]) o.length = number("max_distance");
     if (o.route != "straight" && o.route != "mask") throw InputError(where(n) + ": route must be straight or mask");
     auto need = [&](bool ok, const char* what) {
       if (!ok) throw InputError(where(n) + ": op " + o.op + " needs " + what);

@@ -78,22 +78,26 @@ std::string xml_unescape(const std::string& s) {
   return o;
 }
 
-// Whitespace-separated numbers of text[begin, end).
+// Whitespace-separated numbers of text[begin, end). Messages start with `where`; with `file` set they
+// read "file:LINE: where: ..." where LINE counts from `first_line` at text[0] (the offending value's
+// line; the block's first line when values run out).
 class NumberReader {
 public:
-  NumberReader(const std::string& text, size_t begin, size_t end, std::string where)
-      : p_(text.data() + begin), end_(text.data() + end), where_(std::move(where)) {}
+  NumberReader(const std::string& text, size_t begin, size_t end, std::string where, std::string file = {},
+               int64_t first_line = 1)
+      : text_(text.data()), begin_(text.data() + begin), p_(begin_), end_(text.data() + end), where_(std::move(where)),
+        file_(std::move(file)), first_line_(first_line) {}
   double next() {
     skip();
-    if (p_ >= end_) throw InputError(where_ + ": fewer values than expected");
+    if (p_ >= end_) throw InputError(at(begin_) + ": fewer values than expected");
     double v = 0.0;
     auto [ptr, ec] = std::from_chars(p_, end_, v);
-    if (ec != std::errc()) {
+    if (ec != std::errc() || (ptr < end_ && !separator(*ptr))) {
       // from_chars rejects "nan"/"inf" spellings of some writers and leading '+'.
       char* e = nullptr;
-      std::string tok(p_, std::find_if(p_, end_, [](char c) { return std::isspace(static_cast<unsigned char>(c)); }));
+      std::string tok(p_, std::find_if(p_, end_, [](char c) { return separator(c); }));
       v = std::strtod(tok.c_str(), &e);
-      if (e == tok.c_str()) throw InputError(where_ + ": expected a number, got '" + tok.substr(0, 20) + "'");
+      if (e != tok.c_str() + tok.size()) throw InputError(at(p_) + ": expected a number, got '" + tok.substr(0, 20) + "'");
       p_ += tok.size();
       return v;
     }
@@ -101,8 +105,9 @@ public:
     return v;
   }
   int64_t next_int() {
+    const char* start = (skip(), p_);
     const double v = next();
-    if (v != std::floor(v)) throw InputError(where_ + ": expected an integer, got " + std::to_string(v));
+    if (v != std::floor(v)) throw InputError(at(start) + ": expected an integer, got " + std::to_string(v));
     return static_cast<int64_t>(v);
   }
   bool at_end() {
@@ -111,12 +116,20 @@ public:
   }
 
 private:
+  static bool separator(char c) { return std::isspace(static_cast<unsigned char>(c)) || c == ','; }
   void skip() {
-    while (p_ < end_ && (std::isspace(static_cast<unsigned char>(*p_)) || *p_ == ',')) ++p_;
+    while (p_ < end_ && separator(*p_)) ++p_;
   }
+  [[nodiscard]] std::string at(const char* p) const {
+    if (file_.empty()) return where_;
+    return file_ + ":" + std::to_string(first_line_ + std::count(text_, p, '\n')) + ": " + where_;
+  }
+  const char* text_;
+  const char* begin_;
   const char* p_;
   const char* end_;
-  std::string where_;
+  std::string where_, file_;
+  int64_t first_line_;
 };
 
 std::vector<std::string> split(const std::string& s, char sep) {
@@ -159,6 +172,7 @@ struct Xml {
   std::string name;
   std::vector<std::pair<std::string, std::string>> attrs;
   std::string text;
+  int64_t text_line = 1;  // line of the file where `text` starts (for messages)
   std::vector<Xml> children;
   [[nodiscard]] const std::string* attr(const std::string& k) const {
     for (const auto& [a, v] : attrs)
@@ -181,30 +195,40 @@ Xml parse_xml(const std::string& s, const std::string& source) {
   std::vector<Xml*> stack{&root};
   size_t i = 0;
   const size_t n = s.size();
+  // Line of offset `pos` (offsets only grow: count incrementally).
+  int64_t line = 1;
+  size_t counted = 0;
+  auto line_at = [&](size_t pos) {
+    for (; counted < pos && counted < n; ++counted) line += s[counted] == '\n';
+    return line;
+  };
+  auto where = [&](size_t pos) { return source + ":" + std::to_string(line_at(pos)); };
+  std::vector<int64_t> open_line{0};  // line of each open element's start tag
   while (i < n) {
     const size_t lt = s.find('<', i);
     if (lt == std::string::npos) break;
     if (lt > i) stack.back()->text.append(s, i, lt - i);
     if (s.compare(lt, 4, "<!--") == 0) {
       const size_t e = s.find("-->", lt);
-      if (e == std::string::npos) throw InputError(source + ": unterminated XML comment");
+      if (e == std::string::npos) throw InputError(where(lt) + ": unterminated XML comment");
       i = e + 3;
       continue;
     }
     if (s.compare(lt, 2, "<?") == 0 || s.compare(lt, 2, "<!") == 0) {
       const size_t e = s.find('>', lt);
-      if (e == std::string::npos) throw InputError(source + ": unterminated XML declaration");
+      if (e == std::string::npos) throw InputError(where(lt) + ": unterminated XML declaration");
       i = e + 1;
       continue;
     }
     const size_t gt = s.find('>', lt);
-    if (gt == std::string::npos) throw InputError(source + ": unterminated XML tag");
+    if (gt == std::string::npos) throw InputError(where(lt) + ": unterminated XML tag");
     if (s[lt + 1] == '/') {
       const std::string name = s.substr(lt + 2, gt - lt - 2);
       if (stack.size() < 2 || stack.back()->name != name.substr(0, name.find_last_not_of(" \t\r\n") + 1))
-        throw InputError(source + ": unexpected closing tag </" + name + ">");
+        throw InputError(where(lt) + ": unexpected closing tag </" + name + ">");
       stack.back()->text = xml_unescape(stack.back()->text);
       stack.pop_back();
+      open_line.pop_back();
       i = gt + 1;
       continue;
     }
@@ -224,17 +248,24 @@ Xml parse_xml(const std::string& s, const std::string& source) {
       size_t q = eq + 1;
       while (q < body.size() && std::isspace(static_cast<unsigned char>(body[q]))) ++q;
       if (q >= body.size() || (body[q] != '"' && body[q] != '\''))
-        throw InputError(source + ": malformed attribute in <" + el.name + ">");
+        throw InputError(where(lt) + ": malformed attribute in <" + el.name + ">");
       const size_t qe = body.find(body[q], q + 1);
-      if (qe == std::string::npos) throw InputError(source + ": unterminated attribute in <" + el.name + ">");
+      if (qe == std::string::npos) throw InputError(where(lt) + ": unterminated attribute in <" + el.name + ">");
       el.attrs.emplace_back(key, xml_unescape(body.substr(q + 1, qe - q - 1)));
       k = qe + 1;
     }
+    const int64_t start_line = line_at(lt);
+    el.text_line = line_at(gt + 1);
     stack.back()->children.push_back(std::move(el));
-    if (!self_close) stack.push_back(&stack.back()->children.back());
+    if (!self_close) {
+      stack.push_back(&stack.back()->children.back());
+      open_line.push_back(start_line);
+    }
     i = gt + 1;
   }
-  if (stack.size() != 1) throw InputError(source + ": unclosed XML element <" + stack.back()->name + ">");
+  if (stack.size() != 1)
+    throw InputError(source + ":" + std::to_string(open_line.back()) + ": unclosed XML element <" + stack.back()->name +
+                     "> (the file ends at line " + std::to_string(line_at(n)) + ")");
   return root;
 }
 
@@ -375,7 +406,7 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
   auto reader = [&](int k) {
     auto it = ranges.find(k);
     if (it == ranges.end()) throw InputError(src + ": data block @" + std::to_string(k) + " is missing");
-    return NumberReader(text, it->second.first, it->second.second, src + ": block @" + std::to_string(k));
+    return NumberReader(text, it->second.first, it->second.second, "block @" + std::to_string(k), src);
   };
   const int64_t nn = count_of("VERTEX"), ne = count_of("EDGE"), np = count_of("POINT");
   SpatialGraph g;
@@ -546,7 +577,7 @@ std::vector<double> xml_numbers(const Xml& a, const std::string& src) {
     throw InputError(src + ": DataArray '" + a.attr_or("Name", "") + "' is " + a.attr_or("format", "") +
                      "; only ASCII .vtp is supported");
   std::vector<double> v;
-  NumberReader r(a.text, 0, a.text.size(), src + ": DataArray '" + a.attr_or("Name", "") + "'");
+  NumberReader r(a.text, 0, a.text.size(), "DataArray '" + a.attr_or("Name", "") + "'", src, a.text_line);
   while (!r.at_end()) v.push_back(r.next());
   return v;
 }
@@ -731,6 +762,7 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
     int64_t id, type, parent;
     Vec3 p;
     double r;
+    int line;  // for messages
   };
   std::vector<Sample> smp;
   std::map<int64_t, int64_t> index;
@@ -749,6 +781,7 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
     for (int a = 0; a < 3; ++a) s.p[a] = r.next();
     s.r = r.next();
     s.parent = r.next_int();
+    s.line = line_no;
     if (!index.emplace(s.id, static_cast<int64_t>(smp.size())).second)
       throw InputError(src + ":" + std::to_string(line_no) + ": duplicate sample id " + std::to_string(s.id));
     smp.push_back(s);
@@ -759,7 +792,8 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
     if (smp[i].parent < 0) continue;
     auto it = index.find(smp[i].parent);
     if (it == index.end())
-      throw InputError(src + ": sample " + std::to_string(smp[i].id) + " has unknown parent " + std::to_string(smp[i].parent));
+      throw InputError(src + ":" + std::to_string(smp[i].line) + ": sample " + std::to_string(smp[i].id) +
+                       " has unknown parent " + std::to_string(smp[i].parent));
     parent[i] = it->second;
     ++children[it->second];
   }
@@ -902,8 +936,11 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
   for (const auto& c : graph->children) {
     if (c.name != "edge") continue;
     auto a = ids.find(c.attr_or("source", "")), b = ids.find(c.attr_or("target", ""));
-    if (a == ids.end() || b == ids.end())
-      throw InputError(src + ": edge " + c.attr_or("id", "") + " refers to an unknown node");
+    if (a == ids.end() || b == ids.end()) {
+      const std::string id = c.attr_or("id", ""), missing = c.attr_or(a == ids.end() ? "source" : "target", "");
+      throw InputError(src + ": edge " + (id.empty() ? std::string() : "'" + id + "' ") + "refers to unknown node '" +
+                       missing + "'");
+    }
     std::vector<Vec3> pts;
     std::map<std::string, float> ef;
     std::map<std::string, int32_t> el;
@@ -1079,7 +1116,10 @@ SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, co
 
 std::string read_text(const std::filesystem::path& p) {
   std::ifstream in(p, std::ios::binary);
-  if (!in) throw InputError("cannot open '" + p.string() + "' for reading");
+  if (!in) {
+    std::error_code ec;
+    throw InputError(p.string() + (std::filesystem::exists(p, ec) ? ": cannot open the file for reading" : ": file not found"));
+  }
   std::ostringstream ss;
   ss << in.rdbuf();
   return ss.str();

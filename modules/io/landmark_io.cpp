@@ -82,7 +82,10 @@ std::string format_double(double v) {
 
 std::string read_file(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError("cannot open '" + path.string() + "'");
+  if (!in) {
+    std::error_code ec;
+    throw InputError(path.string() + (std::filesystem::exists(path, ec) ? ": cannot open the file for reading" : ": file not found"));
+  }
   std::ostringstream s;
   s << in.rdbuf();
   return s.str();
@@ -319,7 +322,8 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
     const std::string l = trim(lines[i]);
     if (l.empty() || l[0] == '#') continue;
     const auto f = split(l, ',');
-    if (f.size() < need) throw InputError(where(name, i) + ": expected " + std::to_string(need) + " fields");
+    if (f.size() < need)
+      throw InputError(where(name, i) + ": expected " + std::to_string(need) + " fields, got " + std::to_string(f.size()));
     const std::string s = trim(f[cs]);
     if (!rows.count(s)) set_labels.push_back(s);
     rows[s].push_back({trim(f[cn]), {parse_number(f[cx], where(name, i)), parse_number(f[cy], where(name, i)),
@@ -434,6 +438,7 @@ Transform parse_itk(const std::string& text, const std::string& name) {
   }
   std::string type;
   std::vector<double> params, fixed_params;
+  size_t params_line = 0, fixed_line = 0;  // for messages
   int transforms = 0;
   for (size_t i = 1; i < lines.size(); ++i) {
     const std::string l = trim(lines[i]);
@@ -446,8 +451,10 @@ Transform parse_itk(const std::string& text, const std::string& name) {
       type = value;
     } else if (key == "Parameters") {
       params = parse_numbers(value, where(name, i));
+      params_line = i;
     } else if (key == "FixedParameters") {
       fixed_params = parse_numbers(value, where(name, i));
+      fixed_line = i;
     }
   }
   const bool affine_type = type == "AffineTransform_double_3_3" || type == "AffineTransform_float_3_3" ||
@@ -456,10 +463,13 @@ Transform parse_itk(const std::string& text, const std::string& name) {
     throw InputError(name + ": ITK transform type '" + type +
                      "' is not supported; expected AffineTransform_double_3_3 (or _float_, or MatrixOffsetTransformBase)");
   }
-  if (params.size() != 12) throw InputError(name + ": 'Parameters' has " + std::to_string(params.size()) + " numbers; expected 12");
+  if (params.size() != 12)
+    throw InputError((params_line ? where(name, params_line) : name) + ": 'Parameters' has " +
+                     std::to_string(params.size()) + " numbers; expected 12");
   if (fixed_params.empty()) fixed_params = {0, 0, 0};
   if (fixed_params.size() != 3) {
-    throw InputError(name + ": 'FixedParameters' has " + std::to_string(fixed_params.size()) + " numbers; expected 3 (the centre)");
+    throw InputError(where(name, fixed_line) + ": 'FixedParameters' has " + std::to_string(fixed_params.size()) +
+                     " numbers; expected 3 (the centre)");
   }
   // ITK: T(x) = A (x - c) + c + t, mapping fixed → moving (LPS).
   Matrix3 a{};

@@ -320,7 +320,8 @@ TEST(Executor, FailureNamesTheNodeAndLeavesNoFiles) {
   ExecOptions o;
   o.threads = 1;
   std::string e = error_of([&] { ex.run(p, o); });
-  EXPECT_EQ(e, "node 'bad' (test.fail): failed on purpose");
+  // Run-time errors carry the node's place in the file, in the format of validation errors.
+  EXPECT_EQ(e, "f.yaml:5:3: node 'bad' (test.fail): failed on purpose");
   EXPECT_FALSE(fs::exists(dir / "sub" / "out.txt"));
   p.set_param("bad", "input_error", true);
   EXPECT_THROW(ex.run(p, o), InputError);
@@ -372,4 +373,144 @@ TEST(RunModule, ValidatesAndRuns) {
             std::string::npos);
   auto s = run_module("test.scale", {{"volume", r.data("volume")}}, {{"factor", int64_t{2}}});
   EXPECT_FLOAT_EQ((*s.get<VolumeF32>("volume"))[1], 2.0f);
+}
+
+// ---------------------------------------------------------------- run-time error positions
+namespace {
+ExecOptions targets(std::vector<std::string> t) {
+  ExecOptions o;
+  o.targets = std::move(t);
+  return o;
+}
+}  // namespace
+
+TEST(Executor, RunTimeErrorCarriesTheNodeSite) {
+  Pipeline p = Pipeline::parse(
+      "skelflow: 1\nnodes:\n"
+      "  src: {module: test.source}\n"
+      "  bad:\n    module: test.fail\n    inputs: {volume: src.volume}\n    params: {input_error: true}\n",
+      "pipes/site.yaml");
+  Executor ex;
+  try {
+    ex.run(p);
+    FAIL() << "no error";
+  } catch (const InputError& e) {  // the kind the module threw is kept
+    EXPECT_STREQ(e.what(), "pipes/site.yaml:4:3: node 'bad' (test.fail): the input is bad on purpose");
+    ASSERT_NE(e.site(), nullptr);
+    EXPECT_EQ(e.site()->file, "pipes/site.yaml");
+    EXPECT_EQ(e.site()->line, 4);
+    EXPECT_EQ(e.site()->column, 3);
+    EXPECT_EQ(e.site()->node, "bad");
+    EXPECT_EQ(e.site()->module, "test.fail");
+    EXPECT_EQ(e.site()->message, "the input is bad on purpose");
+  }
+  EXPECT_EQ(ex.last_report().error, "pipes/site.yaml:4:3: node 'bad' (test.fail): the input is bad on purpose");
+}
+
+TEST(Executor, PipelineBuiltInCodeHasNoPosition) {
+  Pipeline p;
+  p.add_node("src", "test.source");
+  p.add_node("bad", "test.fail");
+  ASSERT_EQ(p.connect({"src", "volume"}, "bad", "volume"), "");
+  Executor ex;
+  try {
+    ex.run(p);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_STREQ(e.what(), "node 'bad' (test.fail): failed on purpose");
+    ASSERT_NE(e.site(), nullptr);
+    EXPECT_EQ(e.site()->line, 0);
+  }
+  // Validation errors are unchanged: no site.
+  p.set_param("src", "offset", std::string("x"));
+  try {
+    ex.run(p);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.site(), nullptr);
+  }
+}
+
+TEST(Executor, SavingMovesPositionsToTheSavedFile) {
+  fs::path dir = scratch("save_pos");
+  Pipeline p = Pipeline::parse(
+      "skelflow: 1\nnodes:\n\n\n  src: {module: test.source}\n  bad: {module: test.fail, inputs: {volume: src.volume}}\n",
+      "old.yaml", dir);
+  p.add_node("late", "test.fail");
+  p.save(dir / "new.yaml");
+  EXPECT_EQ(p.find("src")->pos.line, 3);
+  EXPECT_EQ(p.find("late")->pos.line, 8);
+  Executor ex;
+  EXPECT_EQ(error_of([&] { ex.run(p, targets({"bad"})); }),
+            (dir / "new.yaml").string() + ":5:3: node 'bad' (test.fail): failed on purpose");
+}
+
+TEST(Executor, OverrideErrorsNameTheOverride) {
+  Pipeline p = Pipeline::parse(kChain, "chain.yaml");
+  Executor ex;
+  ExecOptions o;
+  o.overrides["aa"]["factor"] = int64_t{1};
+  EXPECT_EQ(error_of([&] { ex.run(p, o); }), "--set aa.factor=1: no node 'aa' in chain.yaml (did you mean 'a'?)");
+  o.overrides.clear();
+  o.overrides["a"]["factor"] = int64_t{1000};
+  EXPECT_EQ(error_of([&] { ex.run(p, o); }),
+            "--set a.factor=1000: node 'a': param 'factor': value 1000 is out of range [-100, 100]");
+  o.overrides.clear();
+  o.overrides["a"]["factr"] = int64_t{1};
+  EXPECT_EQ(error_of([&] { ex.run(p, o); }),
+            "--set a.factr=1: node 'a': unknown parameter 'factr' of test.scale (did you mean 'factor'?)");
+  o.overrides.clear();
+  o.overrides["a"]["factor"] = std::string("big");
+  EXPECT_EQ(error_of([&] { ex.run(p, o); }), "--set a.factor=big: node 'a': param 'factor': expected float, got 'big'");
+  EXPECT_EQ(ex.modules_run(), 0);
+}
+
+// ---------------------------------------------------------------- phases
+TEST(ExecutorPlan, OrdersTargetsAndMarksCachedNodes) {
+  Pipeline p = Pipeline::parse(kChain);
+  Executor ex;
+  ExecutionPlan all = ex.plan(p);
+  ASSERT_EQ(all.nodes.size(), 4u);
+  EXPECT_EQ(all.nodes[0].id, "src");
+  EXPECT_EQ(all.nodes[3].id, "sum");
+  EXPECT_EQ(all.nodes[0].users, (std::vector<size_t>{1, 2}));
+  EXPECT_EQ(all.nodes[3].inputs_from, (std::vector<size_t>{1, 2}));
+  for (const auto& n : all.nodes) EXPECT_FALSE(n.cached) << n.id;
+  ExecutionPlan a = ex.plan(p, targets({"a"}));
+  ASSERT_EQ(a.nodes.size(), 2u);
+  EXPECT_EQ(a.index_of("a"), 1);
+  EXPECT_EQ(a.index_of("b"), -1);
+  EXPECT_EQ(a.nodes[1].cache_key, all.nodes[1].cache_key);
+  // After a run that keeps outputs, everything is cached; an override changes a node and its users.
+  ExecOptions keep;
+  keep.keep_outputs = true;
+  ex.run(p, keep);
+  for (const auto& n : ex.plan(p).nodes) EXPECT_TRUE(n.cached) << n.id;
+  ExecOptions o;
+  o.overrides["a"]["factor"] = int64_t{4};
+  ExecutionPlan changed = ex.plan(p, o);
+  EXPECT_TRUE(changed.nodes[0].cached);
+  EXPECT_FALSE(changed.nodes[1].cached);
+  EXPECT_TRUE(changed.nodes[2].cached);
+  EXPECT_FALSE(changed.nodes[3].cached);
+  EXPECT_EQ(std::get<int64_t>(changed.pipeline.find("a")->params.at("factor")), 4);
+  EXPECT_EQ(ex.modules_run(), 4);  // planning runs nothing
+  EXPECT_THROW((void)ex.plan(p, targets({"nobody"})), InputError);
+}
+
+TEST(Executor, NodeReadingTwoPortsOfOneNodeDoesNotFreeItForOthers) {
+  // `sum` reads src twice; `a` reads it once and may run after `sum` (one worker): headless runs
+  // free a result when its last reader is done, counted per reading node.
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [3, 3, 3]}}
+  sum: {module: test.sum, inputs: {a: src.volume, b: src.volume}}
+  a: {module: test.scale, inputs: {volume: src.volume}}
+)");
+  Executor ex;
+  ExecOptions one;
+  one.threads = 1;
+  RunReport r = ex.run(p, one);
+  EXPECT_TRUE(r.ok);
+  EXPECT_EQ(r.nodes.size(), 3u);
 }

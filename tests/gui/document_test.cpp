@@ -348,3 +348,29 @@ TEST_F(DocTest, RunControllerRunsOffTheUiThreadAndMarksStaleNodes) {
   EXPECT_FALSE(args.at(0).toBool());
   EXPECT_TRUE(args.at(1).toString().contains("threshold2")) << args.at(1).toString().toStdString();
 }
+
+TEST_F(DocTest, RunControllerReportsRunTimeErrorsAtTheNodesLine) {
+  int argc = 1;
+  char arg0[] = "document_test";
+  char* argv[] = {arg0, nullptr};
+  QCoreApplication app(argc, argv);
+  QTemporaryDir dir;
+  ASSERT_TRUE(dir.isValid());
+  doc.load_text(
+      "skelflow: 1\nnodes:\n"
+      "  image: {module: io.read_volume, params: {path: missing.h5}}\n"
+      "  t: {module: gui_test.threshold, inputs: {image: image.volume}}\n",
+      "pipes/gui.yaml", dir.path());
+  RunController run(&doc);
+  QSignalSpy finished(&run, &RunController::finished);
+  ASSERT_TRUE(run.start());
+  ASSERT_TRUE(finished.wait(30000));
+  const auto args = finished.takeFirst();
+  EXPECT_FALSE(args.at(0).toBool());
+  // The run's message has the format of validation errors; the node shows its own message.
+  const std::string missing = (std::filesystem::path(dir.path().toStdString()) / "missing.h5").string();
+  EXPECT_EQ(args.at(1).toString().toStdString(),
+            "pipes/gui.yaml:3:3: node 'image' (io.read_volume): " + missing + ": file not found");
+  EXPECT_EQ(run.status("image").state, NodeState::Error);
+  EXPECT_EQ(run.status("image").message, missing + ": file not found");
+}

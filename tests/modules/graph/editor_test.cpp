@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 
 #include "graph/editor.hpp"
@@ -351,4 +352,33 @@ TEST(DanglingEnds, FindsFacingEndsAndEdgePoints) {
   GraphEditor ed(g);
   ed.bridge_gaps(6.0);
   EXPECT_EQ(ed.graph().connected_components(), 1);
+}
+
+// The messages of malformed journals: the file, line and column, and what is wrong.
+TEST(GraphEditor, MalformedJournalMessages) {
+  auto message = [](const std::string& text) -> std::string {
+    try {
+      (void)parse_journal(text, "j.yaml");
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  EXPECT_EQ(message("skelflow_edits: 1\nops:\n- {op: explode}\n"),
+            "j.yaml:3:8: unknown op 'explode' (expected one of delete_edge, delete_node, connect, split, merge, "
+            "move_node, set, prune, delete_components, bridge_gaps, undo, redo)");
+  EXPECT_EQ(message("hello: 1\n"), "j.yaml: not an edit journal (expected 'skelflow_edits: 1' and 'ops:')");
+  EXPECT_EQ(message("skelflow_edits: 2\n"),
+            "j.yaml:1:17: unsupported journal version '2' (this Skelflow reads version 1)");
+  EXPECT_EQ(message("skelflow_edits: 1\nops: [\n"), "j.yaml:3:1: YAML syntax error: end of sequence flow not found");
+  EXPECT_EQ(message("skelflow_edits: 1\ntolerance: wide\n"), "j.yaml:2:12: 'tolerance' must be a number, got 'wide'");
+  EXPECT_EQ(message("skelflow_edits: 1\nops:\n- {op: prune, max_length: long}\n"),
+            "j.yaml:3:27: 'max_length' must be a number, got 'long'");
+  EXPECT_EQ(message("skelflow_edits: 1\nops:\n- {op: connect, from: [0, 0, 0], to: [1, 1, 1], route: [a]}\n"),
+            "j.yaml:3:56: 'route' must be a name");
+  EXPECT_EQ(message("skelflow_edits: 1\nops:\n- {op: delete_node, at: [1, 2]}\n"),
+            "j.yaml:3:25: 'at' must be [x, y, z]");
+  EXPECT_EQ(message("skelflow_edits: 1\nops:\n- {op: prune, max_length: 1, radius_factor: -1}\n"),
+            "j.yaml:3:3: radius_factor must be >= 0");
+  EXPECT_EQ(message("skelflow_edits: 1\nops: {a: 1}\n"), "j.yaml:2:6: 'ops' must be a list");
 }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 
 #include "geometry/skeleton_to_graph.hpp"
 #include "../graph/graph_test_util.hpp"
@@ -196,4 +197,42 @@ TEST(GraphIo, ReadsAmiraWrittenByAmira) {
   EXPECT_EQ(g.edge_count(), 2);
   EXPECT_EQ(g.point_attributes.at("radius")[0], (std::vector<float>{1, 2, 3}));
   EXPECT_NEAR(g.total_length(), 2 * std::sqrt(25.25) + 5, 1e-6);
+}
+
+// The messages of the malformed files above: the file, the line where known, and what is wrong.
+TEST(GraphIo, MalformedFileMessages) {
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  EXPECT_EQ(message([] { graph_from_text("hello", GraphFormat::amira, {}, "h.am"); }),
+            "h.am: not an AmiraMesh file (first line must start with '# AmiraMesh')");
+  EXPECT_EQ(message([] { graph_from_text("# AmiraMesh BINARY-LITTLE-ENDIAN 2.0\n", GraphFormat::amira, {}, "b.am"); }),
+            "b.am: only ASCII AmiraMesh is supported, header says '# AmiraMesh BINARY-LITTLE-ENDIAN 2.0'");
+  const std::string bad_am =
+      "# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 1\ndefine EDGE 1\ndefine POINT 2\n"
+      "VERTEX { float[3] VertexCoordinates } @1\nEDGE { int[2] EdgeConnectivity } @2\n"
+      "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\n"
+      "@1\n0 0 0\n@2\n0 3\n@3\n2\n@4\n0 0 0 1 1 1\n";
+  EXPECT_EQ(message([&] { graph_from_text(bad_am, GraphFormat::amira, {}, "bad.am"); }),
+            "bad.am: EdgeConnectivity: node id 3 out of range (1 nodes)");
+  EXPECT_EQ(message([] { graph_from_text("1 0 0 0 0 1 7\n", GraphFormat::swc, {}, "p.swc"); }),
+            "p.swc:1: sample 1 has unknown parent 7");
+  EXPECT_EQ(message([] { graph_from_text("1 0 0 zero 0 1 -1\n", GraphFormat::swc, {}, "n.swc"); }),
+            "n.swc:1: expected a number, got 'zero'");
+  EXPECT_EQ(message([] {
+              graph_from_text("<graphml><graph><edge source=\"a\" target=\"b\"/></graph></graphml>",
+                              GraphFormat::graphml, {}, "e.graphml");
+            }),
+            "e.graphml: edge refers to unknown node 'a'");
+  EXPECT_EQ(
+      message([] { graph_from_text("<graphml>\n<graph>\n<node id=\"a\"", GraphFormat::graphml, {}, "t.graphml"); }),
+      "t.graphml:3: unterminated XML tag");
+  EXPECT_EQ(message([] { graph_from_text("<VTKFile type=\"PolyData\"><PolyData>", GraphFormat::vtp, {}, "u.vtp"); }),
+            "u.vtp:1: unclosed XML element <PolyData> (the file ends at line 1)");
+  EXPECT_EQ(message([] { read_graph("/nonexistent/x.am", GraphFormat::amira); }), "/nonexistent/x.am: file not found");
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
 
 #include "io/landmark_io.hpp"
 #include "registration/registration.hpp"
@@ -206,4 +207,52 @@ TEST(TransformFiles, PlainMatrixVariants) {
   write_text(scratch("kind.txt"), "# kind=affine\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
   EXPECT_EQ(read_transform(scratch("kind.txt")).kind(), TransformKind::Affine);
   EXPECT_THROW((void)read_transform(scratch("missing.txt")), InputError);
+}
+
+// The messages of malformed landmark and transform files: the file, the line where known, what is wrong.
+TEST(LandmarkFiles, MalformedFileMessages) {
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  EXPECT_EQ(message([] { (void)parse_landmarks("hello\n", LandmarkFormat::Amira, "x"); }),
+            "x:1: not an AmiraMesh file (expected '# AmiraMesh 3D ASCII 2.0')");
+  EXPECT_EQ(message([] { (void)parse_landmarks("1,2,3\n", LandmarkFormat::Fcsv, "nohdr.fcsv"); }),
+            "nohdr.fcsv:1: expected at least 4 fields");
+  EXPECT_EQ(
+      message([] { (void)parse_landmarks("set,name,x,y,z\n0,a,1,2,3\n1,c,1,2,3\n", LandmarkFormat::Csv, "t.csv"); }),
+      "t.csv: landmark 'c' of set 1 is not in set 0");
+  EXPECT_EQ(message([] { (void)parse_landmarks("set,name,x,y\n", LandmarkFormat::Csv, "t.csv"); }),
+            "t.csv:1: header has no 'z' column; expected set,name,x,y,z");
+  EXPECT_EQ(message([] { (void)parse_landmarks("set,name,x,y,z\n0,a,1,zz,3\n", LandmarkFormat::Csv, "t.csv"); }),
+            "t.csv:2: 'zz' is not a number");
+  EXPECT_EQ(message([] { (void)resolve_landmark_format(LandmarkFormat::Auto, "x.txt"); }),
+            "'x.txt': cannot tell the landmark format from the extension; use .landmarkAscii, .fcsv or .csv, or set "
+            "'format'");
+  EXPECT_EQ(message([] {
+              (void)parse_transform(
+                  "#Insight Transform File V1.0\nTransform: BSplineTransform_double_3_3\n"
+                  "Parameters: 1 2 3\nFixedParameters: 0 0 0\n",
+                  TransformFormat::Itk, "b.tfm");
+            }),
+            "b.tfm: ITK transform type 'BSplineTransform_double_3_3' is not supported; expected "
+            "AffineTransform_double_3_3 (or _float_, or MatrixOffsetTransformBase)");
+  EXPECT_EQ(message([] {
+              (void)parse_transform(
+                  "#Insight Transform File V1.0\nTransform: AffineTransform_double_3_3\n"
+                  "Parameters: 1 0 0 0 1 0 0 0 1 0 0\nFixedParameters: 0 0 0\n",
+                  TransformFormat::Itk, "p.tfm");
+            }),
+            "p.tfm:3: 'Parameters' has 11 numbers; expected 12");
+  EXPECT_EQ(message([] { (void)parse_transform("1 0 0\n", TransformFormat::Matrix, "m.txt"); }),
+            "m.txt: expected a 4x4 matrix (16 numbers, or 12 for the top 3 rows), found 3 numbers");
+  EXPECT_EQ(
+      message([] { (void)parse_transform("1 0 0 0\n0 1 0 0\n0 0 1 0\n1 0 0 1\n", TransformFormat::Matrix, "m.txt"); }),
+      "m.txt: transform: the bottom row of a homogeneous matrix must be 0 0 0 1");
+  EXPECT_EQ(message([] { (void)read_transform("/nonexistent/missing.txt"); }),
+            "/nonexistent/missing.txt: file not found");
 }
