@@ -18,8 +18,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// One folder per test: ctest runs the tests as parallel processes, and a test that checks its folder
+// for temporaries must not see another test's file being written.
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::path(SKEL_BINARY_DIR) / "test_scratch" / "registration_io";
+  const fs::path dir = fs::path(SKEL_BINARY_DIR) / "test_scratch" / "landmark_io" /
+                       ::testing::UnitTest::GetInstance()->current_test_info()->name();
   fs::create_directories(dir);
   return dir / name;
 }
