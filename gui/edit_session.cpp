@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "graph/names.hpp"
 #include "io/graph_io.hpp"
 #include "pipeline_document.hpp"
 #include "skel/error.hpp"
@@ -413,7 +414,7 @@ QString GraphEditSession::add_apply_edits_node(PipelineDocument* doc, const QStr
     if (!rel.startsWith("..")) journal = rel;
   }
   for (const auto& n : doc->pipeline().nodes()) {
-    if (n.module != "graph.apply_edits") continue;
+    if (n.module != graph::names::apply_edits) continue;
     auto in = n.inputs.find("graph");
     auto jp = n.params.find("journal");
     if (in != n.inputs.end() && in->second == *ref && jp != n.params.end() &&
@@ -428,10 +429,10 @@ QString GraphEditSession::add_apply_edits_node(PipelineDocument* doc, const QStr
     }
   }
   QUndoStack* stack = doc->undo_stack();
-  stack->beginMacro("Add graph.apply_edits for " + name_);
+  stack->beginMacro("Add " + QString(graph::names::apply_edits) + " for " + name_);
   QString error;
   const QPointF at = doc->position(qstr(ref->node)) + QPointF(40, 110);
-  const QString id = doc->add_node("graph.apply_edits", at, &error);
+  const QString id = doc->add_node(graph::names::apply_edits, at, &error);
   if (id.isEmpty()) {
     stack->endMacro();
     throw Error(str(error));

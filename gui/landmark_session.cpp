@@ -11,8 +11,10 @@
 #include <cmath>
 #include <limits>
 
-#include "pipeline_document.hpp"
 #include "io/landmark_io.hpp"
+#include "io/names.hpp"
+#include "pipeline_document.hpp"
+#include "registration/names.hpp"
 #include "skel/error.hpp"
 
 using namespace skel::io;
@@ -239,14 +241,14 @@ QString LandmarkSession::add_pipeline_nodes(PipelineDocument* doc, const QString
   QString read_id, fit_id;
   for (const auto& n : doc->pipeline().nodes()) {
     auto p = n.params.find("path");
-    if (n.module == "io.read_landmarks" && p != n.params.end() && std::holds_alternative<std::string>(p->second) &&
+    if (n.module == io::names::read_landmarks && p != n.params.end() && std::holds_alternative<std::string>(p->second) &&
         qstr(std::get<std::string>(p->second)) == path)
       read_id = qstr(n.id);
   }
   if (!read_id.isEmpty()) {
     for (const auto& n : doc->pipeline().nodes()) {
       auto in = n.inputs.find("landmarks");
-      if (n.module == "registration.landmarks" && in != n.inputs.end() && qstr(in->second.node) == read_id)
+      if (n.module == registration::names::landmarks && in != n.inputs.end() && qstr(in->second.node) == read_id)
         fit_id = qstr(n.id);
     }
   }
@@ -274,17 +276,17 @@ QString LandmarkSession::add_pipeline_nodes(PipelineDocument* doc, const QString
   stack->beginMacro("Add landmark nodes for " + path);
   QString error;
   if (read_id.isEmpty()) {
-    read_id = doc->add_node("io.read_landmarks", at, &error);
+    read_id = doc->add_node(io::names::read_landmarks, at, &error);
     if (read_id.isEmpty()) {
       stack->endMacro();
-      throw Error("adding io.read_landmarks: " + str(error));
+      throw Error(std::string("adding ") + io::names::read_landmarks + ": " + str(error));
     }
     check(doc->set_param(read_id, "path", ParamValue(str(path))));
   }
   if (two) {
     if (fit_id.isEmpty()) {
-      fit_id = doc->add_node("registration.landmarks", doc->position(read_id) + QPointF(260, 0), &error);
-      if (fit_id.isEmpty()) problems << "adding registration.landmarks: " + error;
+      fit_id = doc->add_node(registration::names::landmarks, doc->position(read_id) + QPointF(260, 0), &error);
+      if (fit_id.isEmpty()) problems << "adding " + QString(registration::names::landmarks) + ": " + error;
       else check(doc->connect_ports(read_id, "landmarks", fit_id, "landmarks"));
     }
     if (!fit_id.isEmpty() && fit_model != model) check(doc->set_param(fit_id, "model", ParamValue(str(model))));

@@ -26,15 +26,15 @@
 #include <algorithm>
 #include <cmath>
 
-#include "graph_edit_mode.hpp"
-#include "landmark_mode.hpp"
+#include "modes/graph_edit_mode.hpp"
+#include "modes/landmark_mode.hpp"
 #include "node_editor.hpp"
 #include "palette.hpp"
 #include "properties_panel.hpp"
 #include "skel/error.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
-#include "view3d.hpp"
+#include "views/view3d.hpp"
 
 namespace skel::gui {
 

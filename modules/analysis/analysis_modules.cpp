@@ -1,5 +1,6 @@
 // Modules of the analysis family: topology numbers, network statistics, trees, label propagation,
 // dangling ends.
+#include "analysis/names.hpp"
 #include "analysis/network_analysis.hpp"
 #include "analysis/topology.hpp"
 #include "graph/editor.hpp"
@@ -12,7 +13,7 @@ namespace {
 class TopologyModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("analysis.topology",
+    return ModuleSpec(names::topology,
                       "Topology numbers of a binary volume: components, cavities, Euler characteristic, tunnels")
         .input<VolumeU8>("mask", "binary object (voxel > 0 is object)")
         .output<Table>("table", "one row: object_voxels, components, cavities, euler, tunnels")
@@ -44,7 +45,7 @@ SKEL_REGISTER_MODULE(TopologyModule);
 class NetworkStatisticsModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("analysis.network_statistics", "Segment, node and network statistics of a graph")
+    return ModuleSpec(names::network_statistics, "Segment, node and network statistics of a graph")
         .input<SpatialGraph>("graph", "spatial graph (point attribute radius optional)")
         .optional_input<VolumeU8>("mask", "region for the length density (default: the graph's source grid box)")
         .output<Table>("segments", "per edge: length, chord, tortuosity, radius stats, volume, surface")
@@ -94,7 +95,7 @@ void set_root_points(TreeOptions& o, const std::vector<double>& rp) {
 class TreesModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("analysis.trees", "Vessel trees from root points and a minimum diameter")
+    return ModuleSpec(names::trees, "Vessel trees from root points and a minimum diameter")
         .input<SpatialGraph>("graph", "spatial graph (point attribute radius needed when min_diameter > 0)")
         .output<SpatialGraph>("graph", "graph with edge labels tree and branch_order")
         .output<Table>("trees", "per tree: root node, edges, total length")
@@ -141,7 +142,7 @@ SKEL_REGISTER_MODULE(TreesModule);
 class LabelPropagationModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("analysis.label_propagation", "Colour the object by its nearest skeleton edge")
+    return ModuleSpec(names::label_propagation, "Colour the object by its nearest skeleton edge")
         .input<VolumeU8>("mask", "object (non-zero = object)")
         .optional_input<SpatialGraph>("graph", "graph whose edges colour the object")
         .optional_input<VolumeU32>("seeds", "instead of a graph: label volume (non-zero voxels are seeds)")
@@ -178,7 +179,7 @@ SKEL_REGISTER_MODULE(LabelPropagationModule);
 class DanglingEnds final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("analysis.dangling_ends", "End points of a network with their most likely partner across a gap")
+    return ModuleSpec(names::dangling_ends, "End points of a network with their most likely partner across a gap")
         .input<SpatialGraph>("graph", "network graph")
         .output<Table>("table", "one row per end point: position, partner (node or edge point), distance, angle, score")
         .output<SpatialGraph>("graph", "the input with node attribute `gap_score` (0 = no partner) and label `dangling` (1 at end points)")

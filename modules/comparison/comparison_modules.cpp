@@ -1,5 +1,6 @@
 // Modules of the comparison family: skeleton distance (thesis §6.2) and graph matching.
 #include "comparison/comparison.hpp"
+#include "comparison/names.hpp"
 #include "skel/module.hpp"
 
 namespace skel::comparison {
@@ -30,7 +31,7 @@ constexpr auto enum_names(OffSkeleton) {
 class SkeletonDistanceModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("comparison.skeleton_distance",
+    return ModuleSpec(names::skeleton_distance,
                       "Distance of every reference skeleton point to the nearest point of another skeleton")
         .add_input("reference", skeleton_or_graph_types(), "reference skeleton: integer volume (voxel > 0 = skeleton point) or graph", true)
         .add_input("other", skeleton_or_graph_types(), "skeleton compared against: integer volume or graph, same or different grid", true)
@@ -97,7 +98,7 @@ SKEL_REGISTER_MODULE(SkeletonDistanceModule);
 class GraphMatchModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("comparison.graph_match", "Matches two spatial graphs: nodes, edges and length, precision/recall/F1")
+    return ModuleSpec(names::graph_match, "Matches two spatial graphs: nodes, edges and length, precision/recall/F1")
         .input<SpatialGraph>("reference", "reference graph (e.g. ground truth)")
         .input<SpatialGraph>("other", "graph to evaluate (e.g. a reconstruction)")
         .output<SpatialGraph>("reference_graph", "reference copy: node/edge labels matched (0/1) and match (partner id or -1), edge attribute coverage, point attribute covered")

@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "distance/distance.hpp"
+#include "distance/names.hpp"
 #include "skel/module.hpp"
 
 namespace skel::distance {
@@ -32,7 +33,7 @@ const char* kBorderDoc =
 class ChamferModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("distance.chamfer", "Chamfer distance to the background by two raster scans")
+    return ModuleSpec(names::chamfer, "Chamfer distance to the background by two raster scans")
         .input<AnyIntegerVolume>("mask", kMaskDoc)
         .add_output("distance", {VoxelTraits<uint16_t>::id, VoxelTraits<uint32_t>::id},
                     "chamfer distance in chamfer units (uint16 where every possible value fits, else uint32); 0 on background")
@@ -74,7 +75,7 @@ SKEL_REGISTER_MODULE(ChamferModule);
 class EuclideanModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("distance.euclidean", "Exact Euclidean distance to the background, in physical units")
+    return ModuleSpec(names::euclidean, "Exact Euclidean distance to the background, in physical units")
         .input<AnyIntegerVolume>("mask", kMaskDoc)
         .output<VolumeF32>("distance", "Euclidean distance to the nearest background voxel centre (µm, from spacing); 0 on background")
         .param("squared", &EuclideanOptions::squared, "output squared distances (µm²)")
@@ -102,7 +103,7 @@ SKEL_REGISTER_MODULE(EuclideanModule);
 class FeatureTransformModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("distance.feature_transform", "Index of the nearest background voxel of every voxel")
+    return ModuleSpec(names::feature_transform, "Index of the nearest background voxel of every voxel")
         .input<AnyIntegerVolume>("mask", kMaskDoc)
         .add_output("nearest", {VoxelTraits<uint32_t>::id, VoxelTraits<uint64_t>::id},
                     "linear index x + nx*(y + ny*z) of the nearest background voxel (uint32 below 2^32-1 voxels, else uint64); "
@@ -143,7 +144,7 @@ SKEL_REGISTER_MODULE(FeatureTransformModule);
 class SeededModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("distance.seeded", "Euclidean distance from a seed set (e.g. a skeleton) to every voxel")
+    return ModuleSpec(names::seeded, "Euclidean distance from a seed set (e.g. a skeleton) to every voxel")
         .input<AnyIntegerVolume>("seeds", "seed voxels: any integer volume, voxel > 0 is a seed")
         .optional_input<AnyIntegerVolume>("mask", "optional region (voxel > 0): distances are reported only inside it, 0 outside")
         .output<VolumeF32>("distance", "Euclidean distance to the nearest seed voxel centre (µm, from spacing); 0 on seeds")

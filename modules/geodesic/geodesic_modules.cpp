@@ -1,5 +1,7 @@
 // Module wrappers of the geodesic family.
+#include "analysis/names.hpp"
 #include "geodesic/geodesic.hpp"
+#include "geodesic/names.hpp"
 #include "geodesic/surface.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/module.hpp"
@@ -13,7 +15,7 @@ namespace {
 class BoundaryDistance final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("geodesic.boundary_distance",
+    return ModuleSpec(names::boundary_distance,
                       "Geodesic boundary distance: importance of object voxels for plate-like (2D) skeletons")
         .input<VolumeU8>("mask", "binary object (voxel > 0 is object)")
         .output<VolumeF32>("importance", "max geodesic distance g(b(p), b(q)) over the considered neighbours; 0 on background")
@@ -76,7 +78,7 @@ ModuleSpec& distance_unit_params(ModuleSpec& s) {
 class ThinSurface final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("geodesic.thin_surface", "Thins selected surface voxels to a one-voxel-thin plate skeleton")
+    return ModuleSpec(names::thin_surface, "Thins selected surface voxels to a one-voxel-thin plate skeleton")
         .input<VolumeU8>("surface", "surface voxels (e.g. geodesic.boundary_distance surface_skeleton)")
         .output<VolumeU8>("skeleton", "one-voxel-thin surface skeleton (0/1)")
         .details(R"(Thesis §2.3.2, fig. 2.35: the voxels selected by a threshold on the geodesic importance
@@ -98,7 +100,7 @@ SKEL_REGISTER_MODULE(ThinSurface);
 class Tubularity final : public Module {
 public:
   static ModuleSpec spec() {
-    ModuleSpec s("analysis.tubularity", "The ratio g/d on skeleton voxels: geodesic importance over boundary distance");
+    ModuleSpec s(analysis::names::tubularity, "The ratio g/d on skeleton voxels: geodesic importance over boundary distance");
     s.input<VolumeU8>("skeleton", "skeleton voxels (0/1)")
         .input<VolumeF32>("importance", "geodesic.boundary_distance importance")
         .add_input("distance", all_volume_types(), "distance to the boundary (distance.euclidean or distance.chamfer)", true)
@@ -141,7 +143,7 @@ SKEL_REGISTER_MODULE(Tubularity);
 class RodsPlates final : public Module {
 public:
   static ModuleSpec spec() {
-    ModuleSpec s("analysis.rods_plates", "Rods/plates decomposition of a (bone) object from its skeleton and g/d");
+    ModuleSpec s(analysis::names::rods_plates, "Rods/plates decomposition of a (bone) object from its skeleton and g/d");
     s.input<VolumeU8>("mask", "the object (voxel > 0)")
         .input<VolumeU8>("skeleton", "its (mixed-dimensional) skeleton")
         .input<VolumeF32>("importance", "geodesic.boundary_distance importance")

@@ -1,4 +1,5 @@
 // Modules of the geometry family: skeleton → spatial graph by dual cubes.
+#include "geometry/names.hpp"
 #include "geometry/skeleton_to_graph.hpp"
 #include "skel/module.hpp"
 
@@ -8,7 +9,7 @@ namespace {
 class SkeletonToGraphModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("geometry.skeleton_to_graph", "Voxel skeleton to a spatial graph by dual cubes")
+    return ModuleSpec(names::skeleton_to_graph, "Voxel skeleton to a spatial graph by dual cubes")
         .input<VolumeU8>("skeleton", "voxel skeleton (non-zero = skeleton voxel)")
         .optional_input<AnyVolume>("distance", "distance volume on the same grid; gives the point attribute radius")
         .output<SpatialGraph>("graph", "nodes at junctions/ends, edges with polylines (µm), radius per point")

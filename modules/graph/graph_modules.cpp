@@ -2,6 +2,7 @@
 // manual edits (graph.apply_edits).
 #include "graph/editor.hpp"
 #include "graph/graph_ops.hpp"
+#include "graph/names.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 
@@ -11,7 +12,7 @@ namespace {
 class PruneModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("graph.prune", "Remove short terminal branches, merging edges at degree-2 nodes")
+    return ModuleSpec(names::prune, "Remove short terminal branches, merging edges at degree-2 nodes")
         .input<SpatialGraph>("graph", "spatial graph")
         .output<SpatialGraph>("graph", "pruned graph")
         .output<Table>("report", "one row: removed_edges, merged_nodes, iterations")
@@ -52,7 +53,7 @@ SKEL_REGISTER_MODULE(PruneModule);
 class FilterModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("graph.filter", "Keep edges whose attribute lies in a range")
+    return ModuleSpec(names::filter, "Keep edges whose attribute lies in a range")
         .input<SpatialGraph>("graph", "spatial graph")
         .output<SpatialGraph>("graph", "graph with the kept edges")
         .param("attribute", &FilterOptions::attribute,
@@ -80,7 +81,7 @@ SKEL_REGISTER_MODULE(FilterModule);
 class ApplyEdits final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("graph.apply_edits", "Replays a manual edit journal on a graph (keeps manual work across re-runs)")
+    return ModuleSpec(names::apply_edits, "Replays a manual edit journal on a graph (keeps manual work across re-runs)")
         .input<SpatialGraph>("graph", "graph to edit (e.g. from geometry.skeleton_to_graph)")
         .optional_input<VolumeU8>("mask", "object mask, for connections routed through the mask")
         .optional_input<VolumeF32>("distance", "distance map (physical units), for the radius of new points")

@@ -1,5 +1,6 @@
 // Graph file modules: io.read_graph and io.write_graph (with the `skelflow info` inspector).
 #include "io/graph_io.hpp"
+#include "io/names.hpp"
 #include "skel/module.hpp"
 
 namespace skel::io {
@@ -14,7 +15,7 @@ constexpr const char* kGraphFormats =
 class ReadGraphModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.read_graph", "Read a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
+    return ModuleSpec(names::read_graph, "Read a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
         .output<SpatialGraph>("graph", "the graph")
         .path("path", "", PathRole::Input, "graph file")
         .path("nodes_path", "", PathRole::Input, "CSV only: nodes table (default: <stem>_nodes.csv)")
@@ -34,7 +35,7 @@ SKEL_REGISTER_MODULE(ReadGraphModule);
 class WriteGraphModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.write_graph", "Write a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
+    return ModuleSpec(names::write_graph, "Write a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
         .input<SpatialGraph>("graph", "the graph")
         .path("path", "", PathRole::Output, "graph file; the format follows the extension")
         .path("nodes_path", "", PathRole::Output, "CSV only (required there): nodes table file")

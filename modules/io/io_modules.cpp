@@ -2,6 +2,7 @@
 #include <fstream>
 
 #include "io/hdf5_volume.hpp"
+#include "io/names.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 #include "volume/convert.hpp"
@@ -12,7 +13,7 @@ namespace {
 class ReadVolume final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.read_volume", "Read a volume from an HDF5 file")
+    return ModuleSpec(names::read_volume, "Read a volume from an HDF5 file")
         .add_output("volume", all_volume_types(), "the volume, spacing and origin from the file's attributes")
         .path("path", "", PathRole::Input, "HDF5 file (.h5, .hdf5); relative to the pipeline's folder")
         .param<std::string>("dataset", "/volume", "dataset holding the volume, shape [z][y][x]")
@@ -44,7 +45,7 @@ SKEL_REGISTER_MODULE(ReadVolume);
 class WriteVolume final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.write_volume", "Write a volume to an HDF5 file")
+    return ModuleSpec(names::write_volume, "Write a volume to an HDF5 file")
         .add_input("volume", all_volume_types(), "volume to write", true)
         .path("path", "", PathRole::Output, "HDF5 file to create (.h5); written to a temporary file and renamed when the run succeeds")
         .param<std::string>("dataset", "/volume", "dataset name (groups are created)")
@@ -67,7 +68,7 @@ SKEL_REGISTER_MODULE(WriteVolume);
 class WriteTable final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.write_table", "Write a table to a CSV file")
+    return ModuleSpec(names::write_table, "Write a table to a CSV file")
         .input<Table>("table", "table to write")
         .path("path", "", PathRole::Output, "CSV file to create; written to a temporary file and renamed when the run succeeds")
         .details(R"(Comma-separated values with one header line; a column with a unit is headed

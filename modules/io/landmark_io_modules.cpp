@@ -1,6 +1,7 @@
 // Landmark and transform file modules: io.read_landmarks, io.write_landmarks, io.read_transform,
 // io.write_transform (with `skelflow info` inspectors for .landmarkAscii, .fcsv and .tfm).
 #include "io/landmark_io.hpp"
+#include "io/names.hpp"
 #include "skel/module.hpp"
 
 namespace skel::io {
@@ -9,7 +10,7 @@ namespace {
 class ReadLandmarks final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.read_landmarks", "Read landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
+    return ModuleSpec(names::read_landmarks, "Read landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
         .output<LandmarkSet>("landmarks", "the landmark sets of the file (followed by those of 'path2')")
         .path("path", "", PathRole::Input, "landmark file: .landmarkAscii, .fcsv or .csv")
         .path("path2", "", PathRole::Input, "optional second file whose sets are appended (e.g. the moving .fcsv)").optional_value()
@@ -46,7 +47,7 @@ SKEL_REGISTER_MODULE(ReadLandmarks);
 class WriteLandmarks final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.write_landmarks", "Write landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
+    return ModuleSpec(names::write_landmarks, "Write landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
         .input<LandmarkSet>("landmarks", "landmarks to write")
         .path("path", "", PathRole::Output, "file to create (.landmarkAscii, .fcsv or .csv); renamed into place when the run succeeds")
         .choice("format", {"auto", "amira", "fcsv", "csv"}, "auto", "file format (auto: by extension)")
@@ -75,7 +76,7 @@ SKEL_REGISTER_MODULE(WriteLandmarks);
 class ReadTransform final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.read_transform", "Read a transform (4x4 text matrix or ITK .tfm)")
+    return ModuleSpec(names::read_transform, "Read a transform (4x4 text matrix or ITK .tfm)")
         .output<Transform>("transform", "transform mapping moving coordinates onto fixed ones")
         .path("path", "", PathRole::Input, "transform file: .tfm (ITK) or a text 4x4 matrix")
         .choice("format", {"auto", "matrix", "itk"}, "auto", "file format (auto: .tfm is ITK, anything else a matrix)")
@@ -96,7 +97,7 @@ SKEL_REGISTER_MODULE(ReadTransform);
 class WriteTransform final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("io.write_transform", "Write a transform (4x4 text matrix or ITK .tfm)")
+    return ModuleSpec(names::write_transform, "Write a transform (4x4 text matrix or ITK .tfm)")
         .input<Transform>("transform", "transform to write (moving → fixed)")
         .path("path", "", PathRole::Output, "file to create (.tfm for ITK, else a text matrix); renamed into place when the run succeeds")
         .choice("format", {"auto", "matrix", "itk"}, "auto", "file format (auto: .tfm is ITK, anything else a matrix)")

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "io/landmark_io.hpp"
+#include "registration/names.hpp"
 #include "registration/registration.hpp"
 #include "skel/module.hpp"
 
@@ -21,7 +22,7 @@ std::vector<std::string> volume_or_graph_types() {
 class RegisterLandmarks final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("registration.landmarks", "Fit a rigid, similarity or affine transform to corresponding landmarks")
+    return ModuleSpec(names::landmarks, "Fit a rigid, similarity or affine transform to corresponding landmarks")
         .optional_input<LandmarkSet>("landmarks", "landmark object with >= 2 sets (fixed_set and moving_set pick them)")
         .optional_input<LandmarkSet>("fixed", "fixed (reference) landmarks, set 0 used; instead of 'landmarks'")
         .optional_input<LandmarkSet>("moving", "moving landmarks, set 0 used; same count and order as 'fixed'")
@@ -92,7 +93,7 @@ SKEL_REGISTER_MODULE(RegisterLandmarks);
 class RefineRegistration final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("registration.refine", "Refine a transform by ICP on skeleton or graph point sets")
+    return ModuleSpec(names::refine, "Refine a transform by ICP on skeleton or graph point sets")
         .add_input("fixed", volume_or_graph_types(), "fixed points: non-zero voxels of a (skeleton) volume, or a graph's nodes and edge points", true)
         .add_input("moving", volume_or_graph_types(), "moving points, same kinds as 'fixed'", true)
         .optional_input<Transform>("initial", "start transform moving → fixed (e.g. from registration.landmarks); identity if absent")
@@ -143,7 +144,7 @@ SKEL_REGISTER_MODULE(RefineRegistration);
 class ApplyTransform final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("registration.apply_transform", "Apply a transform to a volume, a graph or landmarks")
+    return ModuleSpec(names::apply_transform, "Apply a transform to a volume, a graph or landmarks")
         .input<Transform>("transform", "transform mapping moving coordinates onto fixed ones")
         .add_input("volume", all_volume_types(), "volume to resample (optional; one of volume, graph, landmarks)", false)
         .optional_input<SpatialGraph>("graph", "graph whose nodes and polyline points are moved")

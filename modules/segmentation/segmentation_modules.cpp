@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "segmentation/names.hpp"
 #include "segmentation/segmentation.hpp"
 #include "skel/module.hpp"
 
@@ -12,7 +13,7 @@ namespace {
 class Threshold final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.threshold", "Binary mask of the voxels between two values (or above Otsu's threshold)")
+    return ModuleSpec(names::threshold, "Binary mask of the voxels between two values (or above Otsu's threshold)")
         .add_input("image", all_volume_types(), "scalar image", true)
         .output<VolumeU8>("mask", "1 where low <= value <= high, else 0")
         .output<Table>("table", "the thresholds used and the object fraction")
@@ -41,7 +42,7 @@ SKEL_REGISTER_MODULE(Threshold);
 class Gaussian final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.gaussian", "Separable Gaussian smoothing with sigma in physical units")
+    return ModuleSpec(names::gaussian, "Separable Gaussian smoothing with sigma in physical units")
         .add_input("image", all_volume_types(), "scalar image", true)
         .output<VolumeF32>("image", "smoothed image (float32)")
         .param("sigma", &GaussianOptions::sigma, "standard deviation per axis [x, y, z]; 0 skips an axis")
@@ -63,7 +64,7 @@ SKEL_REGISTER_MODULE(Gaussian);
 class Components final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.connected_components", "Connected components of a mask, with sizes and bounding boxes")
+    return ModuleSpec(names::connected_components, "Connected components of a mask, with sizes and bounding boxes")
         .add_input("mask", integer_volume_types(), "binary mask (voxel > 0 is object)", true)
         .output<VolumeU32>("labels", "0 background, 1 the largest kept component, 2 the next, ...")
         .output<VolumeU8>("mask", "the kept components as a 0/1 mask")
@@ -94,7 +95,7 @@ SKEL_REGISTER_MODULE(Components);
 class Median final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.median", "Median filter over a cube of (2·radius+1)³ voxels")
+    return ModuleSpec(names::median, "Median filter over a cube of (2·radius+1)³ voxels")
         .add_input("image", all_volume_types(), "scalar image", true)
         .add_output("image", all_volume_types(), "filtered image (same type as the input)")
         .param("radius", &MedianOptions::radius, "half width of the cube; 1 = 3×3×3").range(0, 10).unit("voxels")
@@ -115,7 +116,7 @@ SKEL_REGISTER_MODULE(Median);
 class IlluminationZ final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.illumination_z", "Correct the loss of brightness with depth by scaling each z-slice")
+    return ModuleSpec(names::illumination_z, "Correct the loss of brightness with depth by scaling each z-slice")
         .add_input("image", all_volume_types(), "scalar image (a confocal stack, z = depth)", true)
         .output<VolumeF32>("image", "corrected image (float32)")
         .output<Table>("table", "per slice: z, statistic m(z) (fitted mode), factor f(z)")
@@ -150,7 +151,7 @@ SKEL_REGISTER_MODULE(IlluminationZ);
 class Morphology final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.morphology", "Binary erosion, dilation, opening or closing with a ball")
+    return ModuleSpec(names::morphology, "Binary erosion, dilation, opening or closing with a ball")
         .add_input("mask", integer_volume_types(), "binary mask (voxel > 0 is object)", true)
         .output<VolumeU8>("mask", "the result as a 0/1 mask")
         .param("operation", &MorphologyOptions::op, "open = erode then dilate; close = dilate then erode")
@@ -174,7 +175,7 @@ SKEL_REGISTER_MODULE(Morphology);
 class FillCavities final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("segmentation.fill_cavities", "Fill enclosed background (cavities) of a mask")
+    return ModuleSpec(names::fill_cavities, "Fill enclosed background (cavities) of a mask")
         .add_input("mask", integer_volume_types(), "binary mask (voxel > 0 is object)", true)
         .output<VolumeU8>("mask", "the mask with every cavity filled")
         .details(R"(Thesis §6.2 (bone pre-processing): background components that are not 6-connected to

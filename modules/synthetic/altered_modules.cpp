@@ -4,6 +4,7 @@
 
 #include "skel/module.hpp"
 #include "synthetic/altered.hpp"
+#include "synthetic/names.hpp"
 
 namespace skel::synthetic {
 namespace {
@@ -11,7 +12,7 @@ namespace {
 class AlteredNetwork final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("synthetic.altered_network",
+    return ModuleSpec(names::altered_network,
                       "Before/after phantom pair: rigid motion, removed rods and plate pieces, new noise, landmarks, true transform")
         .output<VolumeF32>("before_image", "the synthetic.network image with the same parameters")
         .output<VolumeU8>("before_mask", "the synthetic.network mask (before_image > threshold)")

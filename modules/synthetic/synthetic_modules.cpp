@@ -1,5 +1,6 @@
 // Modules of the synthetic family: test objects of thesis ch. 4 and a vessel network with ground truth.
 #include "skel/module.hpp"
+#include "synthetic/names.hpp"
 #include "synthetic/network.hpp"
 #include "synthetic/vessel_tree.hpp"
 
@@ -9,7 +10,7 @@ namespace {
 class Network final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("synthetic.network", "Synthetic rods, plates, spheres or mixtures (the test objects of thesis ch. 4)")
+    return ModuleSpec(names::network, "Synthetic rods, plates, spheres or mixtures (the test objects of thesis ch. 4)")
         .output<VolumeF32>("image", "smooth scalar image in about [0, 1]; 0.5 is the object boundary")
         .output<VolumeU8>("mask", "image > 0.5 (0/1)")
         .param("shape", &NetworkOptions::shape,
@@ -49,7 +50,7 @@ SKEL_REGISTER_MODULE(Network);
 class VesselTree final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("synthetic.vessel_tree", "Synthetic vessel network: arterial and venous trees joined by capillaries, with ground truth")
+    return ModuleSpec(names::vessel_tree, "Synthetic vessel network: arterial and venous trees joined by capillaries, with ground truth")
         .output<VolumeF32>("image", "smooth scalar image in about [0, 1] (vessels bright), plus noise")
         .output<VolumeU8>("mask", "image > 0.5 (0/1)")
         .output<SpatialGraph>("truth", "ground-truth graph (physical units): point attribute radius, edge label tree (0 artery, 1 vein, 2 capillary), node label kind (0 root, 1 branch, 2 end, 3 junction)")

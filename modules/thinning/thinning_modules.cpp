@@ -4,6 +4,7 @@
 
 #include "skel/module.hpp"
 #include "skel/table.hpp"
+#include "thinning/names.hpp"
 #include "thinning/thinning.hpp"
 #include "thinning/local_topology.hpp"
 
@@ -13,7 +14,7 @@ namespace {
 class DohtModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("thinning.doht",
+    return ModuleSpec(names::doht,
                       "Distance ordered homotopic thinning: homotopic, medial curve skeleton of a binary object")
         .input<VolumeU8>("mask", "binary object (voxel > 0 is object)")
         .input<AnyVolume>("priority",

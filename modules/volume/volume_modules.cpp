@@ -1,6 +1,7 @@
 // Modules of the `volume` family: generic volume utilities.
 #include "skel/module.hpp"
 #include "volume/convert.hpp"
+#include "volume/names.hpp"
 
 namespace skel::volume {
 namespace {
@@ -8,7 +9,7 @@ namespace {
 class ConvertModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("volume.convert", "Convert a volume to another voxel type")
+    return ModuleSpec(names::convert, "Convert a volume to another voxel type")
         .input<AnyVolume>("input", "volume of any voxel type")
         .add_output("output", all_volume_types(), "converted volume, same grid")
         .choice("dtype", {"uint8", "uint16", "uint32", "int32", "float32", "float64"}, "float32",
@@ -31,7 +32,7 @@ SKEL_REGISTER_MODULE(ConvertModule);
 class CropModule final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec("volume.crop", "Cut a box out of a volume, keeping physical positions")
+    return ModuleSpec(names::crop, "Cut a box out of a volume, keeping physical positions")
         .input<AnyVolume>("input", "volume of any voxel type")
         .add_output("output", all_volume_types(), "the cropped volume (same voxel type)")
         .param<std::vector<int64_t>>("begin", {0, 0, 0}, "first voxel of the box (x, y, z)")

@@ -12,9 +12,9 @@
 #include <cstdio>
 
 #include "edit_session.hpp"
-#include "graph_edit_mode.hpp"
 #include "main_window.hpp"
-#include "view3d.hpp"
+#include "modes/graph_edit_mode.hpp"
+#include "views/view3d.hpp"
 
 using namespace skel;
 using namespace skel::gui;

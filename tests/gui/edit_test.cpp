@@ -27,10 +27,10 @@
 #include "edit_session.hpp"
 #include "edit_test_util.hpp"
 #include "io/graph_io.hpp"
-#include "graph_edit_mode.hpp"
 #include "main_window.hpp"
+#include "modes/graph_edit_mode.hpp"
 #include "skel/table.hpp"
-#include "view3d.hpp"
+#include "views/view3d.hpp"
 
 using namespace skel::io;
 

@@ -30,12 +30,12 @@
 #include <cmath>
 #include <cstdlib>
 
-#include "landmark_mode.hpp"
+#include "io/landmark_io.hpp"
 #include "landmark_session.hpp"
 #include "main_window.hpp"
-#include "io/landmark_io.hpp"
+#include "modes/landmark_mode.hpp"
 #include "skel/table.hpp"
-#include "view3d.hpp"
+#include "views/view3d.hpp"
 
 using namespace skel::io;
 

@@ -34,7 +34,7 @@
 #include "palette.hpp"
 #include "properties_panel.hpp"
 #include "skel/volume.hpp"
-#include "view3d.hpp"
+#include "views/view3d.hpp"
 
 using namespace skel;
 using namespace skel::gui;

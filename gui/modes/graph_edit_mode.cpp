@@ -3,10 +3,8 @@
 #include <QComboBox>
 #include <QDir>
 #include <QDockWidget>
-#include <QFileInfo>
 #include <QGridLayout>
 #include <QHBoxLayout>
-#include <QKeyEvent>
 #include <QLabel>
 #include <QMessageBox>
 #include <QMouseEvent>
@@ -16,16 +14,8 @@
 #include <QUndoView>
 #include <QVBoxLayout>
 
-#include <QVTKOpenGLNativeWidget.h>
 #include <vtkActor.h>
 #include <vtkCamera.h>
-#include <vtkCellArray.h>
-#include <vtkMatrix4x4.h>
-#include <vtkPoints.h>
-#include <vtkPolyData.h>
-#include <vtkPolyDataMapper.h>
-#include <vtkProperty.h>
-#include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
 
@@ -36,73 +26,33 @@
 #include "run_controller.hpp"
 #include "skel/error.hpp"
 #include "skel/volume.hpp"
-#include "view3d.hpp"
-#include "vtk_convert.hpp"
+#include "views/view3d.hpp"
+#include "views/vtk_convert.hpp"
 
 namespace skel::gui {
 
-namespace {
-constexpr double kPickRadius = 8.0;  // pixels
-
-vtkSmartPointer<vtkActor> make_actor(double r, double g, double b, double point_size, double line_width) {
-  auto mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
-  mapper->SetInputData(vtkSmartPointer<vtkPolyData>::New());
-  mapper->ScalarVisibilityOff();
-  auto a = vtkSmartPointer<vtkActor>::New();
-  a->SetMapper(mapper);
-  a->GetProperty()->SetColor(r, g, b);
-  a->GetProperty()->SetPointSize(static_cast<float>(point_size));
-  a->GetProperty()->SetLineWidth(static_cast<float>(line_width));
-  a->GetProperty()->RenderPointsAsSpheresOn();
-  a->GetProperty()->SetLighting(false);
-  return a;
-}
-
-// Points as vertices plus polylines, in one poly data.
-struct PolyBuilder {
-  vtkSmartPointer<vtkPoints> points = vtkSmartPointer<vtkPoints>::New();
-  vtkSmartPointer<vtkCellArray> verts = vtkSmartPointer<vtkCellArray>::New();
-  vtkSmartPointer<vtkCellArray> lines = vtkSmartPointer<vtkCellArray>::New();
-  void vertex(const Vec3& p) {
-    const vtkIdType id = points->InsertNextPoint(p[0], p[1], p[2]);
-    verts->InsertNextCell(1, &id);
-  }
-  void line(const std::vector<Vec3>& pts) {
-    lines->InsertNextCell(static_cast<vtkIdType>(pts.size()));
-    for (const auto& p : pts) lines->InsertCellPoint(points->InsertNextPoint(p[0], p[1], p[2]));
-  }
-  void set(vtkActor* a) {
-    auto pd = vtkSmartPointer<vtkPolyData>::New();
-    pd->SetPoints(points);
-    pd->SetVerts(verts);
-    pd->SetLines(lines);
-    static_cast<vtkPolyDataMapper*>(a->GetMapper())->SetInputData(pd);
-  }
-};
-}  // namespace
-
 struct GraphEditMode::Overlay {
-  vtkSmartPointer<vtkRenderer> renderer;
   vtkSmartPointer<vtkActor> nodes, edges, tour_end, tour_partner, tour_line;
 };
 
-GraphEditMode::GraphEditMode(MainWindow* window)
-    : QObject(window), window_(window), view_(window->view3d()),
-      vtk_widget_(window->view3d()->findChild<QVTKOpenGLNativeWidget*>()) {
+GraphEditMode::GraphEditMode(MainWindow* window) : InteractionMode(window) {
   connect(window_->document(), &PipelineDocument::document_reset, this, &GraphEditMode::stop);
+  bind_key(Qt::Key_Delete, [this] { session_->delete_selected(); });
+  bind_key(Qt::Key_Backspace, [this] { session_->delete_selected(); });
+  bind_key(Qt::Key_C, [this] { session_->connect_selected(); });
+  bind_key(Qt::Key_S, [this] { session_->split_selected(); });
+  bind_key(Qt::Key_M, [this] { session_->merge_selected(); });
+  bind_key(Qt::Key_N, [this] { next_and_focus(false); });
+  for (int key : {Qt::Key_Return, Qt::Key_Enter, Qt::Key_A}) bind_key(key, [this] { session_->accept_dangling(); });
+  for (int key : {Qt::Key_Space, Qt::Key_K}) bind_key(key, [this] { next_and_focus(true); });
+  bind_key(Qt::Key_Escape, [this] { session_->clear_selection(); });
 }
 
 GraphEditMode::~GraphEditMode() { stop(); }
 
-void GraphEditMode::log(const QString& text, bool error) { window_->log(text, error); }
+QUndoStack* GraphEditMode::undo_stack() const { return session_->undo_stack(); }
 
-QString GraphEditMode::journal_dir() const {
-  if (!journal_dir_.isEmpty()) return journal_dir_;
-  const QByteArray env = qgetenv("SKELFLOW_EDIT_DIR");
-  if (!env.isEmpty()) return QString::fromLocal8Bit(env);
-  if (!window_->document()->file_path().isEmpty()) return QFileInfo(window_->document()->file_path()).absolutePath();
-  return QDir::currentPath();
-}
+QString GraphEditMode::journal_dir() const { return journal_dir_.isEmpty() ? default_dir() : journal_dir_; }
 
 bool GraphEditMode::start(const QString& node, const QString& port, const QString& journal_path) {
   stop();
@@ -206,27 +156,16 @@ bool GraphEditMode::start(const QString& node, const QString& port, const QStrin
   }
 
   overlay_ = std::make_unique<Overlay>();
-  vtkRenderer* main = view_->renderer();
-  vtkRenderWindow* rw = main->GetRenderWindow();
-  if (rw->GetNumberOfLayers() < 2) rw->SetNumberOfLayers(2);
-  overlay_->renderer = vtkSmartPointer<vtkRenderer>::New();
-  overlay_->renderer->SetLayer(1);
-  overlay_->renderer->InteractiveOff();
-  overlay_->renderer->SetActiveCamera(main->GetActiveCamera());
-  overlay_->nodes = make_actor(1.0, 0.95, 0.2, 12, 2);
-  overlay_->edges = make_actor(1.0, 0.6, 0.1, 8, 5);
-  overlay_->tour_end = make_actor(1.0, 0.2, 0.9, 18, 2);
-  overlay_->tour_partner = make_actor(0.2, 1.0, 1.0, 18, 2);
-  overlay_->tour_line = make_actor(0.2, 1.0, 1.0, 6, 3);
+  vtkRenderer* overlay = open_overlay();
+  overlay_->nodes = make_overlay_actor({1.0, 0.95, 0.2}, 12, 2);
+  overlay_->edges = make_overlay_actor({1.0, 0.6, 0.1}, 8, 5);
+  overlay_->tour_end = make_overlay_actor({1.0, 0.2, 0.9}, 18, 2);
+  overlay_->tour_partner = make_overlay_actor({0.2, 1.0, 1.0}, 18, 2);
+  overlay_->tour_line = make_overlay_actor({0.2, 1.0, 1.0}, 6, 3);
   for (auto* a : {overlay_->edges.Get(), overlay_->nodes.Get(), overlay_->tour_line.Get(), overlay_->tour_end.Get(),
                   overlay_->tour_partner.Get()})
-    overlay_->renderer->AddActor(a);
-  rw->AddRenderer(overlay_->renderer);
-
-  if (vtk_widget_) {
-    vtk_widget_->installEventFilter(this);
-    vtk_widget_->setFocus();
-  }
+    overlay->AddActor(a);
+  take_input();
   build_docks();
   refresh_overlay();
   update_status();
@@ -239,18 +178,9 @@ bool GraphEditMode::start(const QString& node, const QString& port, const QStrin
 
 void GraphEditMode::stop() {
   if (!session_) return;
-  if (vtk_widget_) vtk_widget_->removeEventFilter(this);
-  if (overlay_) {
-    view_->renderer()->GetRenderWindow()->RemoveRenderer(overlay_->renderer);
-    overlay_.reset();
-  }
   if (history_) history_->setStack(nullptr);
-  for (QDockWidget* d : {panel_dock_, history_dock_}) {
-    if (d) {
-      window_->removeDockWidget(d);
-      d->deleteLater();
-    }
-  }
+  release();  // event filter, overlay layer, docks
+  overlay_.reset();
   panel_dock_ = history_dock_ = nullptr;
   history_ = nullptr;
   status_ = nullptr;
@@ -310,17 +240,11 @@ void GraphEditMode::build_docks() {
   row2->addWidget(leave_b);
   v->addLayout(row2);
   v->addStretch(1);
-  panel_dock_ = new QDockWidget("Graph editing", window_);
-  panel_dock_->setObjectName("graph_editing");
-  panel_dock_->setWidget(panel);
-  window_->addDockWidget(Qt::RightDockWidgetArea, panel_dock_);
+  panel_dock_ = add_dock("Graph editing", "graph_editing", panel);
 
   history_ = new QUndoView(session_->undo_stack());
   history_->setEmptyLabel("(graph as computed)");
-  history_dock_ = new QDockWidget("Edit history", window_);
-  history_dock_->setObjectName("edit_history");
-  history_dock_->setWidget(history_);
-  window_->addDockWidget(Qt::RightDockWidgetArea, history_dock_);
+  history_dock_ = add_dock("Edit history", "edit_history", history_);
 }
 
 void GraphEditMode::update_status() {
@@ -361,7 +285,7 @@ void GraphEditMode::refresh_graph() {
 void GraphEditMode::refresh_overlay() {
   if (!session_ || !overlay_) return;
   const SpatialGraph& g = session_->graph();
-  PolyBuilder nodes, edges, end, partner, line;
+  OverlayShape nodes, edges, end, partner, line;
   for (const auto& item : session_->selection()) {
     if (item.kind == GraphPick::Kind::Node) nodes.vertex(item.position);
     if (item.kind == GraphPick::Kind::EdgePoint) {
@@ -410,29 +334,9 @@ void GraphEditMode::focus(const Vec3& p, double extent) {
   view_->render();
 }
 
-ScreenProjection GraphEditMode::projection() const {
-  ScreenProjection s;
-  QWidget* w = vtk_widget_ ? vtk_widget_ : static_cast<QWidget*>(view_);
-  s.width = std::max(1, w->width());
-  s.height = std::max(1, w->height());
-  vtkRenderer* ren = view_->renderer();
-  ren->ResetCameraClippingRange();
-  vtkMatrix4x4* m = ren->GetActiveCamera()->GetCompositeProjectionTransformMatrix(s.width / s.height, -1, 1);
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j) s.m[static_cast<size_t>(4 * i + j)] = m->GetElement(i, j);
-  }
-  return s;
-}
-
 GraphPick GraphEditMode::pick(QPoint pos) const {
   if (!session_) return {};
   return pick_graph(session_->graph(), projection(), pos.x() + 0.5, pos.y() + 0.5, kPickRadius);
-}
-
-std::optional<QPoint> GraphEditMode::screen_position(const Vec3& p) const {
-  double x, y, d;
-  if (!projection().project(p, x, y, d)) return std::nullopt;
-  return QPoint(static_cast<int>(std::floor(x)), static_cast<int>(std::floor(y)));
 }
 
 bool GraphEditMode::save(const QString& base_in) {
@@ -451,118 +355,57 @@ bool GraphEditMode::save(const QString& base_in) {
   return true;
 }
 
-bool GraphEditMode::handle_key(int key, Qt::KeyboardModifiers mods) {
-  if (!session_) return false;
-  const bool ctrl = mods & Qt::ControlModifier, shift = mods & Qt::ShiftModifier;
-  if (ctrl) {
-    if (key == Qt::Key_Z && !shift) session_->undo_stack()->undo();
-    else if ((key == Qt::Key_Z && shift) || key == Qt::Key_Y) session_->undo_stack()->redo();
-    else return false;
-    return true;
-  }
-  switch (key) {
-    case Qt::Key_Delete:
-    case Qt::Key_Backspace: session_->delete_selected(); return true;
-    case Qt::Key_C: session_->connect_selected(); return true;
-    case Qt::Key_S: session_->split_selected(); return true;
-    case Qt::Key_M: session_->merge_selected(); return true;
-    case Qt::Key_N: next_and_focus(false); return true;
-    case Qt::Key_Return:
-    case Qt::Key_Enter:
-    case Qt::Key_A: session_->accept_dangling(); return true;
-    case Qt::Key_Space:
-    case Qt::Key_K: next_and_focus(true); return true;
-    case Qt::Key_Escape: session_->clear_selection(); return true;
-    default: return false;
-  }
+bool GraphEditMode::mouse_press(QMouseEvent* m) {
+  box_ = m->modifiers() & Qt::ShiftModifier;
+  if (!box_) return false;
+  if (!rubber_) rubber_ = new QRubberBand(QRubberBand::Rectangle, vtk_widget_);
+  rubber_->setGeometry(QRect(press_pos(), QSize()));
+  rubber_->show();
+  return true;  // no camera rotation while drawing the box
 }
 
-bool GraphEditMode::eventFilter(QObject* watched, QEvent* event) {
-  if (watched != vtk_widget_ || !session_) return QObject::eventFilter(watched, event);
-  switch (event->type()) {
-    case QEvent::ShortcutOverride:
-    case QEvent::KeyPress: {
-      auto* k = static_cast<QKeyEvent*>(event);
-      const int key = k->key();
-      const auto mods = k->modifiers() & (Qt::ControlModifier | Qt::ShiftModifier);
-      const bool bound = (mods & Qt::ControlModifier)
-                             ? (key == Qt::Key_Z || key == Qt::Key_Y)
-                             : (key == Qt::Key_Delete || key == Qt::Key_Backspace || key == Qt::Key_C ||
-                                key == Qt::Key_S || key == Qt::Key_M || key == Qt::Key_N || key == Qt::Key_Return ||
-                                key == Qt::Key_Enter || key == Qt::Key_A || key == Qt::Key_Space || key == Qt::Key_K ||
-                                key == Qt::Key_Escape);
-      if (!bound) return false;
-      // Accepting the override keeps window shortcuts (pipeline Delete/Undo, Esc = cancel run) from
-      // firing; the key press then comes here.
-      event->accept();
-      if (event->type() == QEvent::KeyPress) handle_key(key, mods);
-      return true;
+bool GraphEditMode::mouse_move(QMouseEvent* m) {
+  if (!pressed() || !box_) return false;
+  rubber_->setGeometry(QRect(press_pos(), m->pos()).normalized());
+  return true;
+}
+
+bool GraphEditMode::mouse_release(QMouseEvent* m, bool click) {
+  if (box_) {
+    rubber_->hide();
+    const QRect r = QRect(press_pos(), m->pos()).normalized();
+    const BoxSelection b = select_box(session_->graph(), projection(), r.left(), r.top(), r.right() + 1, r.bottom() + 1);
+    std::vector<EditSelectionItem> items;
+    for (int64_t n : b.nodes) {
+      EditSelectionItem i;
+      i.kind = GraphPick::Kind::Node;
+      i.node = n;
+      i.position = session_->graph().positions[n];
+      items.push_back(i);
     }
-    case QEvent::MouseButtonPress: {
-      auto* m = static_cast<QMouseEvent*>(event);
-      if (m->button() != Qt::LeftButton) return false;
-      pressed_ = true;
-      press_pos_ = m->pos();
-      box_ = m->modifiers() & Qt::ShiftModifier;
-      if (box_) {
-        if (!rubber_) rubber_ = new QRubberBand(QRubberBand::Rectangle, vtk_widget_);
-        rubber_->setGeometry(QRect(press_pos_, QSize()));
-        rubber_->show();
-        return true;  // no camera rotation while drawing the box
-      }
-      return false;
+    for (const auto& [e, pt] : b.edge_points) {
+      EditSelectionItem i;
+      i.kind = GraphPick::Kind::EdgePoint;
+      i.edge = e;
+      i.point = pt;
+      i.position = session_->graph().edges[e].points[pt];
+      items.push_back(i);
     }
-    case QEvent::MouseMove: {
-      auto* m = static_cast<QMouseEvent*>(event);
-      if (pressed_ && box_) {
-        rubber_->setGeometry(QRect(press_pos_, m->pos()).normalized());
-        return true;
-      }
-      return false;
-    }
-    case QEvent::MouseButtonRelease: {
-      auto* m = static_cast<QMouseEvent*>(event);
-      if (m->button() != Qt::LeftButton || !pressed_) return false;
-      pressed_ = false;
-      if (box_) {
-        rubber_->hide();
-        const QRect r = QRect(press_pos_, m->pos()).normalized();
-        const BoxSelection b = select_box(session_->graph(), projection(), r.left(), r.top(), r.right() + 1, r.bottom() + 1);
-        std::vector<EditSelectionItem> items;
-        for (int64_t n : b.nodes) {
-          EditSelectionItem i;
-          i.kind = GraphPick::Kind::Node;
-          i.node = n;
-          i.position = session_->graph().positions[n];
-          items.push_back(i);
-        }
-        for (const auto& [e, pt] : b.edge_points) {
-          EditSelectionItem i;
-          i.kind = GraphPick::Kind::EdgePoint;
-          i.edge = e;
-          i.point = pt;
-          i.position = session_->graph().edges[e].points[pt];
-          items.push_back(i);
-        }
-        session_->add_to_selection(items);
-        box_ = false;
-        return true;
-      }
-      if ((m->pos() - press_pos_).manhattanLength() <= 3) {
-        const GraphPick p = pick(m->pos());
-        if (m->modifiers() & Qt::ControlModifier) {
-          if (p.valid()) session_->toggle(GraphEditSession::item_from_pick(p));
-        } else if (p.valid()) {
-          session_->set_selection({GraphEditSession::item_from_pick(p)});
-        } else {
-          session_->clear_selection();
-        }
-      }
-      return false;  // the interactor ends its (empty) rotation
-    }
-    default:
-      return false;
+    session_->add_to_selection(items);
+    box_ = false;
+    return true;
   }
+  if (click) {
+    const GraphPick p = pick(m->pos());
+    if (m->modifiers() & Qt::ControlModifier) {
+      if (p.valid()) session_->toggle(GraphEditSession::item_from_pick(p));
+    } else if (p.valid()) {
+      session_->set_selection({GraphEditSession::item_from_pick(p)});
+    } else {
+      session_->clear_selection();
+    }
+  }
+  return false;  // the interactor ends its (empty) rotation
 }
 
 }  // namespace skel::gui

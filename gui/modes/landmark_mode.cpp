@@ -7,10 +7,8 @@
 #include <QDir>
 #include <QDockWidget>
 #include <QFileDialog>
-#include <QFileInfo>
 #include <QHBoxLayout>
 #include <QHeaderView>
-#include <QKeyEvent>
 #include <QLabel>
 #include <QMouseEvent>
 #include <QPushButton>
@@ -19,78 +17,30 @@
 #include <QTableView>
 #include <QVBoxLayout>
 
-#include <QVTKOpenGLNativeWidget.h>
 #include <vtkActor.h>
 #include <vtkBillboardTextActor3D.h>
-#include <vtkCamera.h>
-#include <vtkCellArray.h>
 #include <vtkCellPicker.h>
-#include <vtkMatrix4x4.h>
-#include <vtkPoints.h>
-#include <vtkPolyData.h>
-#include <vtkPolyDataMapper.h>
 #include <vtkProperty.h>
-#include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
 #include <vtkTextProperty.h>
 
 #include <cmath>
 
-#include "graph_pick.hpp"
+#include "io/names.hpp"
 #include "main_window.hpp"
 #include "pipeline_document.hpp"
-#include "view3d.hpp"
+#include "registration/names.hpp"
+#include "views/view3d.hpp"
 
 namespace skel::gui {
 
-namespace {
-constexpr double kPickRadius = 8.0;  // pixels
-constexpr int kClickSlack = 3;       // pixels a click may move and still be a click
-
-vtkSmartPointer<vtkActor> make_actor(const std::array<double, 3>& color, double point_size, double line_width) {
-  auto mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
-  mapper->SetInputData(vtkSmartPointer<vtkPolyData>::New());
-  mapper->ScalarVisibilityOff();
-  auto a = vtkSmartPointer<vtkActor>::New();
-  a->SetMapper(mapper);
-  a->GetProperty()->SetColor(color[0], color[1], color[2]);
-  a->GetProperty()->SetPointSize(static_cast<float>(point_size));
-  a->GetProperty()->SetLineWidth(static_cast<float>(line_width));
-  a->GetProperty()->RenderPointsAsSpheresOn();
-  a->GetProperty()->SetLighting(false);
-  return a;
-}
-
-void set_points(vtkActor* a, const std::vector<Vec3>& verts, const std::vector<std::pair<Vec3, Vec3>>& lines = {}) {
-  auto pts = vtkSmartPointer<vtkPoints>::New();
-  auto vc = vtkSmartPointer<vtkCellArray>::New();
-  auto lc = vtkSmartPointer<vtkCellArray>::New();
-  for (const Vec3& p : verts) {
-    const vtkIdType id = pts->InsertNextPoint(p[0], p[1], p[2]);
-    vc->InsertNextCell(1, &id);
-  }
-  for (const auto& [p, q] : lines) {
-    const vtkIdType ids[2] = {pts->InsertNextPoint(p[0], p[1], p[2]), pts->InsertNextPoint(q[0], q[1], q[2])};
-    lc->InsertNextCell(2, ids);
-  }
-  auto pd = vtkSmartPointer<vtkPolyData>::New();
-  pd->SetPoints(pts);
-  pd->SetVerts(vc);
-  pd->SetLines(lc);
-  static_cast<vtkPolyDataMapper*>(a->GetMapper())->SetInputData(pd);
-}
-}  // namespace
-
 struct LandmarkMode::Overlay {
-  vtkSmartPointer<vtkRenderer> renderer;
   vtkSmartPointer<vtkActor> sets[2], lines, selection;
   std::vector<vtkSmartPointer<vtkBillboardTextActor3D>> labels;
 };
 
-LandmarkMode::LandmarkMode(MainWindow* window)
-    : QObject(window), window_(window), view_(window->view3d()),
-      vtk_widget_(window->view3d()->findChild<QVTKOpenGLNativeWidget*>()), session_(new LandmarkSession(this)) {
+LandmarkMode::LandmarkMode(MainWindow* window) : InteractionMode(window), session_(new LandmarkSession(this)) {
   connect(session_, &LandmarkSession::landmarks_changed, this, &LandmarkMode::refresh);
   connect(session_, &LandmarkSession::active_set_changed, this, [this](int set) {
     if (set_button_[set]) set_button_[set]->setChecked(true);
@@ -103,43 +53,35 @@ LandmarkMode::LandmarkMode(MainWindow* window)
     session_->apply_state({});
     selected_ = -1;
   });
+  bind_key(Qt::Key_1, [this] { session_->set_active_set(0); });
+  bind_key(Qt::Key_2, [this] { session_->set_active_set(1); });
+  for (int key : {Qt::Key_Delete, Qt::Key_Backspace}) {
+    bind_key(key, [this] {
+      if (selected_ >= 0) session_->delete_pair(selected_);
+    });
+  }
+  bind_key(Qt::Key_Escape, [this] { select_pair(-1); });
 }
 
 LandmarkMode::~LandmarkMode() { stop(); }
 
-void LandmarkMode::log(const QString& text, bool error) { window_->log(text, error); }
+QUndoStack* LandmarkMode::undo_stack() const { return session_->undo_stack(); }
 
-QString LandmarkMode::default_path() const {
-  QString dir = QString::fromLocal8Bit(qgetenv("SKELFLOW_EDIT_DIR"));
-  if (dir.isEmpty() && !window_->document()->file_path().isEmpty())
-    dir = QFileInfo(window_->document()->file_path()).absolutePath();
-  if (dir.isEmpty()) dir = QDir::currentPath();
-  return QDir(dir).filePath("landmarks.landmarkAscii");
-}
+QString LandmarkMode::default_path() const { return QDir(default_dir()).filePath("landmarks.landmarkAscii"); }
 
 void LandmarkMode::start() {
   if (active_) return;
   active_ = true;
   overlay_ = std::make_unique<Overlay>();
-  vtkRenderer* main = view_->renderer();
-  vtkRenderWindow* rw = main->GetRenderWindow();
-  if (rw->GetNumberOfLayers() < 2) rw->SetNumberOfLayers(2);
-  overlay_->renderer = vtkSmartPointer<vtkRenderer>::New();
-  overlay_->renderer->SetLayer(1);
-  overlay_->renderer->InteractiveOff();
-  overlay_->renderer->SetActiveCamera(main->GetActiveCamera());
-  overlay_->lines = make_actor({0.85, 0.85, 0.85}, 1, 1.5);
+  vtkRenderer* overlay = open_overlay();
+  overlay_->lines = make_overlay_actor({0.85, 0.85, 0.85}, 1, 1.5);
   // The selected pair: flat white squares behind the (sphere-shaded, hence nearer) points.
-  overlay_->selection = make_actor({1.0, 1.0, 1.0}, 19, 1);
+  overlay_->selection = make_overlay_actor({1.0, 1.0, 1.0}, 19, 1);
   overlay_->selection->GetProperty()->RenderPointsAsSpheresOff();
-  for (int s = 0; s < 2; ++s) overlay_->sets[s] = make_actor(LandmarkSession::set_color(s), 13, 1);
+  for (int s = 0; s < 2; ++s) overlay_->sets[s] = make_overlay_actor(LandmarkSession::set_color(s), 13, 1);
   for (auto* a : {overlay_->lines.Get(), overlay_->selection.Get(), overlay_->sets[0].Get(), overlay_->sets[1].Get()})
-    overlay_->renderer->AddActor(a);
-  rw->AddRenderer(overlay_->renderer);
-  if (vtk_widget_) {
-    vtk_widget_->installEventFilter(this);
-    vtk_widget_->setFocus();
-  }
+    overlay->AddActor(a);
+  take_input();
   build_dock();
   refresh();
   log("Landmark mode: click on a slice or surface to place set " + QString::number(session_->active_set() + 1) +
@@ -150,22 +92,14 @@ void LandmarkMode::start() {
 void LandmarkMode::stop() {
   if (!active_) return;
   active_ = false;
-  if (vtk_widget_) vtk_widget_->removeEventFilter(this);
-  if (overlay_) {
-    view_->renderer()->GetRenderWindow()->RemoveRenderer(overlay_->renderer);
-    overlay_.reset();
-  }
-  if (dock_) {
-    window_->removeDockWidget(dock_);
-    dock_->deleteLater();
-  }
+  release();  // event filter, overlay layer, dock
+  overlay_.reset();
   dock_ = nullptr;
   table_ = nullptr;
   status_ = nullptr;
   model_ = nullptr;
   set_button_[0] = set_button_[1] = nullptr;
   drag_pair_ = drag_set_ = -1;
-  pressed_ = false;
   view_->render();
   log("Left landmark mode");
   emit stopped();
@@ -208,7 +142,7 @@ void LandmarkMode::build_dock() {
   model_->setFocusPolicy(Qt::NoFocus);
   model_->addItems({"rigid", "similarity", "affine"});
   model_->setCurrentText(QString::fromStdString(to_string(session_->model())));
-  model_->setToolTip("registration model of the residual fit (registration.landmarks)");
+  model_->setToolTip(QString("registration model of the residual fit (%1)").arg(registration::names::landmarks));
   connect(model_, &QComboBox::currentTextChanged, this,
           [this](const QString& m) { session_->set_model(parse_transform_kind(m.toStdString(), "model")); });
   opts->addWidget(model_);
@@ -250,7 +184,9 @@ void LandmarkMode::build_dock() {
                                                       "Landmarks (*.landmarkAscii *.am *.fcsv *.csv)");
     if (!path.isEmpty()) load(path);
   });
-  button("Save…", "write the landmarks and add io.read_landmarks + registration.landmarks to the pipeline", [this] {
+  const QString save_tip = QString("write the landmarks and add %1 + %2 to the pipeline")
+                               .arg(io::names::read_landmarks, registration::names::landmarks);
+  button("Save…", save_tip, [this] {
     const QString path = QFileDialog::getSaveFileName(
         window_, "Save landmarks", default_path(),
         "Amira landmarks (*.landmarkAscii);;Slicer markups, set 1 only (*.fcsv);;CSV (*.csv)");
@@ -259,10 +195,7 @@ void LandmarkMode::build_dock() {
   button("Leave", "leave landmark mode (the landmarks are kept)", [this] { stop(); });
   v->addLayout(files);
 
-  dock_ = new QDockWidget("Landmarks", window_);
-  dock_->setObjectName("landmarks");
-  dock_->setWidget(panel);
-  window_->addDockWidget(Qt::RightDockWidgetArea, dock_);
+  dock_ = add_dock("Landmarks", "landmarks", panel);
   window_->resizeDocks({dock_}, {450}, Qt::Horizontal);  // room for both points and the residual
 }
 
@@ -293,7 +226,7 @@ void LandmarkMode::refresh() {
   if (!overlay_) return;
   std::vector<Vec3> pts[2], sel;
   std::vector<std::pair<Vec3, Vec3>> lines;
-  for (auto& l : overlay_->labels) overlay_->renderer->RemoveActor(l);
+  for (auto& l : overlay_->labels) overlay()->RemoveActor(l);
   overlay_->labels.clear();
   for (int i = 0; i < session_->pair_count(); ++i) {
     std::optional<Vec3> p[2];
@@ -312,14 +245,21 @@ void LandmarkMode::refresh() {
       label->GetTextProperty()->SetFontSize(16);
       label->GetTextProperty()->BoldOn();
       label->GetTextProperty()->ShadowOn();
-      overlay_->renderer->AddActor(label);
+      overlay()->AddActor(label);
       overlay_->labels.push_back(label);
     }
     if (p[0] && p[1]) lines.emplace_back(*p[0], *p[1]);
   }
-  for (int s = 0; s < 2; ++s) set_points(overlay_->sets[s], pts[s]);
-  set_points(overlay_->lines, {}, lines);
-  set_points(overlay_->selection, sel);
+  for (int s = 0; s < 2; ++s) {
+    OverlayShape shape;
+    for (const Vec3& p : pts[s]) shape.vertex(p);
+    shape.set(overlay_->sets[s]);
+  }
+  OverlayShape pair_lines, selection;
+  for (const auto& [p, q] : lines) pair_lines.line({p, q});
+  for (const Vec3& p : sel) selection.vertex(p);
+  pair_lines.set(overlay_->lines);
+  selection.set(overlay_->selection);
   view_->render();
 }
 
@@ -351,20 +291,6 @@ bool LandmarkMode::load(const QString& path) {
 }
 
 // ---------------------------------------------------------------- picking
-namespace {
-ScreenProjection projection_of(vtkRenderer* ren, const QWidget* w) {
-  ScreenProjection s;
-  s.width = std::max(1, w->width());
-  s.height = std::max(1, w->height());
-  ren->ResetCameraClippingRange();
-  vtkMatrix4x4* m = ren->GetActiveCamera()->GetCompositeProjectionTransformMatrix(s.width / s.height, -1, 1);
-  for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j) s.m[static_cast<size_t>(4 * i + j)] = m->GetElement(i, j);
-  }
-  return s;
-}
-}  // namespace
-
 std::optional<Vec3> LandmarkMode::pick_surface(QPoint pos) const {
   const QWidget* w = vtk_widget_ ? vtk_widget_ : static_cast<QWidget*>(view_);
   const double dpr = w->devicePixelRatioF();
@@ -380,22 +306,8 @@ std::optional<Vec3> LandmarkMode::pick_surface(QPoint pos) const {
   return Vec3{p[0], p[1], p[2]};
 }
 
-std::optional<std::pair<double, double>> LandmarkMode::screen_position_f(const Vec3& p) const {
-  const QWidget* w = vtk_widget_ ? vtk_widget_ : static_cast<QWidget*>(view_);
-  double x, y, d;
-  if (!projection_of(view_->renderer(), w).project(p, x, y, d)) return std::nullopt;
-  return std::make_pair(x, y);
-}
-
-std::optional<QPoint> LandmarkMode::screen_position(const Vec3& p) const {
-  const auto f = screen_position_f(p);
-  if (!f) return std::nullopt;
-  return QPoint(static_cast<int>(std::floor(f->first)), static_cast<int>(std::floor(f->second)));
-}
-
 std::optional<std::pair<int, int>> LandmarkMode::pick_landmark(QPoint pos) const {
-  const QWidget* w = vtk_widget_ ? vtk_widget_ : static_cast<QWidget*>(view_);
-  const ScreenProjection proj = projection_of(view_->renderer(), w);
+  const ScreenProjection proj = projection();
   const double cx = pos.x() + 0.5, cy = pos.y() + 0.5;
   double best = kPickRadius, best_depth = 2;
   std::optional<std::pair<int, int>> hit;
@@ -416,100 +328,51 @@ std::optional<std::pair<int, int>> LandmarkMode::pick_landmark(QPoint pos) const
   return hit;
 }
 
-// ---------------------------------------------------------------- events
-bool LandmarkMode::handle_key(int key, Qt::KeyboardModifiers mods) {
-  if (!active_) return false;
-  const bool ctrl = mods & Qt::ControlModifier, shift = mods & Qt::ShiftModifier;
-  if (ctrl) {
-    if (key == Qt::Key_Z && !shift) session_->undo_stack()->undo();
-    else if ((key == Qt::Key_Z && shift) || key == Qt::Key_Y) session_->undo_stack()->redo();
-    else return false;
-    return true;
-  }
-  switch (key) {
-    case Qt::Key_1: session_->set_active_set(0); return true;
-    case Qt::Key_2: session_->set_active_set(1); return true;
-    case Qt::Key_Delete:
-    case Qt::Key_Backspace:
-      if (selected_ >= 0) session_->delete_pair(selected_);
-      return true;
-    case Qt::Key_Escape: select_pair(-1); return true;
-    default: return false;
-  }
+// ---------------------------------------------------------------- mouse
+bool LandmarkMode::mouse_press(QMouseEvent* m) {
+  const auto hit = pick_landmark(m->pos());
+  if (!hit) return false;
+  drag_pair_ = hit->first;
+  drag_set_ = hit->second;
+  drag_to_.reset();
+  select_pair(drag_pair_);
+  return true;  // no camera rotation while dragging a landmark
 }
 
-bool LandmarkMode::eventFilter(QObject* watched, QEvent* event) {
-  if (watched != vtk_widget_ || !active_) return QObject::eventFilter(watched, event);
-  switch (event->type()) {
-    case QEvent::ShortcutOverride:
-    case QEvent::KeyPress: {
-      auto* k = static_cast<QKeyEvent*>(event);
-      const int key = k->key();
-      const auto mods = k->modifiers() & (Qt::ControlModifier | Qt::ShiftModifier);
-      const bool bound = (mods & Qt::ControlModifier) ? (key == Qt::Key_Z || key == Qt::Key_Y)
-                                                      : (key == Qt::Key_1 || key == Qt::Key_2 || key == Qt::Key_Delete ||
-                                                         key == Qt::Key_Backspace || key == Qt::Key_Escape);
-      if (!bound) return false;
-      // Accepting the override keeps the window's shortcuts (pipeline Undo/Delete, Esc) from firing.
-      event->accept();
-      if (event->type() == QEvent::KeyPress) handle_key(key, mods);
-      return true;
+bool LandmarkMode::mouse_move(QMouseEvent* m) {
+  if (drag_pair_ < 0) return false;
+  if (!is_click(m->pos())) {
+    if (const auto p = pick_surface(m->pos())) {
+      drag_to_ = p;
+      refresh();
     }
-    case QEvent::MouseButtonPress: {
-      auto* m = static_cast<QMouseEvent*>(event);
-      if (m->button() != Qt::LeftButton) return false;
-      pressed_ = true;
-      press_pos_ = m->pos();
-      if (const auto hit = pick_landmark(m->pos())) {
-        drag_pair_ = hit->first;
-        drag_set_ = hit->second;
-        drag_to_.reset();
-        select_pair(drag_pair_);
-        return true;  // no camera rotation while dragging a landmark
-      }
-      return false;
-    }
-    case QEvent::MouseMove: {
-      if (drag_pair_ < 0) return false;
-      auto* m = static_cast<QMouseEvent*>(event);
-      if ((m->pos() - press_pos_).manhattanLength() > kClickSlack) {
-        if (const auto p = pick_surface(m->pos())) {
-          drag_to_ = p;
-          refresh();
-        }
-      }
-      return true;
-    }
-    case QEvent::MouseButtonRelease: {
-      auto* m = static_cast<QMouseEvent*>(event);
-      if (m->button() != Qt::LeftButton || !pressed_) return false;
-      pressed_ = false;
-      if (drag_pair_ >= 0) {
-        const int pair = drag_pair_, set = drag_set_;
-        std::optional<Vec3> to;
-        if ((m->pos() - press_pos_).manhattanLength() > kClickSlack) {
-          to = pick_surface(m->pos());
-          if (!to) to = drag_to_;  // released off the surfaces: the last position on them
-        }
-        drag_pair_ = drag_set_ = -1;
-        drag_to_.reset();
-        if (to) session_->move_point(pair, set, *to);
-        else refresh();
-        return true;
-      }
-      if ((m->pos() - press_pos_).manhattanLength() <= kClickSlack) {
-        if (const auto p = pick_surface(m->pos())) {
-          const int pair = session_->add_point(*p);
-          if (pair >= 0) select_pair(pair);
-        } else {
-          log("Landmarks: nothing under the cursor (show a volume as slices or iso-surface)", true);
-        }
-      }
-      return false;  // the interactor ends its (empty) rotation
-    }
-    default:
-      return false;
   }
+  return true;
+}
+
+bool LandmarkMode::mouse_release(QMouseEvent* m, bool click) {
+  if (drag_pair_ >= 0) {
+    const int pair = drag_pair_, set = drag_set_;
+    std::optional<Vec3> to;
+    if (!click) {
+      to = pick_surface(m->pos());
+      if (!to) to = drag_to_;  // released off the surfaces: the last position on them
+    }
+    drag_pair_ = drag_set_ = -1;
+    drag_to_.reset();
+    if (to) session_->move_point(pair, set, *to);
+    else refresh();
+    return true;
+  }
+  if (click) {
+    if (const auto p = pick_surface(m->pos())) {
+      const int pair = session_->add_point(*p);
+      if (pair >= 0) select_pair(pair);
+    } else {
+      log("Landmarks: nothing under the cursor (show a volume as slices or iso-surface)", true);
+    }
+  }
+  return false;  // the interactor ends its (empty) rotation
 }
 
 }  // namespace skel::gui

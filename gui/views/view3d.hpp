@@ -1,31 +1,24 @@
 #pragma once
 // 3D view (VTK in a QVTKOpenGLNativeWidget) showing several data objects at once, each with a
-// visibility toggle. Volumes: three orthogonal slices with window/level, maximum-intensity
-// projection, iso-surface, volume rendering; binary masks and skeletons: voxel surfaces. Graphs:
-// lines or tubes (radius attribute) coloured by any point/edge attribute with a scalar bar.
+// visibility toggle. View3D keeps the renderer, the camera, the object list and the scalar bar; how
+// each object is drawn, and its display controls, belong to its Representation (one class per data
+// type: volume_representation, graph_representation).
 #include <QImage>
 #include <QMap>
 #include <QWidget>
 
 #include <memory>
 
+#include "graph_representation.hpp"
 #include "skel/data.hpp"
+#include "volume_representation.hpp"
 
-class QCheckBox;
-class QComboBox;
-class QDoubleSpinBox;
 class QListWidget;
-class QListWidgetItem;
-class QSlider;
 class QStackedWidget;
 class QVTKOpenGLNativeWidget;
 class vtkRenderer;
-class vtkGenericOpenGLRenderWindow;
 
 namespace skel::gui {
-
-enum class VolumeMode { Slices, Mip, IsoSurface, VolumeRendering, VoxelSurface };
-enum class GraphMode { Lines, Tubes };
 
 class View3D final : public QWidget {
   Q_OBJECT
@@ -44,6 +37,7 @@ public:
   void set_object_visible(const QString& name, bool visible);
   [[nodiscard]] bool object_visible(const QString& name) const;
 
+  // Display settings of volume and graph objects (ignored for objects of another type).
   void set_volume_mode(const QString& name, VolumeMode mode);
   [[nodiscard]] VolumeMode volume_mode(const QString& name) const;
   void set_window_level(const QString& name, double window, double level);
@@ -57,16 +51,24 @@ public:
   [[nodiscard]] QImage grab_image();
   bool save_screenshot(const QString& path);
   [[nodiscard]] vtkRenderer* renderer() const;
+  // The VTK widget (interaction modes filter its mouse and key events).
+  [[nodiscard]] QWidget* vtk_widget() const;
 
 signals:
   void message(const QString& text);
 
 private:
-  struct Object;
-  void apply(Object& o);            // (re)builds the props of an object for its mode and visibility
+  struct Object {
+    std::unique_ptr<Representation> rep;
+    std::vector<vtkSmartPointer<vtkProp>> props;  // in the renderer now
+    QWidget* controls = nullptr;                  // its page in controls_, made when first selected
+  };
+  void apply(Object& o);  // (re)builds the props of an object for its settings and visibility
+  void update_scalar_bar();
   void select_object(const QString& name);
   void update_controls();
-  Object* current();
+  template <class R>
+  R* find(const QString& name) const;
 
   QVTKOpenGLNativeWidget* vtk_;
   struct Vtk;
@@ -77,14 +79,6 @@ private:
 
   QListWidget* list_;
   QStackedWidget* controls_;
-  QComboBox* volume_mode_;
-  QDoubleSpinBox* window_;
-  QDoubleSpinBox* level_;
-  QSlider* slice_[3];
-  QDoubleSpinBox* iso_;
-  QComboBox* graph_mode_;
-  QComboBox* color_by_;
-  QDoubleSpinBox* tube_scale_;
 };
 
 }  // namespace skel::gui

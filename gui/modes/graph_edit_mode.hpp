@@ -4,15 +4,14 @@
 // graph_pick (screen-space projection of every point: no locator to rebuild after an edit), the
 // selection and the dangling-end proposal are drawn on an overlay layer, and keys run the
 // GraphEditSession's operations. Two docks: "Graph editing" (buttons, route, status) and
-// "Edit history" (QUndoView of the session's undo stack).
+// "Edit history" (QUndoView of the session's undo stack). Event filter, overlay layer, docks and the
+// undo keys are InteractionMode's.
 //
 // Keys (when the 3D view has the focus): Delete/Backspace delete, C connect, S split, M merge,
 // N next dangling end, Enter/Return/A accept the proposed connection, Space/K skip the end,
 // Ctrl+Z undo, Ctrl+Shift+Z / Ctrl+Y redo, Esc clear the selection. Mouse: click selects the nearest
 // node or edge point (within 8 px), Ctrl+click adds/removes, Shift+drag selects a box.
-#include <QObject>
 #include <QPoint>
-#include <QPointer>
 #include <QString>
 
 #include <memory>
@@ -20,6 +19,7 @@
 
 #include "edit_session.hpp"
 #include "graph_pick.hpp"
+#include "interaction_mode.hpp"
 
 class QComboBox;
 class QDockWidget;
@@ -27,15 +27,10 @@ class QLabel;
 class QRubberBand;
 class QUndoView;
 class QWidget;
-class vtkActor;
-class vtkRenderer;
 
 namespace skel::gui {
 
-class MainWindow;
-class View3D;
-
-class GraphEditMode : public QObject {
+class GraphEditMode : public InteractionMode {
   Q_OBJECT
 public:
   enum class ResumePolicy { Ask, Replay, StartOver };
@@ -46,8 +41,8 @@ public:
   // Enters edit mode on output node.port (it must be computed). Journal: `journal_path` or, when
   // empty, `<journal dir>/<node>.<port>.edits.yaml`. Returns false (and logs why) on failure.
   bool start(const QString& node, const QString& port, const QString& journal_path = {});
-  void stop();
-  [[nodiscard]] bool active() const { return static_cast<bool>(session_); }
+  void stop() override;
+  [[nodiscard]] bool active() const override { return static_cast<bool>(session_); }
   [[nodiscard]] GraphEditSession* session() const { return session_.get(); }
 
   // Where journals and saved graphs go by default: the environment variable SKELFLOW_EDIT_DIR, else
@@ -62,29 +57,21 @@ public:
   // and adds graph.apply_edits after the graph's producer in the pipeline document.
   bool save(const QString& base = {});
 
-  // Picking in the 3D view's widget coordinates.
-  [[nodiscard]] ScreenProjection projection() const;
+  // The node or edge point nearest to `widget_pos` (3D view widget coordinates) within 8 px.
   [[nodiscard]] GraphPick pick(QPoint widget_pos) const;
-  // Widget position of a world point (for tests and the tour); nullopt if not visible.
-  [[nodiscard]] std::optional<QPoint> screen_position(const Vec3& p) const;
   // Camera looks at p from its current direction, at a distance showing `extent` around it.
   void focus(const Vec3& p, double extent);
-  [[nodiscard]] QWidget* vtk_widget() const { return vtk_widget_; }
   [[nodiscard]] QString object_name() const { return object_; }      // the edited graph in the 3D view
   [[nodiscard]] QString background_name() const { return background_; }  // image under it, or empty
   [[nodiscard]] QDockWidget* panel_dock() const { return panel_dock_; }
   [[nodiscard]] QDockWidget* history_dock() const { return history_dock_; }
   [[nodiscard]] QUndoView* history_view() const { return history_; }
 
-  // Runs the action bound to `key` (as the event filter does); false if the key is not bound.
-  bool handle_key(int key, Qt::KeyboardModifiers modifiers);
-
-signals:
-  void started();
-  void stopped();
-
 protected:
-  bool eventFilter(QObject* watched, QEvent* event) override;
+  [[nodiscard]] QUndoStack* undo_stack() const override;
+  bool mouse_press(QMouseEvent* event) override;
+  bool mouse_move(QMouseEvent* event) override;
+  bool mouse_release(QMouseEvent* event, bool click) override;
 
 private:
   void build_docks();
@@ -92,11 +79,7 @@ private:
   void refresh_overlay();
   void update_status();
   void next_and_focus(bool skip);
-  void log(const QString& text, bool error = false);
 
-  MainWindow* window_;
-  View3D* view_;
-  QWidget* vtk_widget_;
   std::unique_ptr<GraphEditSession> session_;
   QString node_, port_, object_, background_, mask_port_, distance_port_;
   QString journal_dir_;
@@ -110,9 +93,8 @@ private:
   QUndoView* history_ = nullptr;
   QLabel* status_ = nullptr;
   QComboBox* route_ = nullptr;
-  // Mouse state.
-  QPoint press_pos_;
-  bool pressed_ = false, box_ = false;
+  // Shift+drag draws a selection box.
+  bool box_ = false;
   QRubberBand* rubber_ = nullptr;
 };
 

@@ -1,0 +1,8 @@
+#pragma once
+// Names of the geometry modules: their specs use these constants, and so does code outside the family
+// (the GUI, tests) that names a module, so a rename is one edit here and a misspelt name does not compile.
+namespace skel::geometry::names {
+
+inline constexpr const char* skeleton_to_graph = "geometry.skeleton_to_graph";
+
+}  // namespace skel::geometry::names
