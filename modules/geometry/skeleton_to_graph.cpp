@@ -10,6 +10,7 @@
 
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel::geometry {
 
@@ -263,14 +264,6 @@ std::vector<int64_t> object_voxels(const VolumeU8& v, int threads, const Interru
   return out;
 }
 
-int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
-
 }  // namespace
 
 std::array<int, 2> dual_cube_pair(int p) { return pair_table().pairs[p]; }
@@ -429,15 +422,13 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
            cls[i] == static_cast<uint8_t>(ManifoldType::line_end);
   };
   auto is_node_voxel = [&](int64_t i) { return cls[i] != static_cast<uint8_t>(ManifoldType::line); };
-  std::vector<int64_t> parent(n);
-  std::iota(parent.begin(), parent.end(), int64_t{0});
+  UnionFind collapsed(n);
   for (int64_t i = 0; i < n; ++i) {
     if (is_line(i)) continue;
     for (int64_t a = off[i]; a < off[i + 1]; ++a) {
       const int64_t j = adj[a];
       if (is_line(j)) continue;
-      const int64_t ri = find_root(parent, i), rj = find_root(parent, j);
-      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
+      collapsed.unite(i, j);
     }
   }
 
@@ -467,7 +458,7 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
   std::vector<int32_t> node_kind;
   for (int64_t i = 0; i < n; ++i) {
     if (!is_node_voxel(i)) continue;
-    const int64_t r = find_root(parent, i);
+    const int64_t r = collapsed.find(i);
     if (node_of[r] < 0) {
       node_of[r] = static_cast<int64_t>(sum.size());
       sum.push_back({0, 0, 0});

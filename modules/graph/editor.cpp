@@ -18,6 +18,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "skel/error.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel::graph {
 
@@ -994,20 +995,15 @@ EditOp GraphEditor::delete_components(double max_length) {
   op.length = max_length;
   auto run = [this, max_length] {
     const int64_t nn = graph_.node_count();
-    std::vector<int64_t> parent(static_cast<size_t>(nn));
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](int64_t x) {
-      while (parent[x] != x) x = parent[x] = parent[parent[x]];
-      return x;
-    };
-    for (const auto& e : graph_.edges) parent[find(e.node0)] = find(e.node1);
+    UnionFind uf(nn);
+    for (const auto& e : graph_.edges) uf.unite(e.node0, e.node1);
     std::vector<double> len(static_cast<size_t>(nn), 0.0);
-    for (int64_t e = 0; e < graph_.edge_count(); ++e) len[find(graph_.edges[e].node0)] += graph_.edge_length(e);
+    for (int64_t e = 0; e < graph_.edge_count(); ++e) len[uf.find(graph_.edges[e].node0)] += graph_.edge_length(e);
     std::vector<int64_t> edges, nodes;
     for (int64_t e = 0; e < graph_.edge_count(); ++e)
-      if (len[find(graph_.edges[e].node0)] < max_length) edges.push_back(e);
+      if (len[uf.find(graph_.edges[e].node0)] < max_length) edges.push_back(e);
     for (int64_t n = 0; n < nn; ++n)
-      if (len[find(n)] < max_length) nodes.push_back(n);
+      if (len[uf.find(n)] < max_length) nodes.push_back(n);
     do_delete_edges(edges);
     for (auto it = nodes.rbegin(); it != nodes.rend(); ++it) p_remove_node(*it);
   };
