@@ -116,7 +116,4 @@ struct MorphologyOptions {
 };
 VolumeU8 morphology(const VolumeU8& mask, const MorphologyOptions& options = {});
 
-// A 0/1 mask from an integer volume (voxel > 0); throws InputError naming `port` for float volumes.
-VolumeU8 as_mask(const DataObject& data, const std::string& port);
-
 }  // namespace skel::segmentation

@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/mask.hpp"
 #include "skel/module.hpp"
 
 namespace skel::segmentation {
@@ -103,7 +104,7 @@ Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run a
     o.keep_largest = ctx.param<bool>("keep_largest");
     o.threads = ctx.threads();
     o.interrupter = ctx.progress();
-    auto r = segmentation::connected_components(segmentation::as_mask(*ctx.input_data("mask"), "mask"), o);
+    auto r = segmentation::connected_components(to_mask(*ctx.input_data("mask"), "input 'mask'"), o);
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     ctx.output("labels", std::move(r.labels));
     ctx.output("mask", std::move(r.mask));
@@ -205,7 +206,7 @@ Memory: 4 bytes per voxel (squared distances) + 1 (output); open/close hold one 
     o.radius = ctx.param<double>("radius");
     o.threads = ctx.threads();
     o.interrupter = ctx.progress();
-    ctx.output("mask", segmentation::morphology(segmentation::as_mask(*ctx.input_data("mask"), "mask"), o));
+    ctx.output("mask", segmentation::morphology(to_mask(*ctx.input_data("mask"), "input 'mask'"), o));
   }
 };
 SKEL_REGISTER_MODULE(Morphology);
@@ -225,7 +226,7 @@ plus about 24 bytes per background run.)");
   }
   void run(RunContext& ctx) override {
     int64_t filled = 0;
-    VolumeU8 m = segmentation::fill_cavities(segmentation::as_mask(*ctx.input_data("mask"), "mask"), &filled,
+    VolumeU8 m = segmentation::fill_cavities(to_mask(*ctx.input_data("mask"), "input 'mask'"), &filled,
                                               ctx.threads());
     if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
     ctx.output("mask", std::move(m));
