@@ -18,6 +18,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "skel/error.hpp"
+#include "skel/text.hpp"
 #include "skel/union_find.hpp"
 
 namespace skel::graph {
@@ -46,11 +47,7 @@ double polyline_length(const std::vector<Vec3>& pts) {
   return l;
 }
 
-std::string fmt(double d) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.9g", d);
-  return buf;
-}
+std::string fmt(double d) { return text::format_double(d, 9); }
 std::string fmt(const Vec3& v) { return "[" + fmt(v[0]) + ", " + fmt(v[1]) + ", " + fmt(v[2]) + "]"; }
 
 // ---- whole-element records for exact undo of removals
