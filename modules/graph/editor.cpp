@@ -17,6 +17,7 @@
 #include <nanoflann.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "graph/graph_ops.hpp"
 #include "skel/error.hpp"
 #include "skel/text.hpp"
 #include "skel/union_find.hpp"
@@ -933,32 +934,19 @@ EditOp GraphEditor::prune(double max_length, double radius_factor) {
   op.length = max_length;
   op.radius_factor = radius_factor;
   auto run = [this, max_length, radius_factor] {
+    // graph.prune's rule (find_spurs), but every spur goes, even all of a junction's, and only the
+    // junctions it touched are merged; done by the undoable primitives.
+    PruneOptions rule;
+    rule.min_length = max_length;
+    rule.radius_factor = radius_factor;
     for (;;) {
-      const auto deg = graph_.degrees();
-      std::vector<int64_t> spurs;
-      std::vector<int64_t> ends;
-      for (int64_t e = 0; e < graph_.edge_count(); ++e) {
-        const auto& ed = graph_.edges[e];
-        if (ed.node0 == ed.node1) continue;
-        const bool t0 = deg[ed.node0] == 1, t1 = deg[ed.node1] == 1;
-        if (t0 == t1) continue;  // not terminal, or an isolated segment (delete_components handles it)
-        if (deg[t0 ? ed.node1 : ed.node0] < 3) continue;
-        double limit = max_length;
-        if (radius_factor > 0) {  // radius at the junction end (points run from node0 to node1)
-          const auto& r = graph_.point_attributes.at("radius")[e];
-          if (!r.empty()) limit = std::max(limit, radius_factor * (t0 ? r.back() : r.front()));
-        }
-        if (graph_.edge_length(e) >= limit) continue;
-        spurs.push_back(e);
-        ends.push_back(t0 ? ed.node0 : ed.node1);
+      std::vector<int64_t> spurs, ends, junctions;
+      for (const Spur& s : find_spurs(graph_, graph_.degrees(), rule)) {
+        spurs.push_back(s.edge);
+        ends.push_back(s.tip);
+        junctions.push_back(s.junction);  // merged afterwards if left with degree 2
       }
       if (spurs.empty()) break;
-      // Junctions left with degree 2 are merged afterwards.
-      std::vector<int64_t> junctions;
-      for (int64_t e : spurs) {
-        const auto& ed = graph_.edges[e];
-        junctions.push_back(deg[ed.node0] == 1 ? ed.node1 : ed.node0);
-      }
       do_delete_edges(spurs);
       std::sort(ends.begin(), ends.end());
       for (auto it = ends.rbegin(); it != ends.rend(); ++it) {
