@@ -22,6 +22,7 @@
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/pipeline.hpp"
+#include "skel/text.hpp"
 #include "cli.hpp"
 
 namespace fs = std::filesystem;
@@ -214,8 +215,7 @@ int cmd_info(const std::vector<std::string>& args) {
   fs::path f = args[0];
   std::error_code ec;
   if (!fs::exists(f, ec)) throw InputError(f.string() + ": file not found");
-  std::string ext = f.extension().string();
-  for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string ext = text::to_lower(f.extension().string());
   if (ext == ".yaml" || ext == ".yml") {
     Pipeline p = Pipeline::load_file(f);
     std::cout << f.string() << ": Skelflow pipeline, " << p.nodes().size() << " nodes\n";

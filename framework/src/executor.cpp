@@ -13,6 +13,7 @@
 
 #include "context.hpp"
 #include "skel/parallel.hpp"
+#include "skel/text.hpp"
 
 namespace fs = std::filesystem;
 
@@ -65,11 +66,7 @@ std::string json_escape(const std::string& s) {
   return r;
 }
 
-std::string num(double d) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", d);
-  return buf;
-}
+std::string num(double d) { return text::format_double(d, 6); }
 
 // FNV-1a 64-bit.
 uint64_t fnv1a(const std::string& s, uint64_t h = 1469598103934665603ull) {

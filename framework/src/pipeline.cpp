@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "skel/fs.hpp"
+#include "skel/text.hpp"
 
 namespace fs = std::filesystem;
 
@@ -42,23 +43,20 @@ SourcePos pos_of(const YAML::Node& n) {
   throw InputError(d.format());
 }
 
-bool parse_int(const std::string& s, int64_t& out) {
-  const char* b = s.data();
-  const char* e = b + s.size();
-  if (b != e && *b == '+') ++b;
-  auto r = std::from_chars(b, e, out);
-  return r.ec == std::errc() && r.ptr == e && b != e;
+// YAML scalars may carry a leading '+' (the text helpers take none).
+std::string_view without_plus(const std::string& s) {
+  std::string_view v = s;
+  if (!v.empty() && v.front() == '+') v.remove_prefix(1);
+  return v;
 }
+
+bool parse_int(const std::string& s, int64_t& out) { return text::parse_int(without_plus(s), out); }
 
 bool parse_double(const std::string& s, double& out) {
   if (s == ".inf" || s == ".Inf" || s == "+.inf" || s == "inf") { out = std::numeric_limits<double>::infinity(); return true; }
   if (s == "-.inf" || s == "-.Inf" || s == "-inf") { out = -std::numeric_limits<double>::infinity(); return true; }
   if (s == ".nan" || s == ".NaN" || s == "nan") { out = std::numeric_limits<double>::quiet_NaN(); return true; }
-  const char* b = s.data();
-  const char* e = b + s.size();
-  if (b != e && *b == '+') ++b;
-  auto r = std::from_chars(b, e, out);
-  return r.ec == std::errc() && r.ptr == e && b != e;
+  return text::parse_double(without_plus(s), out);
 }
 
 bool parse_bool(const std::string& s, bool& out) {

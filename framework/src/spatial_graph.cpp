@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 #include <sstream>
 
 #include "skel/error.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel {
 
@@ -31,14 +31,6 @@ void compact(V& v, const std::vector<int64_t>& old_to_new) {
     ++out;
   }
   v.resize(out);
-}
-
-int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
 }
 
 }  // namespace
@@ -206,16 +198,9 @@ double SpatialGraph::total_length() const {
 }
 
 int64_t SpatialGraph::connected_components() const {
-  std::vector<int64_t> parent(positions.size());
-  std::iota(parent.begin(), parent.end(), int64_t{0});
+  UnionFind uf(node_count());
   int64_t comps = node_count();
-  for (const auto& e : edges) {
-    const int64_t a = find_root(parent, e.node0), b = find_root(parent, e.node1);
-    if (a != b) {
-      parent[std::max(a, b)] = std::min(a, b);
-      --comps;
-    }
-  }
+  for (const auto& e : edges) comps -= uf.unite(e.node0, e.node1) ? 1 : 0;
   return comps;
 }
 

@@ -14,20 +14,13 @@
 #include "comparison/point_index.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel::comparison {
 
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
-  while (parent[static_cast<size_t>(x)] != x) {
-    parent[static_cast<size_t>(x)] = parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
-    x = parent[static_cast<size_t>(x)];
-  }
-  return x;
-}
 
 // Successive shortest augmenting paths on one connected component. Local ids: left 0..L-1,
 // right 0..R-1; adj[l] = (right, cost) in candidate order. Potentials keep reduced costs >= 0
@@ -221,15 +214,11 @@ std::vector<int64_t> min_cost_matching(int64_t n_left, int64_t n_right, const st
   }
   std::vector<int64_t> result(static_cast<size_t>(n_left), -1);
   // Components: union-find over left ids (0..n_left-1) and right ids (n_left..).
-  std::vector<int64_t> parent(static_cast<size_t>(n_left + n_right));
-  std::iota(parent.begin(), parent.end(), 0);
-  for (const auto& c : cands) {
-    const int64_t a = find_root(parent, c.left), b = find_root(parent, n_left + c.right);
-    if (a != b) parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
-  }
+  UnionFind uf(n_left + n_right);
+  for (const auto& c : cands) uf.unite(c.left, n_left + c.right);
   // Group candidates by component (in candidate order), map to local ids.
   std::map<int64_t, std::vector<size_t>> by_comp;
-  for (size_t i = 0; i < cands.size(); ++i) by_comp[find_root(parent, cands[i].left)].push_back(i);
+  for (size_t i = 0; i < cands.size(); ++i) by_comp[uf.find(cands[i].left)].push_back(i);
   std::vector<int64_t> local_l(static_cast<size_t>(n_left), -1), local_r(static_cast<size_t>(n_right), -1);
   std::vector<int64_t> global_l, global_r;
   std::vector<std::vector<std::pair<int64_t, double>>> adj;

@@ -10,6 +10,7 @@
 #include "comparison/point_index.hpp"
 #include "distance/distance.hpp"
 #include "skel/error.hpp"
+#include "skel/mask.hpp"
 #include "skel/parallel.hpp"
 
 namespace skel::comparison {
@@ -216,7 +217,7 @@ std::vector<double> transform_distances(const SidePoints& from, const DataObject
   VolumeU8 copy;
   const VolumeU8* seeds = dynamic_cast<const VolumeU8*>(&to);
   if (!seeds) {
-    copy = distance::binary_mask(to, to_name);
+    copy = to_mask(to, to_name);
     seeds = &copy;
   }
   distance::SeededOptions so;

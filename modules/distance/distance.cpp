@@ -818,20 +818,4 @@ VolumeF32 seeded(const VolumeU8& seeds, const SeededOptions& options) {
   return out;
 }
 
-VolumeU8 binary_mask(const DataObject& data, const std::string& port) {
-  return visit_volume(data, port, [&](const auto& v) -> VolumeU8 {
-    using T = typename std::decay_t<decltype(v)>::value_type;
-    if constexpr (std::is_floating_point_v<T>) {
-      throw InputError(port + ": expected an integer mask (voxel > 0 is object), got a " + VoxelTraits<T>::name +
-                       " volume; threshold it first");
-    } else {
-      VolumeU8 out = VolumeU8::uninitialized(v.grid());
-      const T* src = v.data();
-      uint8_t* dst = out.data();
-      for (int64_t i = 0, n = v.size(); i < n; ++i) dst[i] = src[i] > 0 ? 1 : 0;
-      return out;
-    }
-  });
-}
-
 }  // namespace skel::distance

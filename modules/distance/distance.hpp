@@ -124,8 +124,4 @@ struct SeededOptions {
 // 0 on seeds; +inf everywhere when there is no seed. Memory: 4 bytes per voxel.
 VolumeF32 seeded(const VolumeU8& seeds, const SeededOptions& options = {});
 
-// A binary uint8 mask (1 where voxel > 0) from any integer volume; a VolumeU8 is returned as a copy
-// with 0/1 values. Throws InputError naming `port` for floating-point volumes or non-volumes.
-VolumeU8 binary_mask(const DataObject& data, const std::string& port);
-
 }  // namespace skel::distance

@@ -5,6 +5,7 @@
 
 #include "distance/distance.hpp"
 #include "distance/names.hpp"
+#include "skel/mask.hpp"
 #include "skel/module.hpp"
 
 namespace skel::distance {
@@ -15,8 +16,7 @@ namespace {
 std::shared_ptr<const VolumeU8> mask_input(RunContext& ctx, const std::string& port) {
   DataPtr d = ctx.input_data(port);
   if (!d) throw InputError("input '" + port + "' is not connected");
-  if (auto u8 = std::dynamic_pointer_cast<const VolumeU8>(d)) return u8;
-  return std::make_shared<VolumeU8>(distance::binary_mask(*d, port));
+  return shared_mask(d, port);
 }
 
 const char* kMaskDoc = "object mask: any integer volume, voxel > 0 is object, 0 is background";

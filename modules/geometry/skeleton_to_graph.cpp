@@ -11,6 +11,7 @@
 #include "geometry/skeleton_to_graph_phases.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel::geometry {
 
@@ -264,14 +265,6 @@ std::vector<int64_t> object_voxels(const VolumeU8& v, int threads, const Interru
   return out;
 }
 
-int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
-
 }  // namespace
 
 std::array<int, 2> dual_cube_pair(int p) { return pair_table().pairs[p]; }
@@ -422,18 +415,17 @@ std::vector<int64_t> collapse_junctions(const SkeletonVoxels& sv) {
   const std::vector<int64_t>& off = sv.off;
   const std::vector<int64_t>& adj = sv.adj;
   auto is_line = [&](int64_t i) { return sv.is_line(i); };
-  std::vector<int64_t> parent(n);
-  std::iota(parent.begin(), parent.end(), int64_t{0});
+  UnionFind collapsed(n);
   for (int64_t i = 0; i < n; ++i) {
     if (is_line(i)) continue;
     for (int64_t a = off[i]; a < off[i + 1]; ++a) {
       const int64_t j = adj[a];
       if (is_line(j)) continue;
-      const int64_t ri = find_root(parent, i), rj = find_root(parent, j);
-      if (ri != rj) parent[std::max(ri, rj)] = std::min(ri, rj);
+      collapsed.unite(i, j);
     }
   }
-  return parent;
+  collapsed.flatten();  // every voxel points at its root (the smallest id of its node)
+  return std::move(collapsed).release();
 }
 
 GraphBuild make_nodes(const SkeletonVoxels& sv, std::vector<int64_t>& parent, bool with_radius) {
@@ -454,7 +446,7 @@ GraphBuild make_nodes(const SkeletonVoxels& sv, std::vector<int64_t>& parent, bo
   std::vector<int32_t>& node_kind = b.node_kind;
   for (int64_t i = 0; i < n; ++i) {
     if (!is_node_voxel(i)) continue;
-    const int64_t r = find_root(parent, i);
+    const int64_t r = parent[i];
     if (node_of[r] < 0) {
       node_of[r] = static_cast<int64_t>(sum.size());
       sum.push_back({0, 0, 0});

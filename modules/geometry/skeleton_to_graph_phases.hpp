@@ -68,8 +68,8 @@ void connect_one_cells(SkeletonVoxels& sv, int threads, const Interrupter& intr)
 // sv.rad: distance value x scale at every voxel (any volume type on the skeleton's grid).
 void read_radius(SkeletonVoxels& sv, const DataObject& distance, double scale);
 
-// Phase 3: union-find parents over the ids (a root is its own parent); voxels that are not
-// is_line() and are joined by 1-cells share a root.
+// Phase 3: the node root of every id (flattened union-find: parent[i] is the smallest id of its
+// set, parent[root] = root); voxels that are not is_line() and are joined by 1-cells share a root.
 std::vector<int64_t> collapse_junctions(const SkeletonVoxels& sv);
 
 // The graph being built, with what the edge phases need besides it.

@@ -17,7 +17,10 @@
 #include <nanoflann.hpp>
 #include <yaml-cpp/yaml.h>
 
+#include "graph/graph_ops.hpp"
 #include "skel/error.hpp"
+#include "skel/text.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel::graph {
 
@@ -45,11 +48,7 @@ double polyline_length(const std::vector<Vec3>& pts) {
   return l;
 }
 
-std::string fmt(double d) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.9g", d);
-  return buf;
-}
+std::string fmt(double d) { return text::format_double(d, 9); }
 std::string fmt(const Vec3& v) { return "[" + fmt(v[0]) + ", " + fmt(v[1]) + ", " + fmt(v[2]) + "]"; }
 
 // ---- whole-element records for exact undo of removals
@@ -962,32 +961,19 @@ EditOp GraphEditor::prune(double max_length, double radius_factor) {
   op.length = max_length;
   op.radius_factor = radius_factor;
   auto run = [this, max_length, radius_factor] {
+    // graph.prune's rule (find_spurs), but every spur goes, even all of a junction's, and only the
+    // junctions it touched are merged; done by the undoable primitives.
+    PruneOptions rule;
+    rule.min_length = max_length;
+    rule.radius_factor = radius_factor;
     for (;;) {
-      const auto deg = graph_.degrees();
-      std::vector<int64_t> spurs;
-      std::vector<int64_t> ends;
-      for (int64_t e = 0; e < graph_.edge_count(); ++e) {
-        const auto& ed = graph_.edges[e];
-        if (ed.node0 == ed.node1) continue;
-        const bool t0 = deg[ed.node0] == 1, t1 = deg[ed.node1] == 1;
-        if (t0 == t1) continue;  // not terminal, or an isolated segment (delete_components handles it)
-        if (deg[t0 ? ed.node1 : ed.node0] < 3) continue;
-        double limit = max_length;
-        if (radius_factor > 0) {  // radius at the junction end (points run from node0 to node1)
-          const auto& r = graph_.point_attributes.at("radius")[e];
-          if (!r.empty()) limit = std::max(limit, radius_factor * (t0 ? r.back() : r.front()));
-        }
-        if (graph_.edge_length(e) >= limit) continue;
-        spurs.push_back(e);
-        ends.push_back(t0 ? ed.node0 : ed.node1);
+      std::vector<int64_t> spurs, ends, junctions;
+      for (const Spur& s : find_spurs(graph_, graph_.degrees(), rule)) {
+        spurs.push_back(s.edge);
+        ends.push_back(s.tip);
+        junctions.push_back(s.junction);  // merged afterwards if left with degree 2
       }
       if (spurs.empty()) break;
-      // Junctions left with degree 2 are merged afterwards.
-      std::vector<int64_t> junctions;
-      for (int64_t e : spurs) {
-        const auto& ed = graph_.edges[e];
-        junctions.push_back(deg[ed.node0] == 1 ? ed.node1 : ed.node0);
-      }
       do_delete_edges(spurs);
       std::sort(ends.begin(), ends.end());
       for (auto it = ends.rbegin(); it != ends.rend(); ++it) {
@@ -1021,20 +1007,15 @@ EditOp GraphEditor::delete_components(double max_length) {
   op.length = max_length;
   auto run = [this, max_length] {
     const int64_t nn = graph_.node_count();
-    std::vector<int64_t> parent(static_cast<size_t>(nn));
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](int64_t x) {
-      while (parent[x] != x) x = parent[x] = parent[parent[x]];
-      return x;
-    };
-    for (const auto& e : graph_.edges) parent[find(e.node0)] = find(e.node1);
+    UnionFind uf(nn);
+    for (const auto& e : graph_.edges) uf.unite(e.node0, e.node1);
     std::vector<double> len(static_cast<size_t>(nn), 0.0);
-    for (int64_t e = 0; e < graph_.edge_count(); ++e) len[find(graph_.edges[e].node0)] += graph_.edge_length(e);
+    for (int64_t e = 0; e < graph_.edge_count(); ++e) len[uf.find(graph_.edges[e].node0)] += graph_.edge_length(e);
     std::vector<int64_t> edges, nodes;
     for (int64_t e = 0; e < graph_.edge_count(); ++e)
-      if (len[find(graph_.edges[e].node0)] < max_length) edges.push_back(e);
+      if (len[uf.find(graph_.edges[e].node0)] < max_length) edges.push_back(e);
     for (int64_t n = 0; n < nn; ++n)
-      if (len[find(n)] < max_length) nodes.push_back(n);
+      if (len[uf.find(n)] < max_length) nodes.push_back(n);
     do_delete_edges(edges);
     for (auto it = nodes.rbegin(); it != nodes.rend(); ++it) p_remove_node(*it);
   };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include "skel/error.hpp"
 
@@ -62,6 +63,27 @@ int64_t merge_degree_two(SpatialGraph& g) {
   return static_cast<int64_t>(dead_nodes.size());
 }
 
+std::vector<Spur> find_spurs(const SpatialGraph& g, const std::vector<int64_t>& deg, const PruneOptions& options) {
+  const auto* radius = options.radius_factor > 0.0 ? &g.point_attributes.at(options.radius) : nullptr;
+  std::vector<Spur> spurs;
+  for (int64_t e = 0; e < g.edge_count(); ++e) {
+    const auto& ed = g.edges[e];
+    if (ed.node0 == ed.node1) continue;
+    const bool tip0 = deg[ed.node0] == 1;
+    const int64_t tip = tip0 ? ed.node0 : ed.node1, junction = tip0 ? ed.node1 : ed.node0;
+    if (deg[tip] != 1 || deg[junction] < 3) continue;
+    double limit = options.min_length;
+    if (radius) {
+      // Points run from node0 to node1: the junction end is the last point when the tip is node0.
+      const auto& r = (*radius)[e];
+      if (!r.empty()) limit = std::max(limit, options.radius_factor * (tip0 ? r.back() : r.front()));
+    }
+    const double l = g.edge_length(e);
+    if (l < limit) spurs.push_back({e, tip, junction, l});
+  }
+  return spurs;
+}
+
 PruneStats prune(SpatialGraph& g, const PruneOptions& options) {
   if (!(options.min_length >= 0.0))
     throw InputError("parameter 'min_length': expected >= 0, got " + std::to_string(options.min_length));
@@ -75,34 +97,19 @@ PruneStats prune(SpatialGraph& g, const PruneOptions& options) {
   while (options.max_iterations <= 0 || stats.iterations < options.max_iterations) {
     options.interrupter.check();
     const auto deg = g.degrees();
-    const auto adj = g.adjacency();
+    // Per junction (ascending), its spurs shortest first, never leaving it with fewer than two edges.
+    std::vector<Spur> spurs = find_spurs(g, deg, options);
+    std::sort(spurs.begin(), spurs.end(), [](const Spur& a, const Spur& b) {
+      return std::tie(a.junction, a.length, a.edge) < std::tie(b.junction, b.length, b.edge);
+    });
     std::vector<int64_t> remove_e, remove_n;
-    for (int64_t n = 0; n < g.node_count(); ++n) {
-      if (deg[n] < 3) continue;
-      // Terminal branches at this junction, shortest first.
-      std::vector<std::pair<double, int64_t>> spurs;
-      for (int64_t a = adj.offsets[n]; a < adj.offsets[n + 1]; ++a) {
-        const int64_t e = adj.edge_ids[a];
-        const auto& ed = g.edges[e];
-        if (ed.node0 == ed.node1) continue;
-        const int64_t other = ed.node0 == n ? ed.node1 : ed.node0;
-        if (deg[other] != 1) continue;
-        const double l = g.edge_length(e);
-        double limit = options.min_length;
-        if (relative) {
-          // Points run from node0 to node1: the junction end is the first point when n is node0.
-          const auto& r = g.point_attributes.at(options.radius)[e];
-          if (!r.empty()) limit = std::max(limit, options.radius_factor * (ed.node0 == n ? r.front() : r.back()));
-        }
-        if (l < limit) spurs.emplace_back(l, e);
-      }
-      std::sort(spurs.begin(), spurs.end());
+    for (size_t k = 0; k < spurs.size();) {
+      const int64_t n = spurs[k].junction;
       int64_t left = deg[n];
-      for (const auto& [l, e] : spurs) {
-        if (left <= 2) break;
-        remove_e.push_back(e);
-        const auto& ed = g.edges[e];
-        remove_n.push_back(ed.node0 == n ? ed.node1 : ed.node0);
+      for (; k < spurs.size() && spurs[k].junction == n; ++k) {
+        if (left <= 2) continue;
+        remove_e.push_back(spurs[k].edge);
+        remove_n.push_back(spurs[k].tip);
         --left;
       }
     }

@@ -32,6 +32,18 @@ struct PruneStats {
   int64_t merged_nodes = 0;
   int iterations = 0;
 };
+// A terminal branch: an edge from a `tip` of degree 1 to a `junction` of degree >= 3.
+struct Spur {
+  int64_t edge = -1, tip = -1, junction = -1;
+  double length = 0.0;  // polyline length
+};
+// The prune rule, shared by graph.prune and the graph editor's prune operation: the terminal
+// branches (loops excluded) shorter than max(min_length, radius_factor × the point attribute
+// `radius` at their junction end; radius_factor 0 = the absolute length only), in edge order.
+// `degrees` = graph.degrees(). No parameter checks (the callers report them in their own terms).
+std::vector<Spur> find_spurs(const SpatialGraph& graph, const std::vector<int64_t>& degrees,
+                             const PruneOptions& options);
+
 // Iteratively removes terminal edges (one end of degree 1, the other of degree >= 3) shorter than
 // max(min_length, radius_factor * radius at the junction end), shortest first per junction and never leaving a junction with fewer than two edges,
 // then merges the edges at nodes left with degree 2. Isolated edges (both ends free) are kept.

@@ -16,22 +16,15 @@
 
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
+#include "skel/text.hpp"
 
 namespace skel::io {
 
 namespace {
 
 // ---------------------------------------------------------------- text helpers
-void put_f(std::string& s, float v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.9g", static_cast<double>(v));
-  s += b;
-}
-void put_d(std::string& s, double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  s += b;
-}
+void put_f(std::string& s, float v) { text::append_double(s, static_cast<double>(v), 9); }
+void put_d(std::string& s, double v) { text::append_double(s, v, 17); }
 void put_i(std::string& s, int64_t v) { s += std::to_string(v); }
 
 std::string clean_name(const std::string& n) {
@@ -131,21 +124,6 @@ private:
   std::string where_, file_;
   int64_t first_line_;
 };
-
-std::vector<std::string> split(const std::string& s, char sep) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : s) {
-    if (c == sep) {
-      out.push_back(cur);
-      cur.clear();
-    } else if (c != '\r') {
-      cur += c;
-    }
-  }
-  out.push_back(cur);
-  return out;
-}
 
 double to_num(const std::string& s, const std::string& where) {
   char* e = nullptr;
@@ -1042,7 +1020,8 @@ CsvTable csv_parse(const std::string& text, const std::string& src) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty()) continue;
-    auto f = split(line, ',');
+    auto f = text::split(line, ',');
+    for (auto& field : f) std::erase(field, '\r');  // stray CRs inside a line are dropped
     if (t.header.empty()) {
       t.header = f;
       continue;
@@ -1128,8 +1107,7 @@ std::string read_text(const std::filesystem::path& p) {
 }  // namespace
 
 GraphFormat graph_format_from_path(const std::filesystem::path& path, const std::string& what) {
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string ext = text::to_lower(path.extension().string());
   if (ext == ".am") return GraphFormat::amira;
   if (ext == ".vtp") return GraphFormat::vtp;
   if (ext == ".swc") return GraphFormat::swc;

@@ -1,8 +1,6 @@
 #include "io/landmark_io.hpp"
 
 #include <algorithm>
-#include <cctype>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -11,57 +9,21 @@
 #include "registration/registration.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
+#include "skel/text.hpp"
 
 namespace skel::io {
 namespace {
 
-std::string lower(std::string s) {
-  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
-std::string trim(const std::string& s) {
-  size_t b = 0, e = s.size();
-  while (b < e && std::isspace(static_cast<unsigned char>(s[b]))) ++b;
-  while (e > b && std::isspace(static_cast<unsigned char>(s[e - 1]))) --e;
-  return s.substr(b, e - b);
-}
-
-std::vector<std::string> split_lines(const std::string& text) {
-  std::vector<std::string> lines;
-  std::string line;
-  std::istringstream in(text);
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    lines.push_back(line);
-  }
-  return lines;
-}
-
-std::vector<std::string> split(const std::string& s, char sep) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : s) {
-    if (c == sep) {
-      out.push_back(cur);
-      cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  out.push_back(cur);
-  return out;
-}
+using text::split;
+using text::split_lines;
+using text::trim;
 
 std::string where(const std::string& name, size_t line) { return name + ":" + std::to_string(line + 1); }
 
 double parse_number(const std::string& text, const std::string& context) {
   const std::string t = trim(text);
   double v = 0.0;
-  const char* b = t.data();
-  const char* e = t.data() + t.size();
-  auto [ptr, ec] = std::from_chars(b, e, v);
-  if (t.empty() || ec != std::errc() || ptr != e) throw InputError(context + ": '" + t + "' is not a number");
+  if (!text::parse_double(t, v)) throw InputError(context + ": '" + t + "' is not a number");
   return v;
 }
 
@@ -73,12 +35,7 @@ std::vector<double> parse_numbers(const std::string& text, const std::string& co
   return out;
 }
 
-std::string format_double(double v) {
-  char buf[64];
-  auto [ptr, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 17);
-  (void)ec;
-  return std::string(buf, ptr);
-}
+std::string format_double(double v) { return text::format_double(v, 17); }
 
 std::string read_file(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -306,7 +263,7 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
   if (i == lines.size()) throw InputError(name + ": empty file; expected a header 'set,name,x,y,z'");
   auto header = split(trim(lines[i]), ',');
   for (auto& h : header) {
-    h = lower(trim(h));
+    h = text::to_lower(trim(h));
     if (auto b = h.find(' '); b != std::string::npos) h = h.substr(0, b);  // "x [µm]"
   }
   const auto col = [&](const std::string& c) -> size_t {
@@ -522,7 +479,7 @@ TransformFormat parse_transform_format(const std::string& text) {
 
 LandmarkFormat resolve_landmark_format(LandmarkFormat format, const std::filesystem::path& path) {
   if (format != LandmarkFormat::Auto) return format;
-  const std::string ext = lower(path.extension().string());
+  const std::string ext = text::to_lower(path.extension().string());
   if (ext == ".landmarkascii" || ext == ".am") return LandmarkFormat::Amira;
   if (ext == ".fcsv") return LandmarkFormat::Fcsv;
   if (ext == ".csv") return LandmarkFormat::Csv;
@@ -532,7 +489,7 @@ LandmarkFormat resolve_landmark_format(LandmarkFormat format, const std::filesys
 
 TransformFormat resolve_transform_format(TransformFormat format, const std::filesystem::path& path) {
   if (format != TransformFormat::Auto) return format;
-  return lower(path.extension().string()) == ".tfm" ? TransformFormat::Itk : TransformFormat::Matrix;
+  return text::to_lower(path.extension().string()) == ".tfm" ? TransformFormat::Itk : TransformFormat::Matrix;
 }
 
 LandmarkSet parse_landmarks(const std::string& text, LandmarkFormat format, const std::string& name) {

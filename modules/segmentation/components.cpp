@@ -10,6 +10,7 @@
 #include "segmentation/segmentation.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
+#include "skel/union_find.hpp"
 
 namespace skel::segmentation {
 namespace {
@@ -61,27 +62,10 @@ Runs extract_runs(const VolumeU8& mask, int threads, bool background = false) {
   return r;
 }
 
-int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
-  while (parent[static_cast<size_t>(x)] != x) {
-    const int64_t p = parent[static_cast<size_t>(x)];
-    parent[static_cast<size_t>(x)] = parent[static_cast<size_t>(p)];
-    x = p;
-  }
-  return x;
-}
-
-void unite(std::vector<int64_t>& parent, int64_t a, int64_t b) {
-  a = find_root(parent, a);
-  b = find_root(parent, b);
-  if (a == b) return;
-  if (a < b) parent[static_cast<size_t>(b)] = a;  // the root is always the smallest run id
-  else parent[static_cast<size_t>(a)] = b;
-}
-
 // Unites the runs of row `cur` with those of row `nb` that touch them: `ext` = 1 when diagonal
 // neighbours along x count (the rows differ in y or z by a face step, connectivity 18/26, or any
 // step for 26), 0 for strict overlap.
-void merge_rows(const Runs& r, std::vector<int64_t>& parent, int64_t cur, int64_t nb, int32_t ext) {
+void merge_rows(const Runs& r, UnionFind& uf, int64_t cur, int64_t nb, int32_t ext) {
   int64_t i = r.row_start[static_cast<size_t>(cur)], ie = r.row_start[static_cast<size_t>(cur + 1)];
   int64_t j = r.row_start[static_cast<size_t>(nb)], je = r.row_start[static_cast<size_t>(nb + 1)];
   while (i < ie && j < je) {
@@ -91,7 +75,7 @@ void merge_rows(const Runs& r, std::vector<int64_t>& parent, int64_t cur, int64_
     } else if (r.x1[si] + ext <= r.x0[sj]) {
       ++i;
     } else {
-      unite(parent, i, j);
+      uf.unite(i, j);
       if (r.x1[si] < r.x1[sj]) ++i;
       else ++j;
     }
@@ -106,9 +90,7 @@ struct RowStep {
 // Unites the runs of neighbouring rows (connectivity 6, 18 or 26); parent[i] <= i afterwards.
 std::vector<int64_t> union_runs(const Runs& r, int64_t ny, int64_t nz, int connectivity, int threads,
                                 const Interrupter& interrupter) {
-  const auto nruns = static_cast<int64_t>(r.x0.size());
-  std::vector<int64_t> parent(static_cast<size_t>(nruns));
-  std::iota(parent.begin(), parent.end(), int64_t{0});
+  UnionFind uf(static_cast<int64_t>(r.x0.size()));  // roots are the smallest run ids: parent[i] <= i
 
   // Backward neighbour rows of row (y, z).
   std::vector<RowStep> steps;
@@ -126,7 +108,7 @@ std::vector<int64_t> union_runs(const Runs& r, int64_t ny, int64_t nz, int conne
       if ((s.dz != 0 && mode == 0) || (s.dz == 0 && mode == 1)) continue;
       const int64_t Y = y + s.dy, Z = z + s.dz;
       if (Y < 0 || Y >= ny || Z < 0) continue;
-      merge_rows(r, parent, cur, Y + ny * Z, s.ext);
+      merge_rows(r, uf, cur, Y + ny * Z, s.ext);
     }
   };
   // Slabs of planes merged in parallel (each slab touches only its own run ids), then the first
@@ -144,7 +126,7 @@ std::vector<int64_t> union_runs(const Runs& r, int64_t ny, int64_t nz, int conne
   for (int64_t z0 : slab_start)
     if (z0 > 0)
       for (int64_t y = 0; y < ny; ++y) merge_row(y, z0, 1);
-  return parent;
+  return std::move(uf).release();
 }
 
 void check_connectivity(int connectivity) {

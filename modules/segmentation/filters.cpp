@@ -11,34 +11,108 @@
 namespace skel::segmentation {
 namespace {
 
-// Half kernel k[0..r] of a normalised sampled Gaussian with sigma s voxels.
-std::vector<float> half_kernel(double s, double truncate) {
+// Half kernel k[0..r] (k[j] weighs the taps at -j and +j) of a normalised sampled Gaussian with
+// sigma s voxels, r = max(1, ceil(truncate·s)), in the arithmetic of `sum`.
+std::vector<float> half_kernel(double s, double truncate, GaussianSum sum) {
   const int r = std::max(1, static_cast<int>(std::ceil(truncate * s)));
-  std::vector<double> k(static_cast<size_t>(r + 1));
-  double sum = 0;
-  for (int i = 0; i <= r; ++i) {
-    k[static_cast<size_t>(i)] = std::exp(-0.5 * i * i / (s * s));
-    sum += (i == 0 ? 1.0 : 2.0) * k[static_cast<size_t>(i)];
+  std::vector<float> out(static_cast<size_t>(r + 1));
+  if (sum == GaussianSum::paired) {
+    std::vector<double> k(static_cast<size_t>(r + 1));
+    double total = 0;
+    for (int i = 0; i <= r; ++i) {
+      k[static_cast<size_t>(i)] = std::exp(-0.5 * i * i / (s * s));
+      total += (i == 0 ? 1.0 : 2.0) * k[static_cast<size_t>(i)];
+    }
+    for (size_t i = 0; i < k.size(); ++i) out[i] = static_cast<float>(k[i] / total);
+  } else {
+    // Weights rounded to float first, their sum taken from -r to r.
+    for (int i = 0; i <= r; ++i)
+      out[static_cast<size_t>(i)] = static_cast<float>(std::exp(-0.5 * static_cast<double>(i * i) / (s * s)));
+    double total = 0;
+    for (int i = -r; i <= r; ++i) total += out[static_cast<size_t>(i < 0 ? -i : i)];
+    for (auto& w : out) w = static_cast<float>(w / total);
   }
-  std::vector<float> out(k.size());
-  for (size_t i = 0; i < k.size(); ++i) out[i] = static_cast<float>(k[i] / sum);
   return out;
 }
 
 inline int64_t clamp_index(int64_t i, int64_t n) { return i < 0 ? 0 : (i >= n ? n - 1 : i); }
 
-// dst[x] = k0*rows(0)[x] + sum_j k_j*(rows(-j)[x] + rows(+j)[x]), rows(j) = pointer to the row at offset j.
-template <class RowAt>
+// dst[x] = the kernel applied to rows(-r..r)[x], rows(j) = pointer to the row at offset j; whole rows
+// at a time, so the inner loops run over x and vectorise.
+//   paired:     k0·rows(0)[x] + Σ_j k_j·(rows(-j)[x] + rows(+j)[x])
+//   sequential: 0 + k_r·rows(-r)[x] + ... + k_r·rows(+r)[x], left to right
+template <GaussianSum Sum, class RowAt>
 void combine_rows(float* dst, int64_t nx, const std::vector<float>& k, RowAt&& row_at) {
-  const float* c = row_at(0);
-  const float k0 = k[0];
-  for (int64_t x = 0; x < nx; ++x) dst[x] = k0 * c[x];
-  for (size_t j = 1; j < k.size(); ++j) {
-    const float* a = row_at(-static_cast<int64_t>(j));
-    const float* b = row_at(static_cast<int64_t>(j));
-    const float kj = k[j];
-    for (int64_t x = 0; x < nx; ++x) dst[x] += kj * (a[x] + b[x]);
+  if constexpr (Sum == GaussianSum::paired) {
+    const float* c = row_at(0);
+    const float k0 = k[0];
+    for (int64_t x = 0; x < nx; ++x) dst[x] = k0 * c[x];
+    for (size_t j = 1; j < k.size(); ++j) {
+      const float* a = row_at(-static_cast<int64_t>(j));
+      const float* b = row_at(static_cast<int64_t>(j));
+      const float kj = k[j];
+      for (int64_t x = 0; x < nx; ++x) dst[x] += kj * (a[x] + b[x]);
+    }
+  } else {
+    const auto r = static_cast<int64_t>(k.size()) - 1;
+    std::fill_n(dst, nx, 0.0f);
+    for (int64_t j = -r; j <= r; ++j) {
+      const float* a = row_at(j);
+      const float kj = k[static_cast<size_t>(j < 0 ? -j : j)];
+      for (int64_t x = 0; x < nx; ++x) dst[x] += kj * a[x];
+    }
   }
+}
+
+// The three axis passes; an empty kernel skips its axis. Progress: one third per axis.
+template <GaussianSum Sum>
+void smooth_axes(VolumeF32& out, const std::vector<float> (&k)[3], int threads, const Interrupter& interrupter) {
+  const int64_t nx = out.nx(), ny = out.ny(), nz = out.nz();
+  float* d = out.data();
+  // x: each row padded with its border values.
+  if (!k[0].empty()) {
+    const auto r = static_cast<int64_t>(k[0].size()) - 1;
+    parallel_for(0, ny * nz, threads, [&](int64_t b, int64_t e) {
+      std::vector<float> buf(static_cast<size_t>(nx + 2 * r));
+      for (int64_t row = b; row < e; ++row) {
+        float* p = d + row * nx;
+        std::fill_n(buf.begin(), r, p[0]);
+        std::copy(p, p + nx, buf.begin() + r);
+        std::fill_n(buf.begin() + r + nx, r, p[nx - 1]);
+        const float* c = buf.data() + r;
+        combine_rows<Sum>(p, nx, k[0], [&](int64_t j) { return c + j; });
+        if ((row & 1023) == 1023) interrupter.check();
+      }
+    }, 64);
+  }
+  interrupter.check(1.0 / 3.0);
+  // y: per slice, rows combined from a copy of the slice (whole rows: vectorised over x).
+  if (!k[1].empty()) {
+    parallel_for(0, nz, threads, [&](int64_t b, int64_t e) {
+      std::vector<float> slice(static_cast<size_t>(nx * ny));
+      for (int64_t z = b; z < e; ++z) {
+        float* p = d + z * nx * ny;
+        std::copy(p, p + nx * ny, slice.begin());
+        for (int64_t y = 0; y < ny; ++y)
+          combine_rows<Sum>(p + y * nx, nx, k[1], [&](int64_t j) { return slice.data() + clamp_index(y + j, ny) * nx; });
+        interrupter.check();
+      }
+    }, 1);
+  }
+  interrupter.check(2.0 / 3.0);
+  // z: per y, the nz rows of that y copied into a buffer and combined.
+  if (!k[2].empty()) {
+    parallel_for(0, ny, threads, [&](int64_t b, int64_t e) {
+      std::vector<float> col(static_cast<size_t>(nx * nz));
+      for (int64_t y = b; y < e; ++y) {
+        for (int64_t z = 0; z < nz; ++z) std::copy_n(d + (y + ny * z) * nx, nx, col.begin() + z * nx);
+        for (int64_t z = 0; z < nz; ++z)
+          combine_rows<Sum>(d + (y + ny * z) * nx, nx, k[2], [&](int64_t j) { return col.data() + clamp_index(z + j, nz) * nx; });
+        interrupter.check();
+      }
+    }, 1);
+  }
+  interrupter.check(1.0);
 }
 
 template <class T>
@@ -72,6 +146,19 @@ void median27(const T* const src[27], T* dst, int lanes) {
 
 }  // namespace
 
+void gaussian_in_place(VolumeF32& image, const Vec3& sigma, double truncate, GaussianSum sum, int threads,
+                       const Interrupter& interrupter) {
+  for (int a = 0; a < 3; ++a)
+    if (!(sigma[a] >= 0) || !std::isfinite(sigma[a])) throw InputError("gaussian: sigma must be finite and >= 0");
+  if (!(truncate > 0) || !std::isfinite(truncate)) throw InputError("gaussian: truncate must be finite and > 0");
+  if (image.size() == 0) return;
+  std::vector<float> k[3];
+  for (int a = 0; a < 3; ++a)
+    if (sigma[a] > 0) k[a] = half_kernel(sigma[a], truncate, sum);
+  if (sum == GaussianSum::paired) smooth_axes<GaussianSum::paired>(image, k, threads, interrupter);
+  else smooth_axes<GaussianSum::sequential>(image, k, threads, interrupter);
+}
+
 VolumeF32 gaussian(const DataObject& image, const GaussianOptions& o) {
   for (int a = 0; a < 3; ++a)
     if (!(o.sigma[a] >= 0) || !std::isfinite(o.sigma[a]))
@@ -84,58 +171,12 @@ VolumeF32 gaussian(const DataObject& image, const GaussianOptions& o) {
     }, 1 << 16);
     return f;
   });
-  const int64_t nx = out.nx(), ny = out.ny(), nz = out.nz();
   if (out.size() == 0) return out;
-  std::vector<float> k[3];
-  for (int a = 0; a < 3; ++a) {
-    const double s = o.sigma[a] / out.spacing()[a];
-    if (s > 0 && out.dims()[a] > 1) k[a] = half_kernel(s, o.truncate);
-  }
-  float* d = out.data();
-  // x: each row padded with its border values.
-  if (!k[0].empty()) {
-    const auto r = static_cast<int64_t>(k[0].size()) - 1;
-    parallel_for(0, ny * nz, o.threads, [&](int64_t b, int64_t e) {
-      std::vector<float> buf(static_cast<size_t>(nx + 2 * r));
-      for (int64_t row = b; row < e; ++row) {
-        float* p = d + row * nx;
-        std::fill_n(buf.begin(), r, p[0]);
-        std::copy(p, p + nx, buf.begin() + r);
-        std::fill_n(buf.begin() + r + nx, r, p[nx - 1]);
-        const float* c = buf.data() + r;
-        combine_rows(p, nx, k[0], [&](int64_t j) { return c + j; });
-        if ((row & 1023) == 1023) o.interrupter.check();
-      }
-    }, 64);
-  }
-  o.interrupter.check(0.33);
-  // y: per slice, rows combined from a copy of the slice (whole rows: vectorised over x).
-  if (!k[1].empty()) {
-    parallel_for(0, nz, o.threads, [&](int64_t b, int64_t e) {
-      std::vector<float> slice(static_cast<size_t>(nx * ny));
-      for (int64_t z = b; z < e; ++z) {
-        float* p = d + z * nx * ny;
-        std::copy(p, p + nx * ny, slice.begin());
-        for (int64_t y = 0; y < ny; ++y)
-          combine_rows(p + y * nx, nx, k[1], [&](int64_t j) { return slice.data() + clamp_index(y + j, ny) * nx; });
-        o.interrupter.check();
-      }
-    }, 1);
-  }
-  o.interrupter.check(0.66);
-  // z: per y, the nz rows of that y copied into a buffer and combined.
-  if (!k[2].empty()) {
-    parallel_for(0, ny, o.threads, [&](int64_t b, int64_t e) {
-      std::vector<float> col(static_cast<size_t>(nx * nz));
-      for (int64_t y = b; y < e; ++y) {
-        for (int64_t z = 0; z < nz; ++z) std::copy_n(d + (y + ny * z) * nx, nx, col.begin() + z * nx);
-        for (int64_t z = 0; z < nz; ++z)
-          combine_rows(d + (y + ny * z) * nx, nx, k[2], [&](int64_t j) { return col.data() + clamp_index(z + j, nz) * nx; });
-        o.interrupter.check();
-      }
-    }, 1);
-  }
-  o.interrupter.check(1.0);
+  // Sigma in voxels; an axis of one voxel is left as it is.
+  Vec3 s{0, 0, 0};
+  for (int a = 0; a < 3; ++a)
+    if (out.dims()[a] > 1) s[a] = o.sigma[a] / out.spacing()[a];
+  gaussian_in_place(out, s, o.truncate, GaussianSum::paired, o.threads, o.interrupter);
   return out;
 }
 

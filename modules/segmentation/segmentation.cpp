@@ -11,20 +11,6 @@
 
 namespace skel::segmentation {
 
-VolumeU8 as_mask(const DataObject& data, const std::string& port) {
-  return visit_volume(data, port, [&](const auto& v) -> VolumeU8 {
-    using T = typename std::decay_t<decltype(v)>::value_type;
-    if constexpr (std::is_floating_point_v<T>) {
-      throw InputError("input '" + port + "': expected a binary mask (integer volume, voxel > 0 = object), got " +
-                       v.type_id() + "; threshold it first (segmentation.threshold)");
-    } else {
-      VolumeU8 m = VolumeU8::uninitialized(v.grid());
-      for (int64_t i = 0; i < v.size(); ++i) m[i] = v[i] > 0 ? 1 : 0;
-      return m;
-    }
-  });
-}
-
 double otsu_threshold(const DataObject& image, int threads) {
   return visit_volume(image, "image", [&](const auto& v) -> double {
     using T = typename std::decay_t<decltype(v)>::value_type;

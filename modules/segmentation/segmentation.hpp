@@ -50,6 +50,18 @@ struct GaussianOptions {
 };
 VolumeF32 gaussian(const DataObject& image, const GaussianOptions& options = {});
 
+// How the sampled kernel is rounded and its taps summed: the same filter up to float rounding, each
+// kept because outputs made with it must stay bit-identical.
+enum class GaussianSum {
+  paired,      // weights normalised in double; centre + Σ k_j·(left_j + right_j)   (segmentation.gaussian)
+  sequential,  // weights rounded to float, then normalised; Σ from -r to r  (synthetic phantoms)
+};
+// The separable Gaussian of `image` in place (what `gaussian` runs after converting to float):
+// sigma in voxels per axis (0 skips an axis), kernel radius max(1, ceil(truncate·sigma)), border
+// values replicated. Progress: one third per axis. Per-thread buffers of one slice only.
+void gaussian_in_place(VolumeF32& image, const Vec3& sigma, double truncate, GaussianSum sum, int threads = 0,
+                       const Interrupter& interrupter = {});
+
 struct ComponentOptions {
   Connectivity connectivity = Connectivity::c26;
   int64_t min_size = 0;    // smaller components are removed (voxels)
@@ -132,8 +144,5 @@ struct MorphologyOptions {
   Interrupter interrupter;
 };
 VolumeU8 morphology(const VolumeU8& mask, const MorphologyOptions& options = {});
-
-// A 0/1 mask from an integer volume (voxel > 0); throws InputError naming `port` for float volumes.
-VolumeU8 as_mask(const DataObject& data, const std::string& port);
 
 }  // namespace skel::segmentation

@@ -5,6 +5,7 @@
 
 #include "segmentation/names.hpp"
 #include "segmentation/segmentation.hpp"
+#include "skel/mask.hpp"
 #include "skel/module.hpp"
 
 namespace skel::segmentation {
@@ -83,7 +84,7 @@ Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run a
 (typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).)");
   }
   void run(RunContext& ctx) override {
-    auto r = connected_components(as_mask(*ctx.input_data("mask"), "mask"), ctx.options<ComponentOptions>());
+    auto r = connected_components(to_mask(*ctx.input_data("mask"), "input 'mask'"), ctx.options<ComponentOptions>());
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     ctx.output("labels", std::move(r.labels));
     ctx.output("mask", std::move(r.mask));
@@ -167,7 +168,7 @@ full volume: dilation gives a full volume, erosion keeps voxels farther than rad
 Memory: 4 bytes per voxel (squared distances) + 1 (output); open/close hold one intermediate mask more.)");
   }
   void run(RunContext& ctx) override {
-    ctx.output("mask", morphology(as_mask(*ctx.input_data("mask"), "mask"), ctx.options<MorphologyOptions>()));
+    ctx.output("mask", morphology(to_mask(*ctx.input_data("mask"), "input 'mask'"), ctx.options<MorphologyOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(Morphology);
@@ -187,7 +188,7 @@ plus about 24 bytes per background run.)");
   }
   void run(RunContext& ctx) override {
     int64_t filled = 0;
-    VolumeU8 m = segmentation::fill_cavities(segmentation::as_mask(*ctx.input_data("mask"), "mask"), &filled,
+    VolumeU8 m = segmentation::fill_cavities(to_mask(*ctx.input_data("mask"), "input 'mask'"), &filled,
                                               ctx.threads());
     if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
     ctx.output("mask", std::move(m));

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "segmentation/segmentation.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
@@ -95,51 +96,6 @@ void draw_plates(VolumeF32& img, const Dims& off, const std::vector<Plate>& plat
         }
     }
   });
-}
-
-// Separable Gaussian with clamped borders, as make_network smooths (identical arithmetic).
-void gaussian_smooth(VolumeF32& img, double sigma, int threads) {
-  if (sigma <= 0) return;
-  const int64_t R = std::max<int64_t>(1, ceil_i(3.0 * sigma));
-  std::vector<float> k(static_cast<size_t>(2 * R + 1));
-  double sum = 0;
-  for (int64_t i = -R; i <= R; ++i)
-    sum += k[static_cast<size_t>(i + R)] = static_cast<float>(std::exp(-0.5 * static_cast<double>(i * i) / (sigma * sigma)));
-  for (auto& w : k) w = static_cast<float>(w / sum);
-  const int64_t nx = img.nx(), ny = img.ny(), nz = img.nz();
-  float* data = img.data();
-  parallel_for(0, ny * nz, threads, [&](int64_t r0, int64_t r1) {
-    std::vector<float> buf(static_cast<size_t>(nx + 2 * R));
-    for (int64_t r = r0; r < r1; ++r) {
-      float* row = data + r * nx;
-      for (int64_t i = -R; i < nx + R; ++i) buf[static_cast<size_t>(i + R)] = row[std::clamp<int64_t>(i, 0, nx - 1)];
-      for (int64_t x = 0; x < nx; ++x) {
-        float s = 0;
-        for (int64_t j = 0; j <= 2 * R; ++j) s += k[static_cast<size_t>(j)] * buf[static_cast<size_t>(x + j)];
-        row[x] = s;
-      }
-    }
-  }, 64);
-  auto pass = [&](int64_t n, int64_t stride, int64_t outer, int64_t outer_stride) {
-    parallel_for(0, outer, threads, [&](int64_t o0, int64_t o1) {
-      std::vector<float> plane(static_cast<size_t>(n * nx));
-      for (int64_t o = o0; o < o1; ++o) {
-        float* base = data + o * outer_stride;
-        for (int64_t i = 0; i < n; ++i) std::copy_n(base + i * stride, nx, plane.data() + i * nx);
-        for (int64_t i = 0; i < n; ++i) {
-          float* out = base + i * stride;
-          std::fill_n(out, nx, 0.0f);
-          for (int64_t j = -R; j <= R; ++j) {
-            const float w = k[static_cast<size_t>(j + R)];
-            const float* in = plane.data() + std::clamp<int64_t>(i + j, 0, n - 1) * nx;
-            for (int64_t x = 0; x < nx; ++x) out[x] += w * in[x];
-          }
-        }
-      }
-    });
-  };
-  pass(ny, nx, nz, nx * ny);
-  pass(nz, nx * ny, ny, nx);
 }
 
 double normal(uint64_t seed, int64_t a, int64_t b, int64_t c) {
@@ -271,7 +227,10 @@ VolumeF32 draw_network_elements(const NetworkOptions& o, const NetworkElements& 
     }
   draw_capsules(img, local, alt ? &alt->removed_capsules : nullptr, o.threads);
   draw_plates(img, off, el.plates, o.seed, alt, o.threads);
-  gaussian_smooth(img, o.sigma, o.threads);
+  // As make_network smooths (same arithmetic), so an unaltered drawing reproduces its image.
+  if (o.sigma > 0)
+    segmentation::gaussian_in_place(img, {o.sigma, o.sigma, o.sigma}, 3.0, segmentation::GaussianSum::sequential,
+                                    o.threads);
   return img;
 }
 

@@ -6,6 +6,7 @@
 #include <limits>
 #include <vector>
 
+#include "segmentation/segmentation.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
@@ -111,56 +112,6 @@ void draw_plates(VolumeF32& img, const std::vector<Plate>& plates, uint64_t seed
         }
     }
   });
-}
-
-// Separable Gaussian (clamped borders) in place; per-thread line/plane buffers only.
-void gaussian_smooth(VolumeF32& img, double sigma, int threads, const Interrupter& intr) {
-  if (sigma <= 0) return;
-  const int64_t R = std::max<int64_t>(1, static_cast<int64_t>(std::ceil(3.0 * sigma)));
-  std::vector<float> k(static_cast<size_t>(2 * R + 1));
-  double sum = 0;
-  for (int64_t i = -R; i <= R; ++i) sum += k[static_cast<size_t>(i + R)] = static_cast<float>(std::exp(-0.5 * static_cast<double>(i * i) / (sigma * sigma)));
-  for (auto& w : k) w = static_cast<float>(w / sum);
-  const int64_t nx = img.nx(), ny = img.ny(), nz = img.nz();
-  float* data = img.data();
-  // x: one row at a time.
-  parallel_for(0, ny * nz, threads, [&](int64_t r0, int64_t r1) {
-    std::vector<float> buf(static_cast<size_t>(nx + 2 * R));
-    for (int64_t r = r0; r < r1; ++r) {
-      float* row = data + r * nx;
-      for (int64_t i = -R; i < nx + R; ++i) buf[static_cast<size_t>(i + R)] = row[std::clamp<int64_t>(i, 0, nx - 1)];
-      for (int64_t x = 0; x < nx; ++x) {
-        float s = 0;
-        for (int64_t j = 0; j <= 2 * R; ++j) s += k[static_cast<size_t>(j)] * buf[static_cast<size_t>(x + j)];
-        row[x] = s;
-      }
-    }
-  }, 64);
-  intr.check(0.5);
-  // Lines of stride `stride` and length n (y: within a slice, z: across slices), vectorised over x:
-  // copy the (n, nx) plane, then write weighted sums of whole rows back.
-  auto pass = [&](int64_t n, int64_t stride, int64_t outer, int64_t outer_stride) {
-    parallel_for(0, outer, threads, [&](int64_t o0, int64_t o1) {
-      std::vector<float> plane(static_cast<size_t>(n * nx));
-      for (int64_t o = o0; o < o1; ++o) {
-        float* base = data + o * outer_stride;
-        for (int64_t i = 0; i < n; ++i) std::copy_n(base + i * stride, nx, plane.data() + i * nx);
-        for (int64_t i = 0; i < n; ++i) {
-          float* out = base + i * stride;
-          std::fill_n(out, nx, 0.0f);
-          for (int64_t j = -R; j <= R; ++j) {
-            const float w = k[static_cast<size_t>(j + R)];
-            const float* in = plane.data() + std::clamp<int64_t>(i + j, 0, n - 1) * nx;
-            for (int64_t x = 0; x < nx; ++x) out[x] += w * in[x];
-          }
-        }
-      }
-    });
-  };
-  pass(ny, nx, nz, nx * ny);  // y: planes are slices
-  intr.check(0.7);
-  pass(nz, nx * ny, ny, nx);  // z: planes are (x, z) sections
-  intr.check(0.9);
 }
 
 }  // namespace
@@ -325,7 +276,10 @@ NetworkResult make_network(const NetworkOptions& o) {
   o.interrupter.check(0.0);
   draw_capsules(res.image, caps, o.threads, o.interrupter);
   draw_plates(res.image, plates, seed, o.threads);
-  gaussian_smooth(res.image, o.sigma, o.threads, o.interrupter);
+  // The phantoms' own arithmetic (GaussianSum::sequential), so that they stay bit-identical.
+  if (o.sigma > 0)
+    segmentation::gaussian_in_place(res.image, {o.sigma, o.sigma, o.sigma}, 3.0, segmentation::GaussianSum::sequential,
+                                    o.threads, o.interrupter.sub(0.3, 0.9));
   add_two_frequency_noise(res.image, seed, o.noise, o.threads);
   res.mask = VolumeU8::uninitialized(grid);
   const float thr = static_cast<float>(o.threshold);

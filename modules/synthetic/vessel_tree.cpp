@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
-#include <functional>
 #include <limits>
 #include <queue>
 #include <string>
@@ -11,6 +10,7 @@
 
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
+#include "skel/union_find.hpp"
 #include "synthetic/network.hpp"
 
 namespace skel::synthetic {
@@ -258,12 +258,10 @@ VesselTreeResult make_vessel_tree(const VesselTreeOptions& o) {
   // Join what is still disconnected (a tree no capillary reached): capillaries between ends of
   // different components, allowing longer ones step by step.
   auto components = [&]() {
-    std::vector<int64_t> parent(nodes.size());
-    for (size_t i = 0; i < parent.size(); ++i) parent[i] = static_cast<int64_t>(i);
-    std::function<int64_t(int64_t)> find = [&](int64_t x) { return parent[x] == x ? x : parent[x] = find(parent[x]); };
-    for (const auto& s : segs) parent[find(s.n0)] = find(s.n1);
+    UnionFind uf(static_cast<int64_t>(nodes.size()));
+    for (const auto& s : segs) uf.unite(s.n0, s.n1);
     std::vector<int64_t> comp(nodes.size());
-    for (size_t i = 0; i < comp.size(); ++i) comp[i] = find(static_cast<int64_t>(i));
+    for (size_t i = 0; i < comp.size(); ++i) comp[i] = uf.find(static_cast<int64_t>(i));
     return comp;
   };
   for (double reach = capillary_length; reach <= 4 * capillary_length; reach *= 1.5) {

@@ -488,25 +488,5 @@ TEST(Euclidean, EmptyAndFullMasks) {
   for (float v : s) EXPECT_TRUE(std::isinf(v));
 }
 
-TEST(Mask, BinaryMaskRules) {
-  VolumeU16 u16({3, 2, 1}, 0);
-  u16[1] = 700;
-  VolumeU8 b = binary_mask(u16, "mask");
-  EXPECT_EQ(1, b[1]);
-  EXPECT_EQ(0, b[0]);
-  VolumeI32 i32({3, 2, 1}, -5);
-  i32[2] = 3;
-  b = binary_mask(i32, "mask");
-  EXPECT_EQ(0, b[0]);  // negative values are background (voxel > 0 is object)
-  EXPECT_EQ(1, b[2]);
-  VolumeF32 f({3, 2, 1}, 0.5f);
-  try {
-    (void)binary_mask(f, "seeds");
-    FAIL() << "float mask accepted";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("seeds"), std::string::npos) << e.what();
-  }
-}
-
 }  // namespace
 }  // namespace skel::distance

@@ -168,6 +168,38 @@ TEST(GraphOps, PruneRelativeToTheRadiusAtTheJunction) {
                InputError);
 }
 
+TEST(GraphOps, FindSpursIsThePruneRule) {
+  // y_with_spur: terminal branches 2 (1 -> 3, length 2) and 3 (1 -> 4, length 9) at junction 1.
+  SpatialGraph g = y_with_spur();
+  auto spurs = find_spurs(g, g.degrees(), {.min_length = 10.0, .max_iterations = 0, .interrupter = {}});
+  ASSERT_EQ(spurs.size(), 2u);  // in edge order, whatever the junction would keep
+  EXPECT_EQ(spurs[0].edge, 2);
+  EXPECT_EQ(spurs[0].tip, 3);
+  EXPECT_EQ(spurs[0].junction, 1);
+  EXPECT_DOUBLE_EQ(spurs[0].length, 2.0);
+  EXPECT_EQ(spurs[1].edge, 3);
+  EXPECT_EQ(spurs[1].tip, 4);
+  EXPECT_DOUBLE_EQ(spurs[1].length, 9.0);
+  EXPECT_EQ(find_spurs(g, g.degrees(), {.min_length = 9.0, .max_iterations = 0, .interrupter = {}}).size(), 1u);  // strictly shorter
+  auto& r = g.point_attributes.at("radius");
+  r[2] = {0.5f, 0.5f};
+  r[3] = {5.0f, 1.0f};  // 2 x 5 = 10 at the junction end
+  spurs = find_spurs(g, g.degrees(), {.min_length = 1.0, .max_iterations = 0, .interrupter = {}, .radius_factor = 2.0});
+  ASSERT_EQ(spurs.size(), 1u);
+  EXPECT_EQ(spurs[0].edge, 3);
+  // graph.prune applies it with the two-edges-per-junction cap: of a star of three spurs only the
+  // shortest goes (the graph editor's prune op takes all three).
+  SpatialGraph star;
+  star.add_node({0, 0, 0});
+  star.add_node({1, 0, 0});
+  star.add_node({0, 2, 0});
+  star.add_node({0, 0, 3});
+  for (int64_t n = 1; n <= 3; ++n) star.add_edge(0, n);
+  EXPECT_EQ(find_spurs(star, star.degrees(), {.min_length = 10.0, .max_iterations = 0, .interrupter = {}}).size(), 3u);
+  EXPECT_EQ(prune(star, {.min_length = 10.0, .max_iterations = 0, .interrupter = {}}).removed_edges, 1);
+  EXPECT_EQ(star.edge_count(), 1);
+}
+
 TEST(GraphOps, FilterByLengthAndPointAttribute) {
   SpatialGraph g = y_with_spur();
   FilterOptions o;

@@ -9,6 +9,7 @@
 #include <set>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/mask.hpp"
 #include "skel/run_module.hpp"
 
 using namespace skel;
@@ -203,7 +204,7 @@ TEST(Threshold, OtsuSplitsABimodalImageAndMasksAreCheckedByPort) {
   // Mask rule: integer volumes count "> 0" as object; float volumes are an error naming the port.
   VolumeU32 lab(Dims{3, 3, 3}, 0);
   lab(1, 1, 1) = 7;
-  EXPECT_EQ(as_mask(lab, "mask")(1, 1, 1), 1);
+  EXPECT_EQ(to_mask(lab, "mask")(1, 1, 1), 1);
   try {
     run_module("segmentation.fill_cavities", {{"mask", std::make_shared<VolumeF32>(v)}});
     FAIL();
