@@ -87,10 +87,11 @@ public:
   Executor(const Executor&) = delete;
   Executor& operator=(const Executor&) = delete;
 
-  // Validates, then runs. Throws InputError (invalid pipeline/input: nothing ran), Error (a node
-  // failed: the message reads "file:line:col: node 'id' (module): ..." and Error::site() holds the
-  // node), Cancelled. Output files are renamed into place only when the
-  // whole run succeeds; otherwise none is left. The report is filled in every case (see last_report).
+  // Validates, then runs. Throws InputError (invalid pipeline/input: nothing ran, or a node found
+  // its input wrong), Error (a node failed), Cancelled. A node's error reads "file:line:col: node
+  // 'id' (module): ..." (no position for nodes built in code) and Error::site() holds the node.
+  // Output files are renamed into place only when the whole run succeeds; otherwise none is left.
+  // The report is filled in every case (see last_report; its `error` is the message thrown).
   RunReport run(const Pipeline& pipeline, const ExecOptions& options = {});
   // The first phase of run() on its own: applies the overrides, validates (throws as run() does),
   // orders what the targets need and marks what the cache already holds. Runs nothing.

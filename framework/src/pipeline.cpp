@@ -632,7 +632,10 @@ size_t edit_distance(const std::string& a, const std::string& b) {
   }
   return prev[b.size()];
 }
+// Port types as users read them: the common sets by name (as `skelflow modules` shows them).
 std::string join_types(const std::vector<std::string>& ts) {
+  if (ts == all_volume_types()) return "any volume";
+  if (ts == integer_volume_types()) return "integer volume";
   std::string s;
   for (const auto& t : ts) { if (!s.empty()) s += "|"; s += t; }
   return s;

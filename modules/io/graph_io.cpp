@@ -83,6 +83,7 @@ public:
   double next() {
     skip();
     if (p_ >= end_) throw InputError(at(begin_) + ": fewer values than expected");
+    last_ = p_;
     double v = 0.0;
     auto [ptr, ec] = std::from_chars(p_, end_, v);
     if (ec != std::errc() || (ptr < end_ && !separator(*ptr))) {
@@ -107,6 +108,8 @@ public:
     skip();
     return p_ >= end_;
   }
+  // Message prefix at the value read last (for checks of its value by the caller).
+  [[nodiscard]] std::string where_last() const { return at(last_); }
 
 private:
   static bool separator(char c) { return std::isspace(static_cast<unsigned char>(c)) || c == ','; }
@@ -121,6 +124,7 @@ private:
   const char* begin_;
   const char* p_;
   const char* end_;
+  const char* last_ = p_;
   std::string where_, file_;
   int64_t first_line_;
 };
@@ -384,7 +388,9 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
   auto reader = [&](int k) {
     auto it = ranges.find(k);
     if (it == ranges.end()) throw InputError(src + ": data block @" + std::to_string(k) + " is missing");
-    return NumberReader(text, it->second.first, it->second.second, "block @" + std::to_string(k), src);
+    auto d = decls.find(k);
+    return NumberReader(text, it->second.first, it->second.second,
+                        "block @" + std::to_string(k) + (d == decls.end() ? std::string() : " (" + d->second.name + ")"), src);
   };
   const int64_t nn = count_of("VERTEX"), ne = count_of("EDGE"), np = count_of("POINT");
   SpatialGraph g;
@@ -399,9 +405,9 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
     auto r = reader(find_decl("EDGE", "EdgeConnectivity"));
     for (auto& e : g.edges) {
       e.node0 = r.next_int();
+      check_node_id(e.node0, nn, r.where_last());
       e.node1 = r.next_int();
-      check_node_id(e.node0, nn, src + ": EdgeConnectivity");
-      check_node_id(e.node1, nn, src + ": EdgeConnectivity");
+      check_node_id(e.node1, nn, r.where_last());
     }
   }
   std::vector<int64_t> npts(ne);
@@ -410,7 +416,7 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
     int64_t sum = 0;
     for (auto& c : npts) {
       c = r.next_int();
-      if (c < 2) throw InputError(src + ": NumEdgePoints: an edge has " + std::to_string(c) + " points, expected >= 2");
+      if (c < 2) throw InputError(r.where_last() + ": an edge has " + std::to_string(c) + " points, expected >= 2");
       sum += c;
     }
     if (sum != np)

@@ -79,7 +79,7 @@ Handle open_file(const fs::path& file, bool write = false) {
   const htri_t is = H5Fis_hdf5(file.c_str());
   if (is <= 0) fail(file, "not an HDF5 file, or the file is truncated or corrupt");
   Handle f(H5Fopen(file.c_str(), write ? H5F_ACC_RDWR : H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!f) fail(file, "cannot open as HDF5 (truncated or corrupt?)");
+  if (!f) fail(file, "cannot open as HDF5: the file is truncated or corrupt");
   return f;
 }
 

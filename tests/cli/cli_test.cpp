@@ -98,6 +98,17 @@ TEST(Cli, SetAndOutputDir) {
   Result bad = run(SKELFLOW_TESTCLI, {"run", p.string(), "--set", "x.factor=1000"});
   EXPECT_EQ(bad.code, 2) << bad.out;
   EXPECT_NE(bad.out.find("node 'x': param 'factor': value 1000 is out of range"), std::string::npos) << bad.out;
+  // The message names the override, not the file's own value.
+  EXPECT_NE(bad.out.find("skelflow: --set x.factor=1000: node 'x': param 'factor': value 1000 is out of range"),
+            std::string::npos)
+      << bad.out;
+  Result malformed = run(SKELFLOW_TESTCLI, {"run", p.string(), "--set", "x.factor=[1,"});
+  EXPECT_EQ(malformed.code, 2) << malformed.out;
+  EXPECT_NE(malformed.out.find("skelflow: --set x.factor=[1,: cannot read the value '[1,'"), std::string::npos)
+      << malformed.out;
+  Result no_param = run(SKELFLOW_TESTCLI, {"run", p.string(), "--set", "x.=1"});
+  EXPECT_EQ(no_param.code, 2) << no_param.out;
+  EXPECT_NE(no_param.out.find("skelflow: --set x.=1: expected node.param=value"), std::string::npos) << no_param.out;
 }
 
 TEST(Cli, InvalidPipelineExitsWith2) {
@@ -121,6 +132,10 @@ TEST(Cli, FailureWhileRunningExitsWith1AndLeavesNothing) {
   Result r = run(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "1"});
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("node 'bad' (test.fail): failed on purpose"), std::string::npos) << r.out;
+  // At the node's place in the file, as validation errors are.
+  EXPECT_NE(r.out.find("skelflow: " + p.string() + ":6:3: node 'bad' (test.fail): failed on purpose\n"),
+            std::string::npos)
+      << r.out;
   EXPECT_FALSE(fs::exists(d / "out" / "sum.txt"));
 }
 

@@ -237,7 +237,8 @@ TEST(Executor, RunsAndCachesOnlyWhatChanged) {
 TEST(Executor, ParallelEqualsSequential) {
   Pipeline p = Pipeline::parse(kChain);
   for (int i = 0; i < 6; ++i) {
-    const std::string id = std::string("s").append(std::to_string(i));
+    std::string id = "s";  // not "s" + to_string(i): GCC 12 reports a false -Wrestrict there
+    id += std::to_string(i);
     p.add_node(id, "test.scale");
     p.set_param(id, "factor", 1.0 + i);
     ASSERT_EQ(p.connect({"sum", "volume"}, id, "volume"), "");

@@ -219,7 +219,7 @@ TEST(GraphIo, MalformedFileMessages) {
       "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\n"
       "@1\n0 0 0\n@2\n0 3\n@3\n2\n@4\n0 0 0 1 1 1\n";
   EXPECT_EQ(message([&] { graph_from_text(bad_am, GraphFormat::amira, {}, "bad.am"); }),
-            "bad.am: EdgeConnectivity: node id 3 out of range (1 nodes)");
+            "bad.am:12: block @2 (EdgeConnectivity): node id 3 out of range (1 nodes)");
   EXPECT_EQ(message([] { graph_from_text("1 0 0 0 0 1 7\n", GraphFormat::swc, {}, "p.swc"); }),
             "p.swc:1: sample 1 has unknown parent 7");
   EXPECT_EQ(message([] { graph_from_text("1 0 0 zero 0 1 -1\n", GraphFormat::swc, {}, "n.swc"); }),
