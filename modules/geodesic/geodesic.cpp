@@ -27,8 +27,7 @@ std::vector<int64_t> offsets26(const Domain& d) {
   return o;
 }
 
-// Builds the bitmaps, L coordinates, the nearest-point transform and L's components.
-void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords) {
+void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr) {
   const Domain& D = P.dom;
   if (D.nx > 65000 || D.ny > 65000 || D.nz > 65000)
     throw InputError("geodesic: volumes up to 65000 voxels per axis are supported");
@@ -79,7 +78,11 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
   if (P.nl >= static_cast<int64_t>(kNone) || P.k >= static_cast<int64_t>(kNone))
     throw InputError("geodesic: more than 4·10^9 object or boundary voxels are not supported");
   intr.check(0.05);
-  // L coordinates.
+}
+
+void layer_coordinates(Prepared& P, int threads) {
+  const Domain& D = P.dom;
+  const size_t nwords = static_cast<size_t>(D.bits() / 64);
   P.lcoord.resize(static_cast<size_t>(P.nl));
   parallel_for(0, static_cast<int64_t>(nwords), threads, [&](int64_t w0, int64_t w1) {
     for (int64_t w = w0; w < w1; ++w) {
@@ -94,13 +97,16 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
       }
     }
   }, 4096);
-  intr.check(0.08);
+}
 
+void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr) {
+  const Domain& D = P.dom;
+  const size_t nwords = static_cast<size_t>(D.bits() / 64);
   // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
   // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
   // that is closest in physical distance (ties: lower L-id). Values depend only on earlier rings, so
   // the result is independent of thread count.
-  const Vec3 sp = mask.spacing();
+  const Vec3 sp = spacing;
   const auto off = offsets26(D);
   P.b.assign(static_cast<size_t>(P.k), kNone);
   std::vector<uint8_t> reached(static_cast<size_t>(P.k), 0);  // ring number + 1, saturating at 255
@@ -183,9 +189,10 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
   P.prepare_bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 + reached.size();
-  std::vector<uint8_t>().swap(reached);
-  if (!keep_coords) std::vector<Coord>().swap(P.lcoord);
+}
 
+void layer_components(Prepared& P) {
+  const Domain& D = P.dom;
   // 6-connected components of L (union-find with path halving over forward neighbours).
   P.lcomp.resize(static_cast<size_t>(P.nl));
   for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = static_cast<uint32_t>(i);
@@ -209,6 +216,15 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
     }
   }
   for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = find(static_cast<uint32_t>(i));
+}
+
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords) {
+  build_bitmaps(mask, P, threads, intr);
+  layer_coordinates(P, threads);
+  intr.check(0.08);
+  nearest_points(mask.spacing(), P, threads, intr);
+  if (!keep_coords) std::vector<Coord>().swap(P.lcoord);
+  layer_components(P);
   intr.check(0.22);
 }
 

@@ -96,9 +96,19 @@ struct Prepared {
 // The 26 neighbour offsets in the padded domain.
 std::vector<int64_t> offsets26(const Domain& d);
 
-// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform and L's components.
-// L coordinates are freed afterwards unless `keep_coords`.
+// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform and L's components (the
+// four steps below). L coordinates are freed afterwards unless `keep_coords`.
 void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords);
+// 1a: P.obj and P.layer (L = dilate26(O) minus O over the padded domain) with their ranks, P.k, P.nl.
+void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr);
+// 1b: P.lcoord (padded coordinates of every L voxel).
+void layer_coordinates(Prepared& P, int threads);
+// 1c: P.b, by rings of 26-neighbours inward from L: ring r+1 = unreached object voxels 26-adjacent to
+// ring r; each takes, among its neighbours of earlier rings, the nearest point that is closest in
+// physical distance (ties: lower L-id). Needs P.lcoord; sets P.prepare_bytes.
+void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr);
+// 1d: P.lcomp, the 6-connected component of every L voxel (its smallest L-id).
+void layer_components(Prepared& P);
 
 // Scratch of one worker. Own searches need only "visited" and "target" marks (one byte per L voxel:
 // the search runs level by level, so the distance is the level); pivot searches keep 8- or 16-bit

@@ -76,6 +76,63 @@ TEST(GeodesicPhases, PrepareSeparatesLayerComponentsAndFollowsRings) {
   for (uint32_t l : P.b) EXPECT_LT(l, static_cast<uint32_t>(P.nl));
 }
 
+TEST(GeodesicPhases, LayerIsTheDilatedObjectMinusTheObject) {
+  // Brute force over the padded domain: L = background voxels 26-adjacent to the object, including
+  // the one-voxel ring outside the array; the guard ring stays empty.
+  std::mt19937 rng(7);
+  VolumeU8 mask(Dims{13, 6, 5}, 0);
+  for (int64_t i = 0; i < mask.size(); ++i) mask[i] = rng() % 4 == 0;
+  Prepared P(mask.dims());
+  build_bitmaps(mask, P, 2, {});
+  const Domain& D = P.dom;
+  auto object = [&](int64_t x, int64_t y, int64_t z) {  // padded coordinates
+    return x >= 2 && y >= 2 && z >= 2 && x < D.nx + 2 && y < D.ny + 2 && z < D.nz + 2 && mask(x - 2, y - 2, z - 2);
+  };
+  int64_t k = 0, nl = 0;
+  for (int64_t z = 0; z < D.BZ; ++z)
+    for (int64_t y = 0; y < D.BY; ++y)
+      for (int64_t x = 0; x < D.BX; ++x) {
+        bool near = false;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) near = near || object(x + dx, y + dy, z + dz);
+        const bool o = object(x, y, z), l = near && !o;
+        ASSERT_EQ(P.obj.test(D.pos(x, y, z)), o) << x << "," << y << "," << z;
+        ASSERT_EQ(P.layer.test(D.pos(x, y, z)), l) << x << "," << y << "," << z;
+        if (o) {
+          EXPECT_EQ(P.obj.rank(D.pos(x, y, z)), static_cast<uint64_t>(k));
+        }
+        if (l) {
+          EXPECT_EQ(P.layer.rank(D.pos(x, y, z)), static_cast<uint64_t>(nl));
+        }
+        k += o;
+        nl += l;
+      }
+  EXPECT_EQ(P.k, k);
+  EXPECT_EQ(P.nl, nl);
+  layer_coordinates(P, 2);
+  for (int64_t l = 0; l < P.nl; ++l) EXPECT_TRUE(P.layer.test(P.lpos(static_cast<uint32_t>(l))));
+}
+
+TEST(GeodesicPhases, LayerComponentsAreLabelledByTheirSmallestId) {
+  // Two voxels far apart: two shells of 26 L voxels, their ids interleaved in raster order.
+  VolumeU8 mask(Dims{9, 3, 3}, 0);
+  mask(1, 1, 1) = mask(7, 1, 1) = 1;
+  Prepared P(mask.dims());
+  build_bitmaps(mask, P, 1, {});
+  layer_components(P);
+  ASSERT_EQ(P.nl, 52);
+  const uint32_t left = P.lcomp[P.layer.rank(P.dom.pos(2, 2, 2))];
+  const uint32_t right = P.lcomp[P.layer.rank(P.dom.pos(10, 4, 4))];
+  EXPECT_EQ(left, 0u);  // (2,2,2) is the first L voxel
+  EXPECT_NE(left, right);
+  for (int64_t l = 0; l < P.nl; ++l) {
+    EXPECT_LE(P.lcomp[static_cast<size_t>(l)], static_cast<uint32_t>(l));
+    EXPECT_TRUE(P.lcomp[static_cast<size_t>(l)] == left || P.lcomp[static_cast<size_t>(l)] == right);
+  }
+  EXPECT_EQ(right, P.layer.rank(P.dom.pos(8, 2, 2)));  // the right shell's first voxel in raster order
+}
+
 TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
   std::mt19937 rng(3);
   VolumeU8 mask(Dims{10, 9, 8}, 0);
