@@ -97,10 +97,10 @@ void GraphEditSession::open_journal(const QString& path, Resume resume, QStringL
         if (report) report->append(QString("entry %1 (%2): %3").arg(i).arg(qstr(op.to_yaml()), qstr(r.message)));
         continue;
       }
-      if (op.op == "undo") {
+      if (op.op == graph::EditKind::undo) {
         undone.push_back(done.back());
         done.pop_back();
-      } else if (op.op == "redo") {
+      } else if (op.op == graph::EditKind::redo) {
         done.push_back(undone.back());
         undone.pop_back();
       } else {
@@ -254,12 +254,12 @@ bool GraphEditSession::connect_selected() {
         const int64_t to = editor_->node_at(b.position, kExact);
         if (to < 0) throw Error("the second selected node is gone");
         if (to == from) throw Error("cannot connect a node to itself");
-        return editor_->connect(from, to, -1, -1, str(route_));
+        return editor_->connect(from, to, -1, -1, parse_enum<graph::Route>(str(route_), "route"));
       }
       int64_t pt = -1;
       const int64_t e = editor_->edge_at(b.position, kExact, &pt);
       if (e < 0) throw Error("the selected edge point is gone");
-      return editor_->connect(from, -1, e, pt, str(route_));
+      return editor_->connect(from, -1, e, pt, parse_enum<graph::Route>(str(route_), "route"));
     });
   }
   if (macro) undo_.endMacro();
@@ -377,7 +377,7 @@ bool GraphEditSession::accept_dangling() {
   const graph::DanglingEnd e = *d;
   const bool ok = run_op([&] {
     return editor_->connect(e.node, e.partner_is_node ? e.partner_node : -1, e.partner_edge, e.partner_point,
-                            str(route_));
+                            parse_enum<graph::Route>(str(route_), "route"));
   });
   emit dangling_changed();
   return ok;

@@ -139,7 +139,7 @@ int main(int argc, char** argv) {
       {"merge", [&](graph::GraphEditor& ed) { ed.merge(ed.graph().node_count() - 1); },
        [&](graph::GraphEditor& ed) { ed.split(e, 1); }},
       {"move_node", [&](graph::GraphEditor& ed) { ed.move_node(a, {ed.graph().positions[a][0] + 2, ed.graph().positions[a][1] + 1, ed.graph().positions[a][2]}); }, nullptr},
-      {"set radius (edge points)", [&](graph::GraphEditor& ed) { ed.set_attribute("edge", {e}, "radius", 2.5); }, nullptr},
+      {"set radius (edge points)", [&](graph::GraphEditor& ed) { ed.set_attribute(graph::Level::edge, {e}, "radius", 2.5); }, nullptr},
   };
   for (const auto& c : cases) {
     std::vector<double> t_op, t_undo, t_journal;
@@ -178,13 +178,13 @@ int main(int argc, char** argv) {
     std::vector<double> t_node, t_edge;
     for (int r = 0; r < std::min(reps, 20); ++r) {
       const int64_t k = grid_node(1 + rnd(n - 3), 1 + rnd(n - 3), 1 + rnd(n - 3));
-      graph::EditOp op("delete_node");
+      graph::EditOp op(graph::EditKind::delete_node);
       op.at.push_back(plain.graph().positions[k]);
       double s = now_seconds();
       plain.apply(op, 0.5);
       t_node.push_back(now_seconds() - s);
       plain.undo();
-      graph::EditOp op2("delete_edge");
+      graph::EditOp op2(graph::EditKind::delete_edge);
       op2.at.push_back(plain.graph().edges[rnd(plain.graph().edge_count())].points[1]);
       s = now_seconds();
       plain.apply(op2, 0.5);

@@ -158,8 +158,8 @@ using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<
 
 // ---------------------------------------------------------------- EditOp / journal
 std::string EditOp::to_yaml() const {
-  std::string s = "{op: " + op;
-  if (op == "delete_edge" && at.size() > 1) {
+  std::string s = std::string("{op: ") + enum_name(op);
+  if (op == EditKind::delete_edge && at.size() > 1) {
     s += ", at: [";
     for (size_t i = 0; i < at.size(); ++i) s += (i ? ", " : "") + fmt(at[i]);
     s += "]";
@@ -168,11 +168,11 @@ std::string EditOp::to_yaml() const {
   }
   if (from) s += ", from: " + fmt(*from);
   if (to) s += ", to: " + fmt(*to);
-  if (op == "connect" || op == "bridge_gaps") s += ", route: " + route;
-  if (op == "set") s += ", level: " + level + ", attribute: " + attribute + ", value: " + fmt(value);
-  if (op == "prune" || op == "delete_components") s += ", max_length: " + fmt(length);
-  if (op == "prune" && radius_factor > 0) s += ", radius_factor: " + fmt(radius_factor);
-  if (op == "bridge_gaps") s += ", max_distance: " + fmt(length);
+  if (op == EditKind::connect || op == EditKind::bridge_gaps) s += std::string(", route: ") + enum_name(route);
+  if (op == EditKind::set) s += std::string(", level: ") + enum_name(level) + ", attribute: " + attribute + ", value: " + fmt(value);
+  if (op == EditKind::prune || op == EditKind::delete_components) s += ", max_length: " + fmt(length);
+  if (op == EditKind::prune && radius_factor > 0) s += ", radius_factor: " + fmt(radius_factor);
+  if (op == EditKind::bridge_gaps) s += ", max_distance: " + fmt(length);
   return s + "}";
 }
 
@@ -213,21 +213,24 @@ Journal parse_journal(const std::string& text, const std::string& name) {
       throw InputError(where(n) + ": '" + key + "' must be three numbers");
     }
   };
-  static const std::vector<std::string> known{"delete_edge", "delete_node", "connect", "split", "merge",
-                                              "move_node", "set", "prune", "delete_components",
-                                              "bridge_gaps", "undo", "redo"};
   for (const auto& n : ops) {
     if (!n.IsMap() || !n["op"]) throw InputError(where(n) + ": each entry needs 'op'");
     EditOp o;
     if (!n["op"].IsScalar()) throw InputError(where(n["op"]) + ": 'op' must be a name");
-    o.op = n["op"].Scalar();
-    if (std::find(known.begin(), known.end(), o.op) == known.end()) {
+    const std::string op_name = n["op"].Scalar();
+    bool known = false;
+    for (const auto& k : enum_names(EditKind{}))
+      if (op_name == k.name) {
+        o.op = k.value;
+        known = true;
+      }
+    if (!known) {
       std::string list;
-      for (const auto& k : known) {
+      for (const auto& k : enum_choices<EditKind>()) {
         if (!list.empty()) list += ", ";
         list += k;
       }
-      throw InputError(where(n["op"]) + ": unknown op '" + o.op + "' (expected one of " + list + ")");
+      throw InputError(where(n["op"]) + ": unknown op '" + op_name + "' (expected one of " + list + ")");
     }
     // Values by key, with messages naming the key and the entry's line.
     auto number = [&](const char* key) {
@@ -253,24 +256,23 @@ Journal parse_journal(const std::string& text, const std::string& name) {
     }
     if (n["from"]) o.from = vec(n["from"], "from");
     if (n["to"]) o.to = vec(n["to"], "to");
-    if (n["route"]) o.route = name("route");
-    if (n["level"]) o.level = name("level");
+    if (n["route"]) o.route = parse_enum<Route>(name("route"), where(n["route"]) + ": route");
+    if (n["level"]) o.level = parse_enum<Level>(name("level"), where(n["level"]) + ": level");
     if (n["attribute"]) o.attribute = name("attribute");
     if (n["value"]) o.value = number("value");
     if (n["max_length"]) o.length = number("max_length");
     if (n["radius_factor"]) o.radius_factor = number("radius_factor");
     if (n["max_distance"]) o.length = number("max_distance");
-    if (o.route != "straight" && o.route != "mask") throw InputError(where(n) + ": route must be straight or mask");
     auto need = [&](bool ok, const char* what) {
-      if (!ok) throw InputError(where(n) + ": op " + o.op + " needs " + what);
+      if (!ok) throw InputError(where(n) + ": op " + op_name + " needs " + what);
     };
-    if (o.op == "delete_edge" || o.op == "delete_node" || o.op == "split" || o.op == "merge" || o.op == "set")
+    if (o.op == EditKind::delete_edge || o.op == EditKind::delete_node || o.op == EditKind::split || o.op == EditKind::merge || o.op == EditKind::set)
       need(!o.at.empty(), "'at'");
-    if (o.op == "connect" || o.op == "move_node") need(o.from && o.to, "'from' and 'to'");
-    if (o.op == "set") need(!o.attribute.empty(), "'attribute'");
-    if (o.op == "prune" || o.op == "delete_components") need(n["max_length"].IsDefined(), "'max_length'");
+    if (o.op == EditKind::connect || o.op == EditKind::move_node) need(o.from && o.to, "'from' and 'to'");
+    if (o.op == EditKind::set) need(!o.attribute.empty(), "'attribute'");
+    if (o.op == EditKind::prune || o.op == EditKind::delete_components) need(n["max_length"].IsDefined(), "'max_length'");
     if (!(o.radius_factor >= 0)) throw InputError(where(n) + ": radius_factor must be >= 0");
-    if (o.op == "bridge_gaps") need(n["max_distance"].IsDefined(), "'max_distance'");
+    if (o.op == EditKind::bridge_gaps) need(n["max_distance"].IsDefined(), "'max_distance'");
     j.ops.push_back(std::move(o));
   }
   return j;
@@ -456,7 +458,7 @@ bool GraphEditor::undo() {
   for (auto it = s->inverse.rbegin(); it != s->inverse.rend(); ++it) (*it)(graph_);
   s->inverse.clear();
   redo_.push_back(std::move(s));
-  write_journal(EditOp{"undo"});
+  write_journal(EditOp{EditKind::undo});
   return true;
 }
 
@@ -475,7 +477,7 @@ bool GraphEditor::redo() {
   log_.clear();
   in_step_ = false;
   undo_.push_back(std::move(s));
-  write_journal(EditOp{"redo"});
+  write_journal(EditOp{EditKind::redo});
   return true;
 }
 
@@ -550,7 +552,7 @@ void GraphEditor::p_set_polyline(int64_t e, std::vector<Vec3> pts,
   });
 }
 
-void GraphEditor::p_set_value(const std::string& level, const std::string& name, int64_t id, double value) {
+void GraphEditor::p_set_value(Level level, const std::string& name, int64_t id, double value) {
   // Creates the attribute when missing (undo removes it again).
   auto restore_erase = [&](bool node_level) {
     const bool exists = node_level ? graph_.node_attributes.count(name) > 0 : graph_.edge_attributes.count(name) > 0;
@@ -560,7 +562,7 @@ void GraphEditor::p_set_value(const std::string& level, const std::string& name,
       else g.edge_attributes.erase(g.edge_attributes.find(name));
     });
   };
-  if (level == "node") {
+  if (level == Level::node) {
     if (auto it = graph_.node_labels.find(name); it != graph_.node_labels.end()) {
       const int32_t old = it->second[id];
       it->second[id] = static_cast<int32_t>(std::lround(value));
@@ -641,8 +643,8 @@ Vec3 GraphEditor::edge_probe(int64_t e) const {
 }
 
 // ---- routing and radii
-std::vector<Vec3> GraphEditor::route_path(const Vec3& a, const Vec3& b, const std::string& route) const {
-  if (route != "mask") return {a, b};
+std::vector<Vec3> GraphEditor::route_path(const Vec3& a, const Vec3& b, Route route) const {
+  if (route != Route::mask) return {a, b};
   if (!context_.mask) throw InputError("connect with route: mask needs the mask input");
   const VolumeU8& m = *context_.mask;
   const Grid& gr = m.grid();
@@ -817,7 +819,7 @@ void GraphEditor::do_merge(int64_t n) {
   p_remove_node(n);
 }
 
-void GraphEditor::do_connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, const std::string& route) {
+void GraphEditor::do_connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, Route route) {
   if (from < 0 || from >= graph_.node_count()) throw Error("node " + std::to_string(from) + " does not exist");
   if (to_node < 0) {
     if (to_edge < 0 || to_edge >= graph_.edge_count()) throw Error("edge " + std::to_string(to_edge) + " does not exist");
@@ -835,7 +837,7 @@ void GraphEditor::do_connect(int64_t from, int64_t to_node, int64_t to_edge, int
 
 // ---- public operations
 EditOp GraphEditor::delete_edges(std::vector<int64_t> edges) {
-  EditOp op{"delete_edge"};
+  EditOp op{EditKind::delete_edge};
   for (int64_t e : edges) {
     if (e < 0 || e >= graph_.edge_count()) throw Error("edge " + std::to_string(e) + " does not exist");
     op.at.push_back(edge_probe(e));
@@ -845,7 +847,7 @@ EditOp GraphEditor::delete_edges(std::vector<int64_t> edges) {
 
 EditOp GraphEditor::delete_node(int64_t n) {
   if (n < 0 || n >= graph_.node_count()) throw Error("node " + std::to_string(n) + " does not exist");
-  EditOp op{"delete_node"};
+  EditOp op{EditKind::delete_node};
   op.at.push_back(graph_.positions[n]);
   auto run = [this, n] {
     auto inc = incident_edges(graph_, n);
@@ -855,8 +857,8 @@ EditOp GraphEditor::delete_node(int64_t n) {
   return perform(std::move(op), std::move(run));
 }
 
-EditOp GraphEditor::connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, const std::string& route) {
-  EditOp op{"connect"};
+EditOp GraphEditor::connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, Route route) {
+  EditOp op{EditKind::connect};
   op.route = route;
   if (from < 0 || from >= graph_.node_count()) throw Error("node " + std::to_string(from) + " does not exist");
   op.from = graph_.positions[from];
@@ -877,7 +879,7 @@ EditOp GraphEditor::split(int64_t edge, int64_t point) {
   if (edge < 0 || edge >= graph_.edge_count() || point < 0 ||
       point >= static_cast<int64_t>(graph_.edges[edge].points.size()))
     throw Error("split: no such edge point");
-  EditOp op{"split"};
+  EditOp op{EditKind::split};
   op.at.push_back(graph_.edges[edge].points[point]);
   auto run = [this, edge, point] { do_split(edge, point); };
   return perform(std::move(op), std::move(run));
@@ -885,7 +887,7 @@ EditOp GraphEditor::split(int64_t edge, int64_t point) {
 
 EditOp GraphEditor::merge(int64_t node) {
   if (node < 0 || node >= graph_.node_count()) throw Error("node " + std::to_string(node) + " does not exist");
-  EditOp op{"merge"};
+  EditOp op{EditKind::merge};
   op.at.push_back(graph_.positions[node]);
   auto run = [this, node] { do_merge(node); };
   return perform(std::move(op), std::move(run));
@@ -893,7 +895,7 @@ EditOp GraphEditor::merge(int64_t node) {
 
 EditOp GraphEditor::move_node(int64_t n, const Vec3& to) {
   if (n < 0 || n >= graph_.node_count()) throw Error("node " + std::to_string(n) + " does not exist");
-  EditOp op{"move_node"};
+  EditOp op{EditKind::move_node};
   op.from = graph_.positions[n];
   op.to = to;
   auto run = [this, n, to] {
@@ -934,18 +936,17 @@ EditOp GraphEditor::move_node(int64_t n, const Vec3& to) {
   return perform(std::move(op), std::move(run));
 }
 
-EditOp GraphEditor::set_attribute(const std::string& level, const std::vector<int64_t>& ids, const std::string& name,
+EditOp GraphEditor::set_attribute(Level level, const std::vector<int64_t>& ids, const std::string& name,
                                   double value) {
-  if (level != "node" && level != "edge") throw Error("set: level must be node or edge");
   if (name.empty()) throw Error("set: attribute name is empty");
-  EditOp op{"set"};
+  EditOp op{EditKind::set};
   op.level = level;
   op.attribute = name;
   op.value = value;
   for (int64_t id : ids) {
-    const int64_t count = level == "node" ? graph_.node_count() : graph_.edge_count();
-    if (id < 0 || id >= count) throw Error(level + " " + std::to_string(id) + " does not exist");
-    op.at.push_back(level == "node" ? graph_.positions[id] : edge_probe(id));
+    const int64_t count = level == Level::node ? graph_.node_count() : graph_.edge_count();
+    if (id < 0 || id >= count) throw Error(std::string(enum_name(level)) + " " + std::to_string(id) + " does not exist");
+    op.at.push_back(level == Level::node ? graph_.positions[id] : edge_probe(id));
   }
   auto run = [this, level, ids, name, value] {
     for (int64_t id : ids) p_set_value(level, name, id, value);
@@ -957,7 +958,7 @@ EditOp GraphEditor::prune(double max_length, double radius_factor) {
   if (!(radius_factor >= 0)) throw InputError("prune: radius_factor must be >= 0");
   if (radius_factor > 0 && !graph_.point_attributes.contains("radius"))
     throw InputError("prune: radius_factor needs the point attribute 'radius', which this graph does not have");
-  EditOp op{"prune"};
+  EditOp op{EditKind::prune};
   op.length = max_length;
   op.radius_factor = radius_factor;
   auto run = [this, max_length, radius_factor] {
@@ -1003,7 +1004,7 @@ EditOp GraphEditor::prune(double max_length, double radius_factor) {
 }
 
 EditOp GraphEditor::delete_components(double max_length) {
-  EditOp op{"delete_components"};
+  EditOp op{EditKind::delete_components};
   op.length = max_length;
   auto run = [this, max_length] {
     const int64_t nn = graph_.node_count();
@@ -1022,8 +1023,8 @@ EditOp GraphEditor::delete_components(double max_length) {
   return perform(std::move(op), std::move(run));
 }
 
-EditOp GraphEditor::bridge_gaps(double max_distance, const std::string& route) {
-  EditOp op{"bridge_gaps"};
+EditOp GraphEditor::bridge_gaps(double max_distance, Route route) {
+  EditOp op{EditKind::bridge_gaps};
   op.length = max_distance;
   op.route = route;
   auto run = [this, max_distance, route] {
@@ -1068,11 +1069,11 @@ ApplyResult GraphEditor::apply(const EditOp& op, double tol) {
     return r;
   };
   try {
-    if (op.op == "undo") {
+    if (op.op == EditKind::undo) {
       if (!undo()) return fail("nothing to undo");
-    } else if (op.op == "redo") {
+    } else if (op.op == EditKind::redo) {
       if (!redo()) return fail("nothing to redo");
-    } else if (op.op == "delete_edge") {
+    } else if (op.op == EditKind::delete_edge) {
       std::vector<int64_t> ids;
       for (const auto& p : op.at) {
         const int64_t e = edge_at(p, tol);
@@ -1080,17 +1081,17 @@ ApplyResult GraphEditor::apply(const EditOp& op, double tol) {
         ids.push_back(e);
       }
       delete_edges(ids);
-    } else if (op.op == "delete_node" || op.op == "merge") {
+    } else if (op.op == EditKind::delete_node || op.op == EditKind::merge) {
       const int64_t n = node_at(op.at.front(), tol);
       if (n < 0) return fail("no node within " + fmt(tol) + " of " + fmt(op.at.front()));
-      if (op.op == "delete_node") delete_node(n);
+      if (op.op == EditKind::delete_node) delete_node(n);
       else merge(n);
-    } else if (op.op == "split") {
+    } else if (op.op == EditKind::split) {
       int64_t pt = -1;
       const int64_t e = edge_at(op.at.front(), tol, &pt);
       if (e < 0) return fail("no edge within " + fmt(tol) + " of " + fmt(op.at.front()));
       split(e, pt);
-    } else if (op.op == "connect") {
+    } else if (op.op == EditKind::connect) {
       const int64_t from = node_at(*op.from, tol);
       if (from < 0) return fail("no node within " + fmt(tol) + " of " + fmt(*op.from));
       int64_t to = node_at(*op.to, tol);
@@ -1102,26 +1103,26 @@ ApplyResult GraphEditor::apply(const EditOp& op, double tol) {
         if (e < 0) return fail("nothing within " + fmt(tol) + " of " + fmt(*op.to) + " to connect to");
         connect(from, -1, e, pt, op.route);
       }
-    } else if (op.op == "move_node") {
+    } else if (op.op == EditKind::move_node) {
       const int64_t n = node_at(*op.from, tol);
       if (n < 0) return fail("no node within " + fmt(tol) + " of " + fmt(*op.from));
       move_node(n, *op.to);
-    } else if (op.op == "set") {
+    } else if (op.op == EditKind::set) {
       std::vector<int64_t> ids;
       for (const auto& p : op.at) {
-        const int64_t id = op.level == "node" ? node_at(p, tol) : edge_at(p, tol);
-        if (id < 0) return fail("no " + op.level + " within " + fmt(tol) + " of " + fmt(p));
+        const int64_t id = op.level == Level::node ? node_at(p, tol) : edge_at(p, tol);
+        if (id < 0) return fail(std::string("no ") + enum_name(op.level) + " within " + fmt(tol) + " of " + fmt(p));
         ids.push_back(id);
       }
       set_attribute(op.level, ids, op.attribute, op.value);
-    } else if (op.op == "prune") {
+    } else if (op.op == EditKind::prune) {
       prune(op.length, op.radius_factor);
-    } else if (op.op == "delete_components") {
+    } else if (op.op == EditKind::delete_components) {
       delete_components(op.length);
-    } else if (op.op == "bridge_gaps") {
+    } else if (op.op == EditKind::bridge_gaps) {
       bridge_gaps(op.length, op.route);
     } else {
-      return fail("unknown op '" + op.op + "'");
+      return fail(std::string("unknown op '") + enum_name(op.op) + "'");
     }
   } catch (const Error& e) {
     return fail(e.what());

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/enum_names.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/volume.hpp"
 
@@ -21,14 +22,32 @@ namespace skel::graph {
 //   connect {from, to, route}       move_node {from, to}      set {at, level, attribute, value}
 //   prune {max_length, radius_factor}   delete_components {max_length}   bridge_gaps {max_distance, route}
 //   undo                            redo
+enum class EditKind { delete_edge, delete_node, connect, split, merge, move_node, set, prune, delete_components,
+                      bridge_gaps, undo, redo };
+constexpr auto enum_names(EditKind) {
+  return std::to_array<EnumName<EditKind>>(
+      {{EditKind::delete_edge, "delete_edge"}, {EditKind::delete_node, "delete_node"}, {EditKind::connect, "connect"},
+       {EditKind::split, "split"}, {EditKind::merge, "merge"}, {EditKind::move_node, "move_node"},
+       {EditKind::set, "set"}, {EditKind::prune, "prune"}, {EditKind::delete_components, "delete_components"},
+       {EditKind::bridge_gaps, "bridge_gaps"}, {EditKind::undo, "undo"}, {EditKind::redo, "redo"}});
+}
+// How a new connection runs: a straight segment, or the shortest 26-path through the mask.
+enum class Route { straight, mask };
+constexpr auto enum_names(Route) {
+  return std::to_array<EnumName<Route>>({{Route::straight, "straight"}, {Route::mask, "mask"}});
+}
+// What `set` changes: a node's or an edge's value.
+enum class Level { node, edge };
+constexpr auto enum_names(Level) { return std::to_array<EnumName<Level>>({{Level::node, "node"}, {Level::edge, "edge"}}); }
+
 struct EditOp {
   EditOp() = default;
-  explicit EditOp(std::string name) : op(std::move(name)) {}
-  std::string op;
+  explicit EditOp(EditKind kind) : op(kind) {}
+  EditKind op = EditKind::delete_edge;
   std::vector<Vec3> at;             // delete_edge may name several edges (one undo step)
   std::optional<Vec3> from, to;     // connect, move_node
-  std::string route = "straight";   // connect, bridge_gaps: straight | mask
-  std::string level = "edge";       // set: node | edge
+  Route route = Route::straight;    // connect, bridge_gaps
+  Level level = Level::edge;        // set
   std::string attribute;            // set
   double value = 0.0;               // set
   double length = 0.0;              // prune / delete_components: max_length; bridge_gaps: max_distance
@@ -101,19 +120,19 @@ public:
   // Connects node `from` to node `to_node`, or (to_node < 0) to point `to_point` of edge `to_edge`
   // (the edge is split there). route "mask" follows the mask's object voxels (shortest 26-path).
   EditOp connect(int64_t from, int64_t to_node, int64_t to_edge = -1, int64_t to_point = -1,
-                 const std::string& route = "straight");
+                 Route route = Route::straight);
   EditOp split(int64_t edge, int64_t point);  // point: interior polyline index
   EditOp merge(int64_t node);                 // node of degree 2 with two different edges
   EditOp move_node(int64_t node, const Vec3& to);  // incident polylines follow (fading to their far end)
   // level "edge": sets a point attribute of that name on all points if it exists (e.g. radius),
   // else an edge label if one exists, else a float edge attribute. level "node": label or attribute.
-  EditOp set_attribute(const std::string& level, const std::vector<int64_t>& ids, const std::string& name,
+  EditOp set_attribute(Level level, const std::vector<int64_t>& ids, const std::string& name,
                        double value);
   // Terminal branches shorter than max(max_length, radius_factor x the point attribute `radius` at
   // their junction end), iterated (the rule of graph.prune; radius_factor > 0 needs `radius`).
   EditOp prune(double max_length, double radius_factor = 0.0);
   EditOp delete_components(double max_length);  // components with total length < max_length
-  EditOp bridge_gaps(double max_distance, const std::string& route = "straight");
+  EditOp bridge_gaps(double max_distance, Route route = Route::straight);
 
   // ---- journal entries (replay): resolves positions within `tolerance`, applies, records.
   ApplyResult apply(const EditOp& op, double tolerance);
@@ -145,12 +164,12 @@ private:
   void p_remove_node(int64_t n);  // must be isolated
   void p_set_node_position(int64_t n, const Vec3& p);
   void p_set_polyline(int64_t e, std::vector<Vec3> pts, std::map<std::string, std::vector<float>, std::less<>> point_values);
-  void p_set_value(const std::string& level, const std::string& name, int64_t id, double value);
+  void p_set_value(Level level, const std::string& name, int64_t id, double value);
   void write_journal(const EditOp& op);
-  std::vector<Vec3> route_path(const Vec3& a, const Vec3& b, const std::string& route) const;
+  std::vector<Vec3> route_path(const Vec3& a, const Vec3& b, Route route) const;
   void fill_new_point_radius(int64_t e);
   // Implementation of each op without begin/commit (bridge_gaps reuses connect).
-  void do_connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, const std::string& route);
+  void do_connect(int64_t from, int64_t to_node, int64_t to_edge, int64_t to_point, Route route);
   int64_t do_split(int64_t edge, int64_t point);
   void do_merge(int64_t node);
   void do_delete_edges(std::vector<int64_t> edges);

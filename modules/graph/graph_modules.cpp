@@ -115,7 +115,7 @@ plus the undo records of the journal's steps.)");
       ctx.progress().check(static_cast<double>(i) / static_cast<double>(std::max<size_t>(1, j.ops.size())));
       const auto r = ed.apply(j.ops[i], tol);
       index.push_back(static_cast<int64_t>(i));
-      ops.push_back(j.ops[i].op);
+      ops.emplace_back(enum_name(j.ops[i].op));
       status.push_back(r.applied ? "applied" : (r.message.rfind("no ", 0) == 0 || r.message.rfind("nothing", 0) == 0 ? "not matched" : "failed"));
       message.push_back(r.message);
       if (!r.applied) {

@@ -68,7 +68,7 @@ bool run_and_wait(MainWindow& w, int ms) {
   return ok;
 }
 
-int count_ops(const graph::Journal& j, const std::string& op) {
+int count_ops(const graph::Journal& j, graph::EditKind op) {
   return static_cast<int>(std::count_if(j.ops.begin(), j.ops.end(), [&](const auto& o) { return o.op == op; }));
 }
 
@@ -182,9 +182,9 @@ TEST(EditMode, TourConnectUndoRedoSaveAndReRun) {
   }
   const graph::Journal j = graph::read_journal(journal.toStdString());
   ASSERT_EQ(j.ops.size(), 3u);
-  EXPECT_EQ(j.ops[0].op, "connect");
-  EXPECT_EQ(j.ops[1].op, "undo");
-  EXPECT_EQ(j.ops[2].op, "redo");
+  EXPECT_EQ(j.ops[0].op, graph::EditKind::connect);
+  EXPECT_EQ(j.ops[1].op, graph::EditKind::undo);
+  EXPECT_EQ(j.ops[2].op, graph::EditKind::redo);
   ASSERT_TRUE(j.ops[0].from && j.ops[0].to);
   EXPECT_LT(std::hypot((*j.ops[0].from)[0] - end_pos[0], (*j.ops[0].from)[1] - end_pos[1], (*j.ops[0].from)[2] - end_pos[2]), 1e-3);
   EXPECT_LT(std::hypot((*j.ops[0].to)[0] - partner_pos[0], (*j.ops[0].to)[1] - partner_pos[1], (*j.ops[0].to)[2] - partner_pos[2]), 1e-3);
@@ -251,10 +251,10 @@ TEST(EditMode, JournalSurvivesSigkill) {
   const graph::Journal j = graph::read_journal(QDir(tmp.path()).filePath("pruned.graph.edits.yaml").toStdString());
   ASSERT_EQ(j.ops.size(), static_cast<size_t>(expected.size()));
   for (int i = 0; i < expected.size(); ++i) EXPECT_EQ(QString::fromStdString(j.ops[i].to_yaml()), expected[i]) << i;
-  EXPECT_GE(count_ops(j, "connect"), 1);
-  EXPECT_GE(count_ops(j, "delete_edge"), 1);
-  EXPECT_GE(count_ops(j, "split"), 1);
-  EXPECT_GE(count_ops(j, "undo"), 1);
+  EXPECT_GE(count_ops(j, graph::EditKind::connect), 1);
+  EXPECT_GE(count_ops(j, graph::EditKind::delete_edge), 1);
+  EXPECT_GE(count_ops(j, graph::EditKind::split), 1);
+  EXPECT_GE(count_ops(j, graph::EditKind::undo), 1);
 }
 
 int main(int argc, char** argv) {

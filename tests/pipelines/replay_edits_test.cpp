@@ -133,20 +133,20 @@ TEST(ReplayEdits, JournalFromOneReconstructionReplaysOnAnotherAndReportsWhatIsGo
     ASSERT_GT(spurs, 0) << "no short spur to vanish";
     ASSERT_GT(long_deleted, 0);
     for (const Vec3& p : delete_at) {
-      graph::EditOp op("delete_edge");
+      graph::EditOp op(graph::EditKind::delete_edge);
       op.at.push_back(p);
       ASSERT_TRUE(ed.apply(op, tol).applied);
     }
     for (const Vec3& p : label_at) {
-      graph::EditOp op("set");
+      graph::EditOp op(graph::EditKind::set);
       op.at.push_back(p);
-      op.level = "edge";
+      op.level = Level::edge;
       op.attribute = "vessel_type";
       op.value = 2;
       ASSERT_TRUE(ed.apply(op, tol).applied);
     }
     for (const Vec3& p : node_at) {
-      graph::EditOp op("delete_node");
+      graph::EditOp op(graph::EditKind::delete_node);
       op.at.push_back(p);
       ASSERT_TRUE(ed.apply(op, tol).applied);
     }
@@ -163,9 +163,9 @@ TEST(ReplayEdits, JournalFromOneReconstructionReplaysOnAnotherAndReportsWhatIsGo
   for (size_t i = 0; i < j.ops.size(); ++i) {
     const auto& op = j.ops[i];
     ASSERT_FALSE(op.at.empty());
-    const double d = op.op == "delete_node" ? nearest_node(b, op.at[0]) : nearest_edge(b, op.at[0]);
+    const double d = op.op == EditKind::delete_node ? nearest_node(b, op.at[0]) : nearest_edge(b, op.at[0]);
     const bool exists = d <= tol;
-    SCOPED_TRACE(op.op + " entry " + std::to_string(i) + ", nearest target in B at " + std::to_string(d));
+    SCOPED_TRACE(std::string(enum_name(op.op)) + " entry " + std::to_string(i) + ", nearest target in B at " + std::to_string(d));
     EXPECT_EQ(status[i], exists ? "applied" : "not matched");
     (exists ? applied : reported) += 1;
   }
@@ -176,7 +176,7 @@ TEST(ReplayEdits, JournalFromOneReconstructionReplaysOnAnotherAndReportsWhatIsGo
   EXPECT_GT(reported, 0);
   auto out = r.get<SpatialGraph>("graph");
   int64_t deleted = 0;
-  for (size_t i = 0; i < j.ops.size(); ++i) deleted += j.ops[i].op == "delete_edge" && status[i] == "applied";
+  for (size_t i = 0; i < j.ops.size(); ++i) deleted += j.ops[i].op == EditKind::delete_edge && status[i] == "applied";
   EXPECT_LE(out->edge_count(), b.edge_count() - deleted);
   EXPECT_TRUE(out->check_invariants().empty());
 }

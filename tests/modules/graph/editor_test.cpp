@@ -113,7 +113,7 @@ TEST(GraphEditor, RandomOperationsUndoRedoExactly) {
         case 5: ed.move_node(rnd(nn), {static_cast<double>(rnd(100)), static_cast<double>(rnd(100)), 3.5}); break;
         case 6: {
           const bool node = rng() % 2;
-          ed.set_attribute(node ? "node" : "edge", {rnd(node ? nn : ne)}, rng() % 3 ? "radius" : "new_attr", 3.0);
+          ed.set_attribute(node ? Level::node : Level::edge, {rnd(node ? nn : ne)}, rng() % 3 ? "radius" : "new_attr", 3.0);
           break;
         }
         case 7: ed.prune(4.0); break;
@@ -170,7 +170,7 @@ TEST(GraphEditor, OperationsDoWhatTheySay) {
   expect_valid(ed);
   // set a radius on an edge: every point gets it
   const int64_t e2 = ed.edge_at({5, 2, 0}, 3.0);
-  ed.set_attribute("edge", {e2}, "radius", 7.5);
+  ed.set_attribute(Level::edge, {e2}, "radius", 7.5);
   for (float r : ed.graph().point_attributes.at("radius")[e2]) EXPECT_FLOAT_EQ(r, 7.5f);
   EXPECT_EQ(ed.undo_text().rfind("{op: set", 0), 0u);
 }
@@ -201,7 +201,7 @@ TEST(GraphEditor, RoutedConnectFollowsTheMask) {
   EditContext ctx;
   ctx.mask = mask;
   GraphEditor ed(g, ctx);
-  ed.connect(0, 1, -1, -1, "mask");
+  ed.connect(0, 1, -1, -1, Route::mask);
   const auto& pts = ed.graph().edges[0].points;
   for (const auto& p : pts)
     EXPECT_TRUE((*mask)(static_cast<int64_t>(std::lround(p[0])), static_cast<int64_t>(std::lround(p[1])), 1)) << p[0] << " " << p[1];
@@ -218,7 +218,7 @@ TEST(GraphEditor, JournalIsAppendedAndReplaysOnAPerturbedGraph) {
   ed.delete_edges({3});
   ed.connect(1, 2);
   ed.move_node(5, {1, 2, 3});
-  ed.set_attribute("edge", {7}, "tree", 2);
+  ed.set_attribute(Level::edge, {7}, "tree", 2);
   ed.undo();
   ed.redo();
   int64_t split_edge = 10;
@@ -226,7 +226,7 @@ TEST(GraphEditor, JournalIsAppendedAndReplaysOnAPerturbedGraph) {
   // Every step is on disk already (flushed), as a valid journal.
   Journal j = read_journal(jp);
   ASSERT_EQ(j.ops.size(), 7u);
-  EXPECT_EQ(j.ops[4].op, "undo");
+  EXPECT_EQ(j.ops[4].op, EditKind::undo);
   EXPECT_DOUBLE_EQ(j.tolerance, 0.5);
 
   // Replay on the same graph: identical result.
