@@ -71,11 +71,12 @@ constexpr int kOctants[8][7] = {{2, 1, 11, 10, 5, 4, 14},    {0, 9, 3, 12, 1, 10
                                 {20, 23, 19, 22, 11, 14, 10}, {18, 21, 9, 12, 19, 22, 10},
                                 {26, 23, 17, 14, 25, 22, 16}, {24, 25, 15, 16, 21, 22, 12}};
 
-int octant_delta(int octant, uint32_t cube) {
-  int n = 1;
+// The LUT index of an octant (without the centre bit) from the cube word.
+int octant_index(int octant, uint32_t cube) {
+  int n = 0;
   for (int j = 0; j < 7; ++j)
-    if (cube >> skimage_to_cube(kOctants[octant][j]) & 1u) n |= 128 >> j;
-  return kEulerOdd[static_cast<size_t>(n >> 1)];
+    if (cube >> skimage_to_cube(kOctants[octant][j]) & 1u) n |= 64 >> j;
+  return n;
 }
 
 // The sum over octants 0-3 depends on cube bits 0..17 only, over octants 4-7 on bits 9..26 only:
@@ -85,18 +86,28 @@ inline uint32_t high_index(uint32_t cube) {
   const uint32_t h = cube >> 9;
   return (h & 0xFu) | ((h >> 5) << 4);
 }
+constexpr uint32_t low_cube(uint32_t i) { return (i & 0x1FFFu) | ((i >> 13) << 14); }
+constexpr uint32_t high_cube(uint32_t i) { return ((i & 0xFu) | ((i >> 4) << 5)) << 9; }
 
 struct EulerTables {
   std::vector<int8_t> low, high;
   EulerTables() : low(size_t{1} << 17), high(size_t{1} << 17) {
-    for (uint32_t i = 0; i < (1u << 17); ++i) {
-      const uint32_t cl = (i & 0x1FFFu) | ((i >> 13) << 14) | kCentre;              // bits 0..17
-      const uint32_t ch = (((i & 0xFu) | ((i >> 4) << 5)) << 9) | kCentre;        // bits 9..26
-      int sl = 0, sh = 0;
-      for (int o = 0; o < 4; ++o) sl += octant_delta(o, cl);
-      for (int o = 4; o < 8; ++o) sh += octant_delta(o, ch);
-      low[i] = static_cast<int8_t>(sl);
-      high[i] = static_cast<int8_t>(sh);
+    // An octant's index is the OR of the indices of the low 9 and the high 8 bits of the table index.
+    for (int half = 0; half < 2; ++half) {
+      std::array<std::array<uint8_t, 512>, 4> a{};
+      std::array<std::array<uint8_t, 256>, 4> b{};
+      auto cube_of = [half](uint32_t i) { return half == 0 ? low_cube(i) : high_cube(i); };
+      for (int o = 0; o < 4; ++o) {
+        for (uint32_t i = 0; i < 512; ++i) a[static_cast<size_t>(o)][i] = static_cast<uint8_t>(octant_index(4 * half + o, cube_of(i)));
+        for (uint32_t i = 0; i < 256; ++i)
+          b[static_cast<size_t>(o)][i] = static_cast<uint8_t>(octant_index(4 * half + o, cube_of(i << 9)));
+      }
+      std::vector<int8_t>& t = half == 0 ? low : high;
+      for (uint32_t i = 0; i < (1u << 17); ++i) {
+        int sum = 0;
+        for (size_t o = 0; o < 4; ++o) sum += kEulerOdd[a[o][i & 511u] | b[o][i >> 9]];
+        t[i] = static_cast<int8_t>(sum);
+      }
     }
   }
 };
@@ -122,6 +133,10 @@ struct Work {
   int64_t nx = 0, ny = 0, nz = 0;  // mask dims
   int64_t sy = 0, sz = 0;          // padded strides
   std::unique_ptr<uint8_t[]> img;  // (nx+2)(ny+2)(nz+2) + slack, 0/1
+  // Same layout: bit d = "dirty for direction d": a voxel of the 3x3x3 neighbourhood was deleted
+  // since direction d last collected candidates. A separate array, so that collecting threads write
+  // only the bytes of their own rows while they read the image around them.
+  std::unique_ptr<uint8_t[]> dirty;
   std::unique_ptr<uint8_t[]> rows; // (ny+2)(nz+2): bit d = row must be scanned for direction d
 
   [[nodiscard]] uint32_t cube(int64_t i) const {
@@ -135,6 +150,13 @@ struct Work {
 };
 
 constexpr uint64_t kOnes = 0x0101010101010101ull;
+constexpr uint8_t kDirty = 0x3F;  // dirty for the six directions
+
+struct Candidate {
+  int64_t index;  // padded index
+  int64_t row;    // its row in Work::rows: z (ny+2) + y
+  uint32_t cube;  // its neighbourhood word when collected
+};
 constexpr int64_t kSlack = 16;
 
 }  // namespace
@@ -161,20 +183,33 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
   }
   const int64_t padded = px * py * pz;
   w.img.reset(new uint8_t[static_cast<size_t>(padded + kSlack)]());
+  w.dirty.reset(new uint8_t[static_cast<size_t>(padded + kSlack)]);
   w.rows.reset(new uint8_t[static_cast<size_t>(py * pz)]);
   std::fill_n(w.rows.get(), py * pz, uint8_t{0x3F});
   const EulerTables& euler = euler_tables();
-  st.bytes = static_cast<uint64_t>(padded + kSlack + py * pz);
+  st.bytes = static_cast<uint64_t>(2 * (padded + kSlack) + py * pz);
 
-  // Padded 0/1 copy; object voxel count per plane, summed in plane order.
+  // Padded 0/1 copy, every voxel dirty for every direction; object voxel count per plane, summed in
+  // plane order.
   std::vector<int64_t> plane_count(static_cast<size_t>(w.nz), 0);
+  parallel_for(0, pz, threads, [&](int64_t z0, int64_t z1) {
+    std::memset(w.dirty.get() + z0 * w.sz, kDirty, static_cast<size_t>((z1 - z0) * w.sz));
+  });
   parallel_for(0, w.nz, threads, [&](int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z) {
       int64_t count = 0;
       for (int64_t y = 0; y < w.ny; ++y) {
         const uint8_t* s = mask.data() + mask.index(0, y, z);
         uint8_t* d = w.img.get() + (z + 1) * w.sz + (y + 1) * w.sy + 1;
-        for (int64_t x = 0; x < w.nx; ++x) {
+        int64_t x = 0;
+        for (; x + 8 <= w.nx; x += 8) {  // eight bytes at a time: non-zero -> 1
+          uint64_t v;
+          std::memcpy(&v, s + x, 8);
+          v = ((((v & (kOnes * 0x7F)) + kOnes * 0x7F) | v) >> 7) & kOnes;
+          std::memcpy(d + x, &v, 8);
+          count += __builtin_popcountll(v);
+        }
+        for (; x < w.nx; ++x) {
           d[x] = s[x] != 0;
           count += d[x];
         }
@@ -190,14 +225,19 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
 
   const int64_t rows = w.ny * w.nz;
   const int64_t chunks = std::min<int64_t>(rows, threads == 1 ? 1 : 8 * static_cast<int64_t>(threads));
-  std::vector<std::vector<int64_t>> cand(static_cast<size_t>(chunks));
-  std::vector<int64_t> chunk_rows(static_cast<size_t>(chunks));
+  std::vector<int64_t> st_rows(static_cast<size_t>(chunks), 0);
+  // Per chunk: the candidates (padded index and the neighbourhood word seen when collected) and the
+  // rows scanned.
+  std::vector<std::vector<Candidate>> cand(static_cast<size_t>(chunks));
 
   auto collect = [&](int dir) {
     const int64_t off = offsets[static_cast<size_t>(dir)];
     const uint8_t bit = static_cast<uint8_t>(1u << dir);
+    const uint64_t clear = ~(kOnes << dir);
+    // Dirty voxels of flagged rows, in raster order; a thread reads the image anywhere (unchanged
+    // during collection) and writes the flags and dirty bits of its own rows only.
     parallel_chunks(0, rows, chunks, threads, [&](int64_t c, int64_t r0, int64_t r1) {
-      std::vector<int64_t>& out = cand[static_cast<size_t>(c)];
+      std::vector<Candidate>& out = cand[static_cast<size_t>(c)];
       out.clear();
       int64_t scanned = 0;
       for (int64_t r = r0; r < r1; ++r) {
@@ -208,13 +248,24 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
         ++scanned;
         const int64_t base = z * w.sz + y * w.sy;
         const uint8_t* row = w.img.get() + base;
+        uint8_t* drow = w.dirty.get() + base;
         for (int64_t x0 = 1; x0 <= w.nx; x0 += 8) {
-          uint64_t a, b;
+          uint64_t a, b, d;
+          std::memcpy(&d, drow + x0, 8);
+          const int64_t left = w.nx + 1 - x0;
+          uint64_t m = (d >> dir) & kOnes;
+          if (left >= 8) {
+            if (m == 0) continue;
+            d &= clear;
+            std::memcpy(drow + x0, &d, 8);
+          } else {
+            m &= (uint64_t{1} << (8 * left)) - 1;
+            if (m == 0) continue;
+            for (int64_t k = 0; k < left; ++k) drow[x0 + k] = static_cast<uint8_t>(drow[x0 + k] & ~bit);
+          }
           std::memcpy(&a, row + x0, 8);
           std::memcpy(&b, row + x0 + off, 8);
-          uint64_t m = a & ~b & kOnes;
-          const int64_t left = w.nx + 1 - x0;
-          if (left < 8) m &= (uint64_t{1} << (8 * left)) - 1;
+          m &= a & ~b;
           while (m != 0) {
             const int64_t x = x0 + (__builtin_ctzll(m) >> 3);
             m &= m - 1;
@@ -223,20 +274,27 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
             if (__builtin_popcount(cube) == 2) continue;  // end point (the centre is counted)
             if (!euler_invariant_fast(euler, cube)) continue;
             if (!one_component_or_none(cube)) continue;
-            out.push_back(i);
+            out.push_back({i, z * py + y, cube});
           }
         }
       }
-      chunk_rows[static_cast<size_t>(c)] = scanned;
+      st_rows[static_cast<size_t>(c)] += scanned;
     });
-    for (int64_t s : chunk_rows) st.scanned_rows += s;
   };
 
-  auto mark = [&](int64_t i) {
-    const int64_t z = i / w.sz, y = (i / w.sy) % py;
+  // After a deletion: the 26 neighbours (and the deleted voxel, now background) are dirty for every
+  // direction, and so are their rows.
+  auto mark = [&](const Candidate& k) {
     for (int64_t dz = -1; dz <= 1; ++dz) {
-      uint8_t* f = w.rows.get() + (z + dz) * py + y;
+      uint8_t* f = w.rows.get() + k.row + dz * py;
       f[-1] = f[0] = f[1] = 0x3F;
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        uint8_t* p = w.dirty.get() + k.index - 1 + dz * w.sz + dy * w.sy;
+        uint32_t v;  // bytes x-1, x, x+1 (and x+2, rewritten unchanged: this runs on one thread)
+        std::memcpy(&v, p, 4);
+        v |= 0x003F3F3Fu;
+        std::memcpy(p, &v, 4);
+      }
     }
   };
 
@@ -249,16 +307,17 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
       bool changed = false;
       for (const auto& list : cand) {
         st.candidates += static_cast<int64_t>(list.size());
-        for (int64_t i : list) {
-          const uint32_t cube = w.cube(i);
-          if (!one_component_or_none(cube)) {
+        for (const Candidate& k : list) {
+          // Only deletions happen here: an unchanged neighbourhood word is still one component.
+          const uint32_t cube = w.cube(k.index);
+          if (cube != k.cube && !one_component_or_none(cube)) {
             ++st.rejected;
             continue;
           }
-          w.img[static_cast<size_t>(i)] = 0;
+          w.img[static_cast<size_t>(k.index)] = 0;
           ++st.removed;
           if ((cube & ~kCentre) == 0) ++st.vanished_components;
-          mark(i);
+          mark(k);
           changed = true;
         }
       }
@@ -268,8 +327,9 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
                                : 0.99);
     }
   }
+  for (int64_t c : st_rows) st.scanned_rows += c;
   size_t cand_bytes = 0;
-  for (const auto& list : cand) cand_bytes += list.capacity() * sizeof(int64_t);
+  for (const auto& list : cand) cand_bytes += list.capacity() * sizeof(Candidate);
   st.bytes += cand_bytes;
 
   result.skeleton = VolumeU8::uninitialized(mask.grid());
