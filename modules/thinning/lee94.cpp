@@ -122,29 +122,33 @@ inline bool euler_invariant_fast(const EulerTables& t, uint32_t cube) {
 }
 
 // ---------------------------------------------------------------- the padded working image
-// Three bytes (0/1) at p-1, p, p+1 -> bits 0, 1, 2.
-inline uint32_t row3(const uint8_t* p) {
-  uint32_t v;
-  std::memcpy(&v, p - 1, 4);
-  return (((v & 0x010101u) * 0x10204u) >> 16) & 7u;
-}
-
+// The object as bits: row r = z (ny+2) + y of the padded grid holds bit x (0..nx+1) of its W words;
+// the last word of a row is always zero (room for unaligned reads). 1/8 byte per voxel, so the
+// image stays in cache where a byte image would not.
 struct Work {
   int64_t nx = 0, ny = 0, nz = 0;  // mask dims
-  int64_t sy = 0, sz = 0;          // padded strides
-  std::unique_ptr<uint8_t[]> img;  // (nx+2)(ny+2)(nz+2) + slack, 0/1
-  // Same layout: bit d = "dirty for direction d": a voxel of the 3x3x3 neighbourhood was deleted
-  // since direction d last collected candidates. A separate array, so that collecting threads write
-  // only the bytes of their own rows while they read the image around them.
+  int64_t px = 0, py = 0, pz = 0;  // padded dims
+  int64_t words = 0;               // W: 64-bit words per row
+  std::unique_ptr<uint64_t[]> bits;
+  // Byte per padded voxel (index r px + x): bit d = "dirty for direction d": a voxel of its 3x3x3
+  // neighbourhood was deleted since direction d last collected candidates, or it was never examined.
+  // Only dirty border voxels are examined. Collecting threads write the bytes of their own rows only.
   std::unique_ptr<uint8_t[]> dirty;
-  std::unique_ptr<uint8_t[]> rows; // (ny+2)(nz+2): bit d = row must be scanned for direction d
+  std::unique_ptr<uint8_t[]> rows;  // per row r: bit d = row must be scanned for direction d
 
-  [[nodiscard]] uint32_t cube(int64_t i) const {
-    const uint8_t* p = img.get() + i;
+  [[nodiscard]] const uint64_t* row(int64_t r) const { return bits.get() + r * words; }
+  // Bits x-1, x, x+1 of row r -> bits 0, 1, 2.
+  [[nodiscard]] uint32_t three(int64_t r, int64_t x) const {
+    const auto* bytes = reinterpret_cast<const unsigned char*>(row(r));
+    uint64_t v;
+    std::memcpy(&v, bytes + ((x - 1) >> 3), 8);
+    return static_cast<uint32_t>(v >> ((x - 1) & 7)) & 7u;
+  }
+  [[nodiscard]] uint32_t cube(int64_t r, int64_t x) const {
     uint32_t c = 0;
     int shift = 0;
     for (int64_t dz = -1; dz <= 1; ++dz)
-      for (int64_t dy = -1; dy <= 1; ++dy, shift += 3) c |= row3(p + dy * sy + dz * sz) << shift;
+      for (int64_t dy = -1; dy <= 1; ++dy, shift += 3) c |= three(r + dy + dz * py, x) << shift;
     return c;
   }
 };
@@ -153,8 +157,7 @@ constexpr uint64_t kOnes = 0x0101010101010101ull;
 constexpr uint8_t kDirty = 0x3F;  // dirty for the six directions
 
 struct Candidate {
-  int64_t index;  // padded index
-  int64_t row;    // its row in Work::rows: z (ny+2) + y
+  int64_t r, x;   // padded row and x
   uint32_t cube;  // its neighbourhood word when collected
 };
 constexpr int64_t kSlack = 16;
@@ -170,49 +173,56 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
   Lee94Result result;
   Lee94Statistics& st = result.stats;
   const int threads = effective_threads(options.threads);
-  Work w;
-  w.nx = mask.nx();
-  w.ny = mask.ny();
-  w.nz = mask.nz();
-  const int64_t px = w.nx + 2, py = w.ny + 2, pz = w.nz + 2;
-  w.sy = px;
-  w.sz = px * py;
   if (mask.size() == 0) {
     result.skeleton = VolumeU8(mask.grid(), 0);
     return result;
   }
-  const int64_t padded = px * py * pz;
-  w.img.reset(new uint8_t[static_cast<size_t>(padded + kSlack)]());
+  Work w;
+  w.nx = mask.nx();
+  w.ny = mask.ny();
+  w.nz = mask.nz();
+  w.px = w.nx + 2;
+  w.py = w.ny + 2;
+  w.pz = w.nz + 2;
+  w.words = (w.px + 63) / 64 + 1;
+  const int64_t nrows = w.py * w.pz, padded = w.px * nrows;
+  w.bits.reset(new uint64_t[static_cast<size_t>(nrows * w.words)]());
   w.dirty.reset(new uint8_t[static_cast<size_t>(padded + kSlack)]);
-  w.rows.reset(new uint8_t[static_cast<size_t>(py * pz)]);
-  std::fill_n(w.rows.get(), py * pz, uint8_t{0x3F});
+  w.rows.reset(new uint8_t[static_cast<size_t>(nrows)]);
+  std::fill_n(w.rows.get(), nrows, uint8_t{0x3F});
   const EulerTables& euler = euler_tables();
-  st.bytes = static_cast<uint64_t>(2 * (padded + kSlack) + py * pz);
+  st.bytes = static_cast<uint64_t>(nrows * w.words * 8 + padded + kSlack + nrows);
+  const int64_t py = w.py;
 
-  // Padded 0/1 copy, every voxel dirty for every direction; object voxel count per plane, summed in
-  // plane order.
-  std::vector<int64_t> plane_count(static_cast<size_t>(w.nz), 0);
-  parallel_for(0, pz, threads, [&](int64_t z0, int64_t z1) {
-    std::memset(w.dirty.get() + z0 * w.sz, kDirty, static_cast<size_t>((z1 - z0) * w.sz));
+  // Bits of the mask (non-zero -> 1), every voxel dirty for every direction; object voxel count per
+  // plane, summed in plane order.
+  parallel_for(0, w.pz, threads, [&](int64_t z0, int64_t z1) {
+    std::memset(w.dirty.get() + z0 * w.px * w.py, kDirty, static_cast<size_t>((z1 - z0) * w.px * w.py));
   });
+  std::memset(w.dirty.get() + padded, 0, kSlack);
+  std::vector<int64_t> plane_count(static_cast<size_t>(w.nz), 0);
   parallel_for(0, w.nz, threads, [&](int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z) {
       int64_t count = 0;
       for (int64_t y = 0; y < w.ny; ++y) {
         const uint8_t* s = mask.data() + mask.index(0, y, z);
-        uint8_t* d = w.img.get() + (z + 1) * w.sz + (y + 1) * w.sy + 1;
-        int64_t x = 0;
-        for (; x + 8 <= w.nx; x += 8) {  // eight bytes at a time: non-zero -> 1
-          uint64_t v;
-          std::memcpy(&v, s + x, 8);
-          v = ((((v & (kOnes * 0x7F)) + kOnes * 0x7F) | v) >> 7) & kOnes;
-          std::memcpy(d + x, &v, 8);
-          count += __builtin_popcountll(v);
+        uint64_t* row = w.bits.get() + ((z + 1) * py + y + 1) * w.words;
+        for (int64_t x = 0; x < w.nx;) {  // voxel x -> padded bit x + 1
+          if (x + 8 <= w.nx) {  // eight bytes at a time: non-zero -> 1, packed to 8 bits
+            uint64_t v;
+            std::memcpy(&v, s + x, 8);
+            v = ((((v & (kOnes * 0x7F)) + kOnes * 0x7F) | v) >> 7) & kOnes;
+            const uint64_t b8 = (v * 0x0102040810204080ull) >> 56;
+            const int64_t bit = x + 1;
+            row[bit >> 6] |= b8 << (bit & 63);
+            if ((bit & 63) > 56) row[(bit >> 6) + 1] |= b8 >> (64 - (bit & 63));
+            x += 8;
+          } else {
+            if (s[x] != 0) row[(x + 1) >> 6] |= uint64_t{1} << ((x + 1) & 63);
+            ++x;
+          }
         }
-        for (; x < w.nx; ++x) {
-          d[x] = s[x] != 0;
-          count += d[x];
-        }
+        for (int64_t k = 0; k < w.words; ++k) count += __builtin_popcountll(row[k]);
       }
       plane_count[static_cast<size_t>(z)] = count;
     }
@@ -220,61 +230,51 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
   for (int64_t c : plane_count) st.object_voxels += c;
 
   // skimage/Fiji border order 4, 3, 2, 1, 5, 6 = W (y-1), E (y+1), S (x+1), N (x-1), U (z+1), B (z-1).
-  const std::array<int64_t, 6> offsets = {-w.sy, w.sy, 1, -1, w.sz, -w.sz};
   const int directions = w.nz == 1 ? 4 : 6;  // skimage: padded shape[0] == 3 -> four borders
 
   const int64_t rows = w.ny * w.nz;
   const int64_t chunks = std::min<int64_t>(rows, threads == 1 ? 1 : 8 * static_cast<int64_t>(threads));
   std::vector<int64_t> st_rows(static_cast<size_t>(chunks), 0);
-  // Per chunk: the candidates (padded index and the neighbourhood word seen when collected) and the
-  // rows scanned.
   std::vector<std::vector<Candidate>> cand(static_cast<size_t>(chunks));
 
   auto collect = [&](int dir) {
-    const int64_t off = offsets[static_cast<size_t>(dir)];
     const uint8_t bit = static_cast<uint8_t>(1u << dir);
-    const uint64_t clear = ~(kOnes << dir);
-    // Dirty voxels of flagged rows, in raster order; a thread reads the image anywhere (unchanged
-    // during collection) and writes the flags and dirty bits of its own rows only.
+    const int64_t row_off = dir == 0 ? -1 : dir == 1 ? 1 : dir == 4 ? py : dir == 5 ? -py : 0;
+    // Border voxels of flagged rows, 64 at a time, in raster order; the dirty ones are examined. A
+    // thread reads the image anywhere (unchanged during collection) and writes the row flags and dirty
+    // bytes of its own rows only.
     parallel_chunks(0, rows, chunks, threads, [&](int64_t c, int64_t r0, int64_t r1) {
       std::vector<Candidate>& out = cand[static_cast<size_t>(c)];
       out.clear();
       int64_t scanned = 0;
-      for (int64_t r = r0; r < r1; ++r) {
-        const int64_t y = r % w.ny + 1, z = r / w.ny + 1;
-        uint8_t& flag = w.rows[static_cast<size_t>(z * py + y)];
+      for (int64_t rr = r0; rr < r1; ++rr) {
+        const int64_t r = (rr / w.ny + 1) * py + rr % w.ny + 1;
+        uint8_t& flag = w.rows[static_cast<size_t>(r)];
         if (!(flag & bit)) continue;
         flag = static_cast<uint8_t>(flag & ~bit);
         ++scanned;
-        const int64_t base = z * w.sz + y * w.sy;
-        const uint8_t* row = w.img.get() + base;
-        uint8_t* drow = w.dirty.get() + base;
-        for (int64_t x0 = 1; x0 <= w.nx; x0 += 8) {
-          uint64_t a, b, d;
-          std::memcpy(&d, drow + x0, 8);
-          const int64_t left = w.nx + 1 - x0;
-          uint64_t m = (d >> dir) & kOnes;
-          if (left >= 8) {
-            if (m == 0) continue;
-            d &= clear;
-            std::memcpy(drow + x0, &d, 8);
-          } else {
-            m &= (uint64_t{1} << (8 * left)) - 1;
-            if (m == 0) continue;
-            for (int64_t k = 0; k < left; ++k) drow[x0 + k] = static_cast<uint8_t>(drow[x0 + k] & ~bit);
-          }
-          std::memcpy(&a, row + x0, 8);
-          std::memcpy(&b, row + x0 + off, 8);
-          m &= a & ~b;
+        const uint64_t* a_row = w.row(r);
+        const uint64_t* b_row = w.row(r + row_off);
+        uint8_t* drow = w.dirty.get() + r * w.px;
+        for (int64_t k = 0; k + 1 < w.words; ++k) {
+          const uint64_t a = a_row[k];
+          if (a == 0) continue;
+          uint64_t b;
+          if (dir == 2) b = (a >> 1) | (a_row[k + 1] << 63);
+          else if (dir == 3) b = (a << 1) | (k > 0 ? a_row[k - 1] >> 63 : 0);
+          else b = b_row[k];
+          uint64_t m = a & ~b;
           while (m != 0) {
-            const int64_t x = x0 + (__builtin_ctzll(m) >> 3);
+            const int64_t x = 64 * k + __builtin_ctzll(m);
             m &= m - 1;
-            const int64_t i = base + x;
-            const uint32_t cube = w.cube(i);
+            uint8_t& d = drow[x];
+            if (!(d & bit)) continue;
+            d = static_cast<uint8_t>(d & ~bit);
+            const uint32_t cube = w.cube(r, x);
             if (__builtin_popcount(cube) == 2) continue;  // end point (the centre is counted)
             if (!euler_invariant_fast(euler, cube)) continue;
             if (!one_component_or_none(cube)) continue;
-            out.push_back({i, z * py + y, cube});
+            out.push_back({r, x, cube});
           }
         }
       }
@@ -282,14 +282,13 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
     });
   };
 
-  // After a deletion: the 26 neighbours (and the deleted voxel, now background) are dirty for every
-  // direction, and so are their rows.
+  // After a deletion: the 3x3x3 block around it is dirty for every direction, and so are its rows.
   auto mark = [&](const Candidate& k) {
     for (int64_t dz = -1; dz <= 1; ++dz) {
-      uint8_t* f = w.rows.get() + k.row + dz * py;
+      uint8_t* f = w.rows.get() + k.r + dz * py;
       f[-1] = f[0] = f[1] = 0x3F;
       for (int64_t dy = -1; dy <= 1; ++dy) {
-        uint8_t* p = w.dirty.get() + k.index - 1 + dz * w.sz + dy * w.sy;
+        uint8_t* p = w.dirty.get() + (k.r + dy + dz * py) * w.px + k.x - 1;
         uint32_t v;  // bytes x-1, x, x+1 (and x+2, rewritten unchanged: this runs on one thread)
         std::memcpy(&v, p, 4);
         v |= 0x003F3F3Fu;
@@ -309,12 +308,12 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
         st.candidates += static_cast<int64_t>(list.size());
         for (const Candidate& k : list) {
           // Only deletions happen here: an unchanged neighbourhood word is still one component.
-          const uint32_t cube = w.cube(k.index);
+          const uint32_t cube = w.cube(k.r, k.x);
           if (cube != k.cube && !one_component_or_none(cube)) {
             ++st.rejected;
             continue;
           }
-          w.img[static_cast<size_t>(k.index)] = 0;
+          w.bits[static_cast<size_t>(k.r * w.words + (k.x >> 6))] &= ~(uint64_t{1} << (k.x & 63));
           ++st.removed;
           if ((cube & ~kCentre) == 0) ++st.vanished_components;
           mark(k);
@@ -339,9 +338,9 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
       int64_t count = 0;
       for (int64_t y = 0; y < w.ny; ++y) {
         uint8_t* d = result.skeleton.data() + result.skeleton.index(0, y, z);
-        const uint8_t* s = w.img.get() + (z + 1) * w.sz + (y + 1) * w.sy + 1;
-        std::memcpy(d, s, static_cast<size_t>(w.nx));
-        for (int64_t x = 0; x < w.nx; ++x) count += s[x];
+        const uint64_t* row = w.row((z + 1) * py + y + 1);
+        for (int64_t x = 0; x < w.nx; ++x) d[x] = static_cast<uint8_t>((row[(x + 1) >> 6] >> ((x + 1) & 63)) & 1u);
+        for (int64_t k = 0; k < w.words; ++k) count += __builtin_popcountll(row[k]);
       }
       plane_left[static_cast<size_t>(z)] = count;
     }
