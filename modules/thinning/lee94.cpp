@@ -130,9 +130,10 @@ struct Work {
   int64_t px = 0, py = 0, pz = 0;  // padded dims
   int64_t words = 0;               // W: 64-bit words per row
   std::unique_ptr<uint64_t[]> bits;
-  // Byte per padded voxel (index r px + x): bit d = "dirty for direction d": a voxel of its 3x3x3
-  // neighbourhood was deleted since direction d last collected candidates, or it was never examined.
-  // Only dirty border voxels are examined. Collecting threads write the bytes of their own rows only.
+  // Byte per group of eight voxels (bits 8j..8j+7 of a row; byte r 8W + j): bit d = "dirty for
+  // direction d": a voxel of the 3x3x3 neighbourhood of a voxel of the group was deleted since
+  // direction d last scanned the row, or the row was never scanned. Only border voxels of dirty
+  // groups are examined. Collecting threads write the bytes of their own rows only.
   std::unique_ptr<uint8_t[]> dirty;
   std::unique_ptr<uint8_t[]> rows;  // per row r: bit d = row must be scanned for direction d
 
@@ -155,6 +156,14 @@ struct Work {
 
 constexpr uint64_t kOnes = 0x0101010101010101ull;
 constexpr uint8_t kDirty = 0x3F;  // dirty for the six directions
+
+// Byte i of kBitsToBytes[b] = bit i of b.
+constexpr std::array<uint64_t, 256> kBitsToBytes = [] {
+  std::array<uint64_t, 256> t{};
+  for (uint64_t b = 0; b < 256; ++b)
+    for (int i = 0; i < 8; ++i) t[b] |= ((b >> i) & 1u) << (8 * i);
+  return t;
+}();
 
 struct Candidate {
   int64_t r, x;   // padded row and x
@@ -185,21 +194,21 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
   w.py = w.ny + 2;
   w.pz = w.nz + 2;
   w.words = (w.px + 63) / 64 + 1;
-  const int64_t nrows = w.py * w.pz, padded = w.px * nrows;
+  const int64_t nrows = w.py * w.pz;
   w.bits.reset(new uint64_t[static_cast<size_t>(nrows * w.words)]());
-  w.dirty.reset(new uint8_t[static_cast<size_t>(padded + kSlack)]);
+  const int64_t group_bytes = nrows * w.words * 8;
+  w.dirty.reset(new uint8_t[static_cast<size_t>(group_bytes)]);
   w.rows.reset(new uint8_t[static_cast<size_t>(nrows)]);
   std::fill_n(w.rows.get(), nrows, uint8_t{0x3F});
   const EulerTables& euler = euler_tables();
-  st.bytes = static_cast<uint64_t>(nrows * w.words * 8 + padded + kSlack + nrows);
+  st.bytes = static_cast<uint64_t>(2 * group_bytes + nrows);
   const int64_t py = w.py;
 
   // Bits of the mask (non-zero -> 1), every voxel dirty for every direction; object voxel count per
   // plane, summed in plane order.
   parallel_for(0, w.pz, threads, [&](int64_t z0, int64_t z1) {
-    std::memset(w.dirty.get() + z0 * w.px * w.py, kDirty, static_cast<size_t>((z1 - z0) * w.px * w.py));
+    std::memset(w.dirty.get() + z0 * py * w.words * 8, kDirty, static_cast<size_t>((z1 - z0) * py * w.words * 8));
   });
-  std::memset(w.dirty.get() + padded, 0, kSlack);
   std::vector<int64_t> plane_count(static_cast<size_t>(w.nz), 0);
   parallel_for(0, w.nz, threads, [&](int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z) {
@@ -255,21 +264,24 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
         ++scanned;
         const uint64_t* a_row = w.row(r);
         const uint64_t* b_row = w.row(r + row_off);
-        uint8_t* drow = w.dirty.get() + r * w.px;
+        uint8_t* drow = w.dirty.get() + r * w.words * 8;
         for (int64_t k = 0; k + 1 < w.words; ++k) {
+          uint64_t g;  // the eight groups of this word
+          std::memcpy(&g, drow + 8 * k, 8);
+          const uint64_t gd = (g >> dir) & kOnes;
+          if (gd == 0) continue;
+          g &= ~(kOnes << dir);
+          std::memcpy(drow + 8 * k, &g, 8);
           const uint64_t a = a_row[k];
           if (a == 0) continue;
           uint64_t b;
           if (dir == 2) b = (a >> 1) | (a_row[k + 1] << 63);
           else if (dir == 3) b = (a << 1) | (k > 0 ? a_row[k - 1] >> 63 : 0);
           else b = b_row[k];
-          uint64_t m = a & ~b;
+          uint64_t m = a & ~b & (gd * 0xFF);
           while (m != 0) {
             const int64_t x = 64 * k + __builtin_ctzll(m);
             m &= m - 1;
-            uint8_t& d = drow[x];
-            if (!(d & bit)) continue;
-            d = static_cast<uint8_t>(d & ~bit);
             const uint32_t cube = w.cube(r, x);
             if (__builtin_popcount(cube) == 2) continue;  // end point (the centre is counted)
             if (!euler_invariant_fast(euler, cube)) continue;
@@ -282,17 +294,16 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
     });
   };
 
-  // After a deletion: the 3x3x3 block around it is dirty for every direction, and so are its rows.
+  // After a deletion: the groups of the 3x3x3 block around it are dirty for every direction, and so
+  // are its rows.
   auto mark = [&](const Candidate& k) {
     for (int64_t dz = -1; dz <= 1; ++dz) {
       uint8_t* f = w.rows.get() + k.r + dz * py;
       f[-1] = f[0] = f[1] = 0x3F;
       for (int64_t dy = -1; dy <= 1; ++dy) {
-        uint8_t* p = w.dirty.get() + (k.r + dy + dz * py) * w.px + k.x - 1;
-        uint32_t v;  // bytes x-1, x, x+1 (and x+2, rewritten unchanged: this runs on one thread)
-        std::memcpy(&v, p, 4);
-        v |= 0x003F3F3Fu;
-        std::memcpy(p, &v, 4);
+        uint8_t* g = w.dirty.get() + (k.r + dy + dz * py) * w.words * 8;
+        g[(k.x - 1) >> 3] = kDirty;  // the groups of x-1 and x+1 (the same one or neighbours)
+        g[(k.x + 1) >> 3] = kDirty;
       }
     }
   };
@@ -339,7 +350,15 @@ Lee94Result thin_lee94(const VolumeU8& mask, const Lee94Options& options) {
       for (int64_t y = 0; y < w.ny; ++y) {
         uint8_t* d = result.skeleton.data() + result.skeleton.index(0, y, z);
         const uint64_t* row = w.row((z + 1) * py + y + 1);
-        for (int64_t x = 0; x < w.nx; ++x) d[x] = static_cast<uint8_t>((row[(x + 1) >> 6] >> ((x + 1) & 63)) & 1u);
+        const auto* bytes = reinterpret_cast<const unsigned char*>(row);
+        int64_t x = 0;
+        for (; x + 8 <= w.nx; x += 8) {  // padded bits x+1..x+8 -> eight bytes
+          uint64_t v;
+          std::memcpy(&v, bytes + ((x + 1) >> 3), 8);
+          const uint64_t e = kBitsToBytes[(v >> ((x + 1) & 7)) & 0xFFu];
+          std::memcpy(d + x, &e, 8);
+        }
+        for (; x < w.nx; ++x) d[x] = static_cast<uint8_t>((row[(x + 1) >> 6] >> ((x + 1) & 63)) & 1u);
         for (int64_t k = 0; k < w.words; ++k) count += __builtin_popcountll(row[k]);
       }
       plane_left[static_cast<size_t>(z)] = count;
