@@ -132,6 +132,22 @@ TEST(Lee94, MatchesLiteralPortOfScikitImage) {
     ++tested;
   }
   EXPECT_EQ(tested, 24);
+  // Rows longer than one 64-bit word of the packed image (x crossing word boundaries at 63/64, 127/128).
+  for (int64_t nx : {62, 63, 64, 65, 127, 130, 200}) {
+    const VolumeU8 b = test::random_blobs(48, static_cast<uint32_t>(nx), 0.47, 2);
+    VolumeU8 m(Dims{nx, 14, 11}, 0);
+    for (int64_t z = 0; z < 11; ++z)
+      for (int64_t y = 0; y < 14; ++y)
+        for (int64_t x = 0; x < nx; ++x) m(x, y, z) = b((x * 7) % 48, y + 3, z + 5);  // x scrambled: no period
+    for (int64_t y = 0; y < 14; y += 5) m(nx - 1, y, 5) = 1;  // voxels on the last column
+    const VolumeU8 ref = test::lee94_port::skeletonize_3d(m);
+    EXPECT_GT(count(ref), 0) << nx;
+    for (int threads : {1, 3}) {
+      Lee94Options o;
+      o.threads = threads;
+      EXPECT_TRUE(thin_lee94(m, o).skeleton == ref) << "nx " << nx << " threads " << threads;
+    }
+  }
   // Larger: blobs 40^3 at two densities.
   for (double t : {0.46, 0.5}) {
     const VolumeU8 m = test::random_blobs(40, 9, t, 2);
@@ -206,11 +222,11 @@ TEST(Lee94, IdenticalToLiveScikitImage) {
                     "(IdenticalToScikitImageReferences) still run";
   const std::filesystem::path dir = std::filesystem::path(SKEL_BINARY_DIR) / "lee94_live";
   std::filesystem::create_directories(dir);
-  const VolumeU8 blobs = test::random_blobs(56, 21, 0.46, 3);
-  VolumeU8 m(Dims{56, 48, 40}, 0);  // non-cubic, touching the border
+  const VolumeU8 blobs = test::random_blobs(68, 21, 0.47, 2);
+  VolumeU8 m(Dims{136, 48, 40}, 0);  // non-cubic, rows longer than two 64-bit words, touching the border
   for (int64_t z = 0; z < 40; ++z)
     for (int64_t y = 0; y < 48; ++y)
-      for (int64_t x = 0; x < 56; ++x) m(x, y, z) = blobs(x, y, z);
+      for (int64_t x = 0; x < 136; ++x) m(x, y, z) = blobs(x < 68 ? x : x - 68, y, z);
   const std::string in = (dir / "mask.raw").string(), out = (dir / "skeleton.raw").string();
   {
     std::ofstream f(in, std::ios::binary);
@@ -218,7 +234,7 @@ TEST(Lee94, IdenticalToLiveScikitImage) {
   }
   const std::string cmd = "/usr/bin/python3 -c \"import numpy as np\ntry:\n from skimage.morphology import "
                           "skeletonize_3d as s\nexcept ImportError:\n from skimage.morphology import skeletonize "
-                          "as s\na = np.fromfile('" + in + "', np.uint8).reshape(40, 48, 56)\n(s(a) > "
+                          "as s\na = np.fromfile('" + in + "', np.uint8).reshape(40, 48, 136)\n(s(a) > "
                           "0).astype(np.uint8).tofile('" + out + "')\"";
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   VolumeU8 ref(m.dims(), 0);
