@@ -134,14 +134,15 @@ neighbourhood is one 26-component; then re-checks them one by one in that order 
 passing the component test. It stops after a pass that deletes nothing. Voxels outside the array are
 background (scikit-image pads by one voxel).
 
-Speed: a padded working copy; neighbourhood words from nine 3-byte row loads; the Euler test as two
-look-ups in 128 KiB tables (the octants of the lower and of the upper half of the cube); the component test
-as bit-parallel dilations; candidate collection on the threads (row chunks concatenated in raster order,
-so results are identical for any thread count); after the first pass only rows within one voxel of a
-deletion made since that direction was last collected are scanned.
+Speed: the padded object packed as bits (it stays in cache); border voxels found 64 at a time; the
+Euler test as two look-ups in 128 KiB tables (the octants of the lower and of the upper half of the cube);
+the component test as bit-parallel dilations; candidate collection on the threads (row chunks concatenated
+in raster order, so results are identical for any thread count); after the first pass only voxels near a
+deletion made since that direction last looked are examined (flags per row and per group of eight voxels).
 
-Memory: 1 byte per voxel of the skeleton output plus 1 byte per voxel for the padded working copy
-((nx+2)(ny+2)(nz+2)), 1 byte per (y, z) row, and 8 bytes per candidate of one sub-iteration (at most the
+Memory: 1 byte per voxel for the skeleton output; working memory about 1/4 byte per voxel (the padded
+object as bits, (nx+2)(ny+2)(nz+2)/8 bytes rounded up to 64-bit words per row, and as much again for the
+dirty flags), 1 byte per (y, z) row, and 24 bytes per candidate of one sub-iteration (at most the
 object's boundary layer); the mask is read only.)");
   }
   void run(RunContext& ctx) override {
