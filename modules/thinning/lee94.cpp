@@ -51,8 +51,8 @@ inline bool one_component_or_none(uint32_t cube) {
 }
 
 // ---------------------------------------------------------------- Euler invariance (Lee's table 2)
-// skimage's LUT: column delta G_26 of Lee et al.'s table 2, indexed by an octant's eight voxels
-// (bit 0 = the centre, always set).
+// skimage's LUT (column delta G_26 of Lee et al.'s table 2) at its odd indices n = 2i + 1, i.e. with
+// the centre bit set: kEulerOdd[i] = LUT[2i + 1], i = the octant's seven neighbours as bits 6..0.
 constexpr std::array<int8_t, 128> kEulerOdd = {
     1,  -1, -1, 1,  -3, -1, -1, 1,  -1, 1,  1,  -1, 3,  1,  1,  -1, -3, -1, 3,  1,  1,  -1, 3,  1,  -1, 1,
     1,  -1, 3,  1,  1,  -1, -3, 3,  -1, 1,  1,  3,  -1, 1,  -1, 1,  1,  -1, 3,  1,  1,  -1, 1,  3,  3,  1,
@@ -98,7 +98,8 @@ struct EulerTables {
       std::array<std::array<uint8_t, 256>, 4> b{};
       auto cube_of = [half](uint32_t i) { return half == 0 ? low_cube(i) : high_cube(i); };
       for (int o = 0; o < 4; ++o) {
-        for (uint32_t i = 0; i < 512; ++i) a[static_cast<size_t>(o)][i] = static_cast<uint8_t>(octant_index(4 * half + o, cube_of(i)));
+        for (uint32_t i = 0; i < 512; ++i)
+          a[static_cast<size_t>(o)][i] = static_cast<uint8_t>(octant_index(4 * half + o, cube_of(i)));
         for (uint32_t i = 0; i < 256; ++i)
           b[static_cast<size_t>(o)][i] = static_cast<uint8_t>(octant_index(4 * half + o, cube_of(i << 9)));
       }
