@@ -140,10 +140,11 @@ the component test as bit-parallel dilations; candidate collection on the thread
 in raster order, so results are identical for any thread count); after the first pass only voxels near a
 deletion made since that direction last looked are examined (flags per row and per group of eight voxels).
 
-Memory: 1 byte per voxel for the skeleton output; working memory about 1/4 byte per voxel (the padded
-object as bits, (nx+2)(ny+2)(nz+2)/8 bytes rounded up to 64-bit words per row, and as much again for the
-dirty flags), 1 byte per (y, z) row, and 24 bytes per candidate of one sub-iteration (at most the
-object's boundary layer); the mask is read only.)");
+Memory: 1 byte per voxel for the skeleton output; working memory 0.15-0.2 bytes per voxel for the padded
+object as bits (one 64-bit word per 64 voxels of a row plus one spare word per row) and as much again for
+the dirty flags, 1 byte per (y, z) row, and 24 bytes per candidate of one sub-iteration (at most the
+object's boundary layer: in total 0.7-1.5 bytes per voxel on the benchmark's rods and plates); the mask is
+read only.)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
