@@ -4,5 +4,6 @@
 namespace skel::thinning::names {
 
 inline constexpr const char* doht = "thinning.doht";
+inline constexpr const char* lee94 = "thinning.lee94";
 
 }  // namespace skel::thinning::names
