@@ -26,7 +26,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git ccache
   qtbase5-dev libqt5opengl5-dev libvtk9-dev libvtk9-qt-dev
   libhdf5-dev zlib1g-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libeigen3-dev libtbb-dev libnanoflann-dev
+  libeigen3-dev libtbb-dev libnanoflann-dev libexpat1-dev
   libopenmpi-dev libhdf5-openmpi-dev
   xvfb xauth
   python3-scipy python3-skimage python3-h5py python3-numpy

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "common/bench_util.hpp"
 #include "distance/distance.hpp"
@@ -15,6 +16,22 @@ using namespace skel;
 int main(int argc, char** argv) {
   const int threads = argc > 1 ? std::atoi(argv[1]) : 2;
   const bool big = argc > 2 && std::string(argv[2]) == "big";
+  // Optional third argument: the thresholds to run, comma-separated (default 20,40,80), for quick
+  // before/after comparisons.
+  std::vector<int64_t> thresholds = {20, 40, 80};
+  if (argc > 3) {
+    thresholds.clear();
+    for (const char* p = argv[3]; *p;) {
+      char* e = nullptr;
+      const long long t = std::strtoll(p, &e, 10);
+      if (e == p || t < 1) {
+        std::fprintf(stderr, "bench_geodesic: thresholds must be positive integers, e.g. 20,40\n");
+        return 2;
+      }
+      thresholds.push_back(t);
+      p = *e == ',' ? e + 1 : e;
+    }
+  }
   std::printf("## Geodesic boundary distance\n\n");
   std::printf("Threshold mode, %d threads. Yardstick: `distance.euclidean` (exact EDT) on the same mask in the same run. "
               "k = object voxels, |L| = boundary-layer voxels; searches = breadth-first searches run (one per base point, "
@@ -35,7 +52,7 @@ int main(int argc, char** argv) {
       distance::EuclideanOptions eo;
       eo.threads = threads;
       const double edt = bench::best_of(1, [&] { (void)distance::euclidean(ph.mask, eo); });
-      for (int64_t t : {20, 40, 80}) {
+      for (int64_t t : thresholds) {
         if (n == 512 && t == 80) continue;  // minutes; the trend is clear from the rest
         geodesic::Options go;
         go.threshold = t;

@@ -473,31 +473,55 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
     pool.push_back(std::move(s));
   };
 
-  // Work: bases with a non-empty bucket, in L order, found by walking the words of L (which gives
-  // their positions too). Chunks of words are processed in parallel; each base is claimed exactly
-  // once, and every value is exact (searches) or a proven saturation, so the result does not depend
-  // on the thread count or on who claimed a base.
+  // Work: bases with a non-empty bucket, found by walking the words of L (which gives their
+  // positions too). Each base is claimed exactly once, and every value is exact (searches) or a
+  // proven saturation, so the importance never depends on who claimed a base. The diagnostic counts
+  // (searches, pivots, saturated, visited) do depend on it, so claims are made deterministic: the
+  // padded domain is cut into blocks of z-slabs x y-bands, each at least 2*margin + 2 voxels thick,
+  // coloured by the parity of (slab, band), and the four colours run one after the other. A block is
+  // processed by one worker in L order; a pivot claims only bases within `margin` steps (26-steps,
+  // so within `margin` in z and y): never in another block of the same colour, and no base is
+  // within reach of two blocks of one colour. So the claims, and with them every count, are those
+  // of a fixed sequential order, whatever the thread count (the blocks do not depend on it).
   {
     int64_t nb = 0;
     for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
     sh.n_bases = nb;
   }
-  const int64_t lwords = static_cast<int64_t>(P.layer.word_count());
-  const int64_t chunks = std::max<int64_t>(1, std::min<int64_t>(lwords, nthreads * 64));
-  parallel_chunks(0, lwords, chunks, nthreads, [&](int64_t, int64_t w0, int64_t w1) {
-    auto S = acquire();
-    for (int64_t w = w0; w < w1; ++w) {
-      uint64_t bits = P.layer.word(static_cast<size_t>(w));
-      uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
-      for (; bits; bits &= bits - 1, ++a) {
-        if (!sh.B.has_work(a) || !sh.claim(a)) continue;
-        process_base(sh, *S, a, w * 64 + std::countr_zero(bits));
+  const Domain& D = P.dom;
+  const int64_t extent = 2 * static_cast<int64_t>(pivot_margin) + 2;
+  const int64_t nbz = std::max<int64_t>(1, D.BZ / std::max<int64_t>(extent, 8));
+  const int64_t nby = std::max<int64_t>(1, D.BY / std::max<int64_t>(extent, 8));
+  const int64_t rw = D.row_words();
+  for (int colour = 0; colour < 4; ++colour) {
+    std::vector<std::pair<int64_t, int64_t>> blocks;
+    for (int64_t iz = colour / 2; iz < nbz; iz += 2)
+      for (int64_t iy = colour % 2; iy < nby; iy += 2) blocks.emplace_back(iz, iy);
+    parallel_for(0, static_cast<int64_t>(blocks.size()), nthreads, [&](int64_t b0, int64_t b1) {
+      auto S = acquire();
+      for (int64_t bi = b0; bi < b1; ++bi) {
+        const auto [iz, iy] = blocks[static_cast<size_t>(bi)];
+        const int64_t z0 = D.BZ * iz / nbz, z1 = D.BZ * (iz + 1) / nbz;
+        const int64_t y0 = D.BY * iy / nby, y1 = D.BY * (iy + 1) / nby;
+        for (int64_t z = z0; z < z1; ++z) {
+          for (int64_t y = y0; y < y1; ++y) {
+            const int64_t row = (z * D.BY + y) * rw;
+            for (int64_t w = row; w < row + rw; ++w) {
+              uint64_t bits = P.layer.word(static_cast<size_t>(w));
+              uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
+              for (; bits; bits &= bits - 1, ++a) {
+                if (!sh.B.has_work(a) || !sh.claim(a)) continue;
+                process_base(sh, *S, a, w * 64 + std::countr_zero(bits));
+              }
+            }
+          }
+          search_progress.check(static_cast<double>(sh.done_bases.load()) /
+                                static_cast<double>(std::max<int64_t>(1, sh.n_bases.load())));
+        }
       }
-      if ((w & 1023) == 0)
-        search_progress.check(static_cast<double>(sh.done_bases.load()) / static_cast<double>(std::max<int64_t>(1, sh.n_bases.load())));
-    }
-    release(std::move(S));
-  });
+      release(std::move(S));
+    });
+  }
   uint64_t bytes = 0;
   for (const auto& sc : pool) bytes += sc->bytes();
   return bytes;

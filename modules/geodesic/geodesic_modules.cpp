@@ -41,7 +41,9 @@ visited voxels (a search costs what it visits, never the size of L). When a sear
 extended to t + t/4 and settles, by the triangle inequality, the far targets of every base point within
 t/4 of it (a pivot), which saves most long searches on plates; voxels with a target so proved to
 saturate need no further search. Targets in another component of L are known to be infinite without
-searching. Results are identical for any thread count.
+searching. Results, and the search counts (searches, pivots, saturated targets, visited voxels), are
+identical for any thread count: the grid is cut into blocks (z-slabs x y-bands at least 2·t/4 + 2
+voxels thick) run in four passes by the parity of (slab, band), so no two workers reach the same base.
 
 Memory (beyond the input mask and the two outputs; the larger of two phases): 4 bits per voxel of the
 padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 bytes per object voxel and

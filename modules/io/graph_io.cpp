@@ -8,7 +8,9 @@
 #include <cstdlib>
 #include <deque>
 #include <fstream>
+#include <limits>
 #include <map>
+#include <memory>
 #include <functional>
 #include <regex>
 #include <set>
@@ -17,6 +19,8 @@
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/text.hpp"
+
+#include <expat.h>
 
 namespace skel::io {
 
@@ -47,30 +51,6 @@ std::string xml_escape(const std::string& s) {
   }
   return o;
 }
-std::string xml_unescape(const std::string& s) {
-  if (s.find('&') == std::string::npos) return s;
-  std::string o;
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (s[i] != '&') {
-      o += s[i];
-      continue;
-    }
-    const size_t e = s.find(';', i);
-    const std::string ent = e == std::string::npos ? "" : s.substr(i + 1, e - i - 1);
-    if (ent == "lt") o += '<';
-    else if (ent == "gt") o += '>';
-    else if (ent == "amp") o += '&';
-    else if (ent == "quot") o += '"';
-    else if (ent == "apos") o += '\'';
-    else {
-      o += s[i];
-      continue;
-    }
-    i = e;
-  }
-  return o;
-}
-
 // Whitespace-separated numbers of text[begin, end). Messages start with `where`; with `file` set they
 // read "file:LINE: where: ..." where LINE counts from `first_line` at text[0] (the offending value's
 // line; the block's first line when values run out).
@@ -98,10 +78,17 @@ public:
     p_ = ptr;
     return v;
   }
+  // A finite value: coordinates and radii (`what` names the value in the message).
+  double next_finite(const char* what) {
+    const double v = next();
+    if (!std::isfinite(v)) throw InputError(where_last() + ": " + what + " is not a finite number");
+    return v;
+  }
   int64_t next_int() {
     const char* start = (skip(), p_);
     const double v = next();
     if (v != std::floor(v)) throw InputError(at(start) + ": expected an integer, got " + std::to_string(v));
+    if (std::abs(v) > 9.0e15) throw InputError(at(start) + ": integer " + text::format_double(v, 6) + " is out of range");
     return static_cast<int64_t>(v);
   }
   bool at_end() {
@@ -129,10 +116,24 @@ private:
   int64_t first_line_;
 };
 
+// A value stored as float: finite doubles beyond float's range would become infinite.
+float finite_float(double v, const NumberReader& r, const char* what) {
+  if (std::abs(v) > static_cast<double>(std::numeric_limits<float>::max()))
+    throw InputError(r.where_last() + ": " + what + " is not a finite number");
+  return static_cast<float>(v);
+}
+
 double to_num(const std::string& s, const std::string& where) {
   char* e = nullptr;
   const double v = std::strtod(s.c_str(), &e);
   if (e == s.c_str()) throw InputError(where + ": expected a number, got '" + s + "'");
+  return v;
+}
+
+// A coordinate or radius: a number that is finite.
+double finite_num(const std::string& s, const std::string& where, const char* what) {
+  const double v = to_num(s, where);
+  if (!std::isfinite(v)) throw InputError(where + ": " + what + " is not a finite number ('" + text::trim(s).substr(0, 24) + "')");
   return v;
 }
 
@@ -149,13 +150,17 @@ void check_node_id(int64_t id, int64_t n, const std::string& where) {
     throw InputError(where + ": node id " + std::to_string(id) + " out of range (" + std::to_string(n) + " nodes)");
 }
 
-// ---------------------------------------------------------------- minimal XML DOM
+// ---------------------------------------------------------------- XML (expat)
+// The elements of an XML file, parsed by expat (a streaming parser: nesting depth costs heap, never
+// stack). Elements live in one deque and link to their children by pointer, so neither building nor
+// destroying the tree recurses, however deep the file nests.
 struct Xml {
   std::string name;
   std::vector<std::pair<std::string, std::string>> attrs;
   std::string text;
+  int64_t line = 1;       // line of the start tag
   int64_t text_line = 1;  // line of the file where `text` starts (for messages)
-  std::vector<Xml> children;
+  std::vector<const Xml*> children;
   [[nodiscard]] const std::string* attr(const std::string& k) const {
     for (const auto& [a, v] : attrs)
       if (a == k) return &v;
@@ -166,89 +171,75 @@ struct Xml {
     return v ? *v : d;
   }
   [[nodiscard]] const Xml* child(const std::string& n) const {
-    for (const auto& c : children)
-      if (c.name == n) return &c;
+    for (const auto* c : children)
+      if (c->name == n) return c;
     return nullptr;
   }
 };
 
-Xml parse_xml(const std::string& s, const std::string& source) {
-  Xml root;
-  std::vector<Xml*> stack{&root};
-  size_t i = 0;
-  const size_t n = s.size();
-  // Line of offset `pos` (offsets only grow: count incrementally).
-  int64_t line = 1;
-  size_t counted = 0;
-  auto line_at = [&](size_t pos) {
-    for (; counted < pos && counted < n; ++counted) line += s[counted] == '\n';
-    return line;
-  };
-  auto where = [&](size_t pos) { return source + ":" + std::to_string(line_at(pos)); };
-  std::vector<int64_t> open_line{0};  // line of each open element's start tag
-  while (i < n) {
-    const size_t lt = s.find('<', i);
-    if (lt == std::string::npos) break;
-    if (lt > i) stack.back()->text.append(s, i, lt - i);
-    if (s.compare(lt, 4, "<!--") == 0) {
-      const size_t e = s.find("-->", lt);
-      if (e == std::string::npos) throw InputError(where(lt) + ": unterminated XML comment");
-      i = e + 3;
-      continue;
-    }
-    if (s.compare(lt, 2, "<?") == 0 || s.compare(lt, 2, "<!") == 0) {
-      const size_t e = s.find('>', lt);
-      if (e == std::string::npos) throw InputError(where(lt) + ": unterminated XML declaration");
-      i = e + 1;
-      continue;
-    }
-    const size_t gt = s.find('>', lt);
-    if (gt == std::string::npos) throw InputError(where(lt) + ": unterminated XML tag");
-    if (s[lt + 1] == '/') {
-      const std::string name = s.substr(lt + 2, gt - lt - 2);
-      if (stack.size() < 2 || stack.back()->name != name.substr(0, name.find_last_not_of(" \t\r\n") + 1))
-        throw InputError(where(lt) + ": unexpected closing tag </" + name + ">");
-      stack.back()->text = xml_unescape(stack.back()->text);
-      stack.pop_back();
-      open_line.pop_back();
-      i = gt + 1;
-      continue;
-    }
-    const bool self_close = s[gt - 1] == '/';
-    const std::string body = s.substr(lt + 1, gt - lt - 1 - (self_close ? 1 : 0));
-    Xml el;
-    size_t k = 0;
-    while (k < body.size() && !std::isspace(static_cast<unsigned char>(body[k]))) ++k;
-    el.name = body.substr(0, k);
-    while (k < body.size()) {
-      while (k < body.size() && std::isspace(static_cast<unsigned char>(body[k]))) ++k;
-      if (k >= body.size()) break;
-      const size_t eq = body.find('=', k);
-      if (eq == std::string::npos) break;
-      std::string key = body.substr(k, eq - k);
-      key.erase(key.find_last_not_of(" \t\r\n") + 1);
-      size_t q = eq + 1;
-      while (q < body.size() && std::isspace(static_cast<unsigned char>(body[q]))) ++q;
-      if (q >= body.size() || (body[q] != '"' && body[q] != '\''))
-        throw InputError(where(lt) + ": malformed attribute in <" + el.name + ">");
-      const size_t qe = body.find(body[q], q + 1);
-      if (qe == std::string::npos) throw InputError(where(lt) + ": unterminated attribute in <" + el.name + ">");
-      el.attrs.emplace_back(key, xml_unescape(body.substr(q + 1, qe - q - 1)));
-      k = qe + 1;
-    }
-    const int64_t start_line = line_at(lt);
-    el.text_line = line_at(gt + 1);
-    stack.back()->children.push_back(std::move(el));
-    if (!self_close) {
-      stack.push_back(&stack.back()->children.back());
-      open_line.push_back(start_line);
-    }
-    i = gt + 1;
+struct XmlDoc {
+  std::deque<Xml> elements;  // elements[0]: the document (its one child is the root element)
+  [[nodiscard]] const Xml& root() const { return elements.front(); }
+};
+
+XmlDoc parse_xml(const std::string& s, const std::string& source) {
+  struct State {
+    XmlDoc doc;
+    std::vector<Xml*> stack;
+    XML_Parser parser = nullptr;
+  } st;
+  st.doc.elements.emplace_back();
+  st.stack.push_back(&st.doc.elements.front());
+  std::unique_ptr<std::remove_pointer_t<XML_Parser>, void (*)(XML_Parser)> parser(XML_ParserCreate(nullptr),
+                                                                                  XML_ParserFree);
+  if (!parser) throw Error("XML parser: out of memory");
+  st.parser = parser.get();
+  XML_SetUserData(parser.get(), &st);
+  XML_SetElementHandler(
+      parser.get(),
+      [](void* ud, const XML_Char* name, const XML_Char** atts) {
+        auto& S = *static_cast<State*>(ud);
+        Xml& el = S.doc.elements.emplace_back();
+        el.name = name;
+        for (const XML_Char** a = atts; *a; a += 2) el.attrs.emplace_back(a[0], a[1]);
+        el.line = static_cast<int64_t>(XML_GetCurrentLineNumber(S.parser));
+        el.text_line = el.line;
+        S.stack.back()->children.push_back(&el);
+        S.stack.push_back(&el);
+      },
+      [](void* ud, const XML_Char*) { static_cast<State*>(ud)->stack.pop_back(); });
+  XML_SetCharacterDataHandler(parser.get(), [](void* ud, const XML_Char* text, int len) {
+    auto& S = *static_cast<State*>(ud);
+    Xml& el = *S.stack.back();
+    if (el.text.empty()) el.text_line = static_cast<int64_t>(XML_GetCurrentLineNumber(S.parser));
+    el.text.append(text, static_cast<size_t>(len));
+  });
+  // Fed in pieces: expat takes an int length.
+  constexpr size_t piece = size_t{1} << 30;
+  size_t off = 0;
+  XML_Status status = XML_STATUS_OK;
+  do {
+    const size_t n = std::min(piece, s.size() - off);
+    const bool last = off + n == s.size();
+    status = XML_Parse(parser.get(), s.data() + off, static_cast<int>(n), last ? 1 : 0);
+    off += n;
+    if (last) break;
+  } while (status == XML_STATUS_OK);
+  if (status != XML_STATUS_OK) {
+    const XML_Error code = XML_GetErrorCode(parser.get());
+    const int64_t end_line = 1 + std::count(s.begin(), s.end(), '\n');
+    const auto line = static_cast<int64_t>(XML_GetCurrentLineNumber(parser.get()));
+    const bool at_end = XML_GetCurrentByteIndex(parser.get()) >= static_cast<XML_Index>(s.size());
+    if (code == XML_ERROR_UNCLOSED_TOKEN || code == XML_ERROR_PARTIAL_CHAR)
+      throw InputError(source + ":" + std::to_string(line) + ": unterminated XML tag");
+    if (at_end && st.stack.size() > 1)
+      throw InputError(source + ":" + std::to_string(st.stack.back()->line) + ": unclosed XML element <" +
+                       st.stack.back()->name + "> (the file ends at line " + std::to_string(end_line) + ")");
+    throw InputError(source + ":" + std::to_string(line) + ":" +
+                     std::to_string(XML_GetCurrentColumnNumber(parser.get()) + 1) +
+                     ": XML syntax error: " + XML_ErrorString(code));
   }
-  if (stack.size() != 1)
-    throw InputError(source + ":" + std::to_string(open_line.back()) + ": unclosed XML element <" + stack.back()->name +
-                     "> (the file ends at line " + std::to_string(line_at(n)) + ")");
-  return root;
+  return std::move(st.doc);
 }
 
 // ---------------------------------------------------------------- Amira
@@ -324,6 +315,14 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
   if (first.find("ASCII") == std::string::npos)
     throw InputError(src + ": only ASCII AmiraMesh is supported, header says '" + first + "'");
   std::map<std::string, int64_t> counts;
+  std::map<std::string, int> count_line;
+  // Header integers (counts, components, block numbers) without std::stoll's exceptions.
+  auto header_int = [&](const std::string& digits, int line_no) {
+    int64_t v = 0;
+    if (!text::parse_int(digits, v) || v > std::numeric_limits<int32_t>::max() * int64_t{1024})
+      throw InputError(src + ":" + std::to_string(line_no) + ": number " + digits.substr(0, 24) + " is too large");
+    return v;
+  };
   struct Decl {
     std::string loc, type, name;
     int comps = 1;
@@ -346,9 +345,20 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
       data_start = pos;
       break;
     }
-    if (std::regex_match(line, m, def_re)) counts[m[1]] = std::stoll(m[2]);
-    else if (std::regex_search(line, m, decl_re))
-      decls[std::stoi(m[6])] = Decl{m[1], m[2], m[5], m[4].matched ? std::stoi(m[4]) : 1};
+    if (std::regex_match(line, m, def_re)) {
+      const int64_t c = header_int(m[2], line_no);
+      // Every element is at least one ASCII value of >= 2 bytes (digit and separator): a count the
+      // file cannot hold is refused here, before anything is allocated for it.
+      if (c > static_cast<int64_t>(text.size() / 2))
+        throw InputError(src + ":" + std::to_string(line_no) + ": 'define " + m[1].str() + " " + m[2].str() +
+                         "' declares more elements than a file of " + std::to_string(text.size()) + " bytes can hold");
+      counts[m[1]] = c;
+      count_line[m[1]] = line_no;
+    } else if (std::regex_search(line, m, decl_re)) {
+      const int64_t comps = m[4].matched ? header_int(m[4], line_no) : 1;
+      decls[static_cast<int>(std::min<int64_t>(header_int(m[6], line_no), std::numeric_limits<int>::max()))] =
+          Decl{m[1], m[2], m[5], static_cast<int>(std::min<int64_t>(comps, 1 << 20))};
+    }
     pos = e + 1;
   }
   if (data_start == std::string::npos) throw InputError(src + ": no data section (no line '@1')");
@@ -367,7 +377,8 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
         std::smatch m;
         if (std::regex_match(line, m, at_re)) {
           if (current >= 0) ranges[current] = {begin, p};
-          current = std::stoi(m[1]);
+          int64_t k = 0;
+          current = text::parse_int(m[1].str(), k) && k <= std::numeric_limits<int>::max() ? static_cast<int>(k) : -1;
           begin = e;
         }
       }
@@ -393,12 +404,18 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
                         "block @" + std::to_string(k) + (d == decls.end() ? std::string() : " (" + d->second.name + ")"), src);
   };
   const int64_t nn = count_of("VERTEX"), ne = count_of("EDGE"), np = count_of("POINT");
+  // Values per element of the structural blocks: 3 coordinates per vertex and point, 2 node ids and
+  // a point count per edge, each >= 2 bytes.
+  if (6 * nn + 6 * ne + 6 * np > static_cast<int64_t>(text.size()))
+    throw InputError(src + ": 'define VERTEX " + std::to_string(nn) + "', 'define EDGE " + std::to_string(ne) +
+                     "' and 'define POINT " + std::to_string(np) + "' need more values than a file of " +
+                     std::to_string(text.size()) + " bytes can hold");
   SpatialGraph g;
   g.positions.resize(nn);
   {
     auto r = reader(find_decl("VERTEX", "VertexCoordinates"));
     for (auto& p : g.positions)
-      for (int a = 0; a < 3; ++a) p[a] = static_cast<float>(r.next());
+      for (int a = 0; a < 3; ++a) p[a] = finite_float(r.next_finite("a coordinate"), r, "a coordinate");
   }
   g.edges.resize(ne);
   {
@@ -417,6 +434,9 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
     for (auto& c : npts) {
       c = r.next_int();
       if (c < 2) throw InputError(r.where_last() + ": an edge has " + std::to_string(c) + " points, expected >= 2");
+      if (c > np)
+        throw InputError(r.where_last() + ": an edge has " + std::to_string(c) + " points, more than 'define POINT " +
+                         std::to_string(np) + "'");
       sum += c;
     }
     if (sum != np)
@@ -427,7 +447,7 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
     for (int64_t e = 0; e < ne; ++e) {
       g.edges[e].points.resize(npts[e]);
       for (auto& p : g.edges[e].points)
-        for (int a = 0; a < 3; ++a) p[a] = static_cast<float>(r.next());
+        for (int a = 0; a < 3; ++a) p[a] = finite_float(r.next_finite("a coordinate"), r, "a coordinate");
     }
   }
   snap_ends(g);
@@ -438,11 +458,12 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
     auto r = reader(k);
     const bool is_int = d.type == "int" || d.type == "byte" || d.type == "short";
     if (d.loc == "POINT") {
+      const bool radius = d.name == "thickness" || d.name == "radius";
       auto& v = g.point_attributes[d.name == "thickness" ? "radius" : d.name];
       v.resize(ne);
       for (int64_t e = 0; e < ne; ++e) {
         v[e].resize(npts[e]);
-        for (auto& x : v[e]) x = static_cast<float>(r.next());
+        for (auto& x : v[e]) x = radius ? finite_float(r.next_finite("a radius"), r, "a radius") : static_cast<float>(r.next());
       }
     } else if (d.loc == "VERTEX" || d.loc == "EDGE") {
       const int64_t cnt = d.loc == "VERTEX" ? nn : ne;
@@ -453,7 +474,8 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
       } else {
         auto& v = (d.loc == "VERTEX" ? g.node_attributes : g.edge_attributes)[d.name];
         v.resize(cnt);
-        for (auto& x : v) x = static_cast<float>(r.next());
+        const bool radius = d.loc == "VERTEX" && d.name == "radius";
+        for (auto& x : v) x = radius ? finite_float(r.next_finite("a radius"), r, "a radius") : static_cast<float>(r.next());
       }
     }
   }
@@ -556,19 +578,29 @@ std::string vtp_write(const SpatialGraph& g) {
   return s;
 }
 
-std::vector<double> xml_numbers(const Xml& a, const std::string& src) {
+// The numbers of a DataArray; with `finite_what` set ("a coordinate", "a radius"), non-finite values
+// are refused at their line.
+std::vector<double> xml_numbers(const Xml& a, const std::string& src, const char* finite_what = nullptr) {
   if (a.attr_or("format", "ascii") != "ascii")
     throw InputError(src + ": DataArray '" + a.attr_or("Name", "") + "' is " + a.attr_or("format", "") +
                      "; only ASCII .vtp is supported");
   std::vector<double> v;
   NumberReader r(a.text, 0, a.text.size(), "DataArray '" + a.attr_or("Name", "") + "'", src, a.text_line);
-  while (!r.at_end()) v.push_back(r.next());
+  while (!r.at_end()) v.push_back(finite_what ? r.next_finite(finite_what) : r.next());
   return v;
 }
 
+// A stored index (offset, point or node id) as an integer; garbage (fractions, huge or negative
+// values) is refused with `what`.
+int64_t vtp_index(double v, const std::string& what) {
+  if (!(v >= 0.0 && v < 9.0e15) || v != std::floor(v))
+    throw InputError(what + " " + text::format_double(v, 17) + " is not a valid index");
+  return static_cast<int64_t>(v);
+}
+
 SpatialGraph vtp_read(const std::string& text, const std::string& src) {
-  const Xml doc = parse_xml(text, src);
-  const Xml* vtk = doc.child("VTKFile");
+  const XmlDoc doc = parse_xml(text, src);
+  const Xml* vtk = doc.root().child("VTKFile");
   if (!vtk || vtk->attr_or("type", "") != "PolyData") throw InputError(src + ": not a VTK XML PolyData file");
   const Xml* pd = vtk->child("PolyData");
   const Xml* piece = pd ? pd->child("Piece") : nullptr;
@@ -576,14 +608,33 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   auto section_array = [&](const char* sec, const std::string& name) -> const Xml* {
     const Xml* s = piece->child(sec);
     if (!s) return nullptr;
-    for (const auto& c : s->children)
-      if (c.name == "DataArray" && c.attr_or("Name", "") == name) return &c;
+    for (const auto* c : s->children)
+      if (c->name == "DataArray" && c->attr_or("Name", "") == name) return c;
     return nullptr;
   };
   const Xml* pts_sec = piece->child("Points");
   if (!pts_sec || pts_sec->children.empty()) throw InputError(src + ": no <Points>");
-  const auto xyz = xml_numbers(pts_sec->children.front(), src);
+  const auto xyz = xml_numbers(*pts_sec->children.front(), src, "a coordinate");
   const int64_t np = static_cast<int64_t>(xyz.size() / 3);
+  // The declared sizes must match what the file holds (nothing is allocated from them).
+  for (const char* attr : {"NumberOfPoints", "NumberOfVerts", "NumberOfLines"}) {
+    const std::string* declared = piece->attr(attr);
+    if (!declared) continue;
+    int64_t d = 0;
+    const Xml* sec = std::string(attr) == "NumberOfVerts" ? piece->child("Verts") : piece->child("Lines");
+    const Xml* offs = nullptr;
+    if (sec)
+      for (const auto* c : sec->children)
+        if (c->name == "DataArray" && c->attr_or("Name", "") == "offsets") offs = c;
+    int64_t actual = np;
+    if (std::string(attr) != "NumberOfPoints") {
+      if (!offs) continue;
+      actual = static_cast<int64_t>(xml_numbers(*offs, src).size());
+    }
+    if (!text::parse_int(*declared, d) || d != actual)
+      throw InputError(src + ":" + std::to_string(piece->line) + ": <Piece> declares " + attr + "=\"" +
+                       declared->substr(0, 24) + "\" but the file holds " + std::to_string(actual));
+  }
   auto cells = [&](const char* sec) {
     std::pair<std::vector<double>, std::vector<double>> co;
     if (const Xml* c = section_array(sec, "connectivity")) co.first = xml_numbers(*c, src);
@@ -596,9 +647,12 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   const int64_t nn = static_cast<int64_t>(verts.second.size());
   std::vector<int64_t> node_point(nn);
   for (int64_t i = 0; i < nn; ++i) {
-    const int64_t b = i == 0 ? 0 : static_cast<int64_t>(verts.second[i - 1]);
-    const int64_t pid = static_cast<int64_t>(verts.first.at(b));
-    if (pid < 0 || pid >= np) throw InputError(src + ": vertex cell refers to point " + std::to_string(pid));
+    const int64_t b = i == 0 ? 0 : vtp_index(verts.second[i - 1], src + ": vertex cell " + std::to_string(i) + ": offset");
+    if (b >= static_cast<int64_t>(verts.first.size()))
+      throw InputError(src + ": vertex cell " + std::to_string(i) + ": offset " + std::to_string(b) +
+                       " is past the end of the connectivity (" + std::to_string(verts.first.size()) + " values)");
+    const int64_t pid = vtp_index(verts.first[b], src + ": vertex cell " + std::to_string(i) + ": point");
+    if (pid >= np) throw InputError(src + ": vertex cell refers to point " + std::to_string(pid));
     node_point[i] = pid;
     g.add_node({xyz[3 * pid], xyz[3 * pid + 1], xyz[3 * pid + 2]});
   }
@@ -615,24 +669,28 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   for (int64_t i = 0; i < nn; ++i) node_of_point.emplace(node_point[i], i);
   std::vector<std::pair<int64_t, int64_t>> line_range(ne);
   for (int64_t e = 0; e < ne; ++e) {
-    const int64_t b = e == 0 ? 0 : static_cast<int64_t>(lines.second[e - 1]);
-    const int64_t en = static_cast<int64_t>(lines.second[e]);
+    const std::string cell = src + ": line cell " + std::to_string(e);
+    const int64_t b = e == 0 ? 0 : vtp_index(lines.second[e - 1], cell + ": offset");
+    const int64_t en = vtp_index(lines.second[e], cell + ": offset");
     if (en - b < 2 || en > static_cast<int64_t>(lines.first.size()))
       throw InputError(src + ": line cell " + std::to_string(e) + " has fewer than 2 points or bad offsets");
     line_range[e] = {b, en};
     std::vector<Vec3> pts;
     for (int64_t k = b; k < en; ++k) {
-      const int64_t pid = static_cast<int64_t>(lines.first[k]);
-      if (pid < 0 || pid >= np) throw InputError(src + ": line cell refers to point " + std::to_string(pid));
+      const int64_t pid = vtp_index(lines.first[k], cell + ": point");
+      if (pid >= np) throw InputError(src + ": line cell refers to point " + std::to_string(pid));
       pts.push_back({xyz[3 * pid], xyz[3 * pid + 1], xyz[3 * pid + 2]});
     }
     int64_t a = -1, z = -1;
     if (!n0.empty()) {
-      a = static_cast<int64_t>(n0.at(nn + e));
-      z = static_cast<int64_t>(n1.at(nn + e));
+      if (static_cast<int64_t>(std::min(n0.size(), n1.size())) < nn + ne)
+        throw InputError(src + ": cell data 'node0'/'node1' have " + std::to_string(std::min(n0.size(), n1.size())) +
+                         " values for " + std::to_string(nn + ne) + " cells");
+      a = vtp_index(n0[static_cast<size_t>(nn + e)], cell + ": node0");
+      z = vtp_index(n1[static_cast<size_t>(nn + e)], cell + ": node1");
     } else {
-      auto fa = node_of_point.find(static_cast<int64_t>(lines.first[b]));
-      auto fz = node_of_point.find(static_cast<int64_t>(lines.first[en - 1]));
+      auto fa = node_of_point.find(vtp_index(lines.first[b], cell + ": point"));
+      auto fz = node_of_point.find(vtp_index(lines.first[en - 1], cell + ": point"));
       a = fa != node_of_point.end() ? fa->second : g.add_node(pts.front());
       z = fz != node_of_point.end() ? fz->second : g.add_node(pts.back());
     }
@@ -642,10 +700,11 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   }
   snap_ends(g);
   if (const Xml* sec = piece->child("PointData"))
-    for (const auto& c : sec->children) {
+    for (const auto* cp : sec->children) {
+      const Xml& c = *cp;
       if (c.name != "DataArray" || c.attr_or("NumberOfComponents", "1") != "1") continue;
       const std::string name = c.attr_or("Name", "");
-      const auto v = xml_numbers(c, src);
+      const auto v = xml_numbers(c, src, name == "radius" || name == "node.radius" ? "a radius" : nullptr);
       if (static_cast<int64_t>(v.size()) != np) throw InputError(src + ": point data '" + name + "' has the wrong length");
       const bool is_int = c.attr_or("type", "").find("Int") != std::string::npos;
       if (name.rfind("node.", 0) == 0) {
@@ -666,7 +725,8 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
       }
     }
   if (const Xml* sec = piece->child("CellData"))
-    for (const auto& c : sec->children) {
+    for (const auto* cp : sec->children) {
+      const Xml& c = *cp;
       const std::string name = c.attr_or("Name", "");
       if (c.name != "DataArray" || name == "node0" || name == "node1" || c.attr_or("NumberOfComponents", "1") != "1")
         continue;
@@ -762,8 +822,8 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
     Sample s{};
     s.id = r.next_int();
     s.type = r.next_int();
-    for (int a = 0; a < 3; ++a) s.p[a] = r.next();
-    s.r = r.next();
+    for (int a = 0; a < 3; ++a) s.p[a] = r.next_finite("a coordinate");
+    s.r = r.next_finite("the radius");
     s.parent = r.next_int();
     s.line = line_no;
     if (!index.emplace(s.id, static_cast<int64_t>(smp.size())).second)
@@ -780,6 +840,30 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
                        " has unknown parent " + std::to_string(smp[i].parent));
     parent[i] = it->second;
     ++children[it->second];
+  }
+  // Parent links must form trees: walk up from every sample (iteratively), marking the path; a walk
+  // that meets its own path has found a cycle.
+  {
+    std::vector<uint8_t> state(n, 0);  // 0: unseen, 1: on the current walk, 2: leads to a root
+    std::vector<int64_t> path;
+    for (int64_t i = 0; i < n; ++i) {
+      int64_t v = i;
+      path.clear();
+      while (v >= 0 && state[v] == 0) {
+        state[v] = 1;
+        path.push_back(v);
+        v = parent[v];
+      }
+      if (v >= 0 && state[v] == 1) {
+        // v is on the cycle; name it and the cycle's length.
+        int64_t len = 1;
+        for (int64_t u = parent[v]; u != v; u = parent[u]) ++len;
+        throw InputError(src + ":" + std::to_string(smp[v].line) + ": sample " + std::to_string(smp[v].id) +
+                         ": parent links form a cycle of " + std::to_string(len) + " sample(s) (parent " +
+                         std::to_string(smp[v].parent) + "); SWC samples must form trees");
+      }
+      for (int64_t u : path) state[u] = 2;
+    }
   }
   SpatialGraph g;
   std::vector<int64_t> node(n, -1);
@@ -805,7 +889,7 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
       rr.push_back(static_cast<float>(smp[cur].r));
       type = static_cast<int32_t>(smp[cur].type);
       cur = parent[cur];
-      if (++guard > n) throw InputError(src + ": parent links form a cycle");
+      if (++guard > n) throw Error(src + ": parent links form a cycle (not found by the cycle check)");
     }
     pts.push_back(smp[cur].p);
     rr.push_back(static_cast<float>(smp[cur].r));
@@ -886,30 +970,36 @@ std::string graphml_write(const SpatialGraph& g) {
 }
 
 SpatialGraph graphml_read(const std::string& text, const std::string& src) {
-  const Xml doc = parse_xml(text, src);
-  const Xml* gm = doc.child("graphml");
+  const XmlDoc doc = parse_xml(text, src);
+  const Xml* gm = doc.root().child("graphml");
   if (!gm) throw InputError(src + ": no <graphml> element");
   struct Key {
     std::string for_, name, type;
   };
   std::map<std::string, Key> keys;
-  for (const auto& c : gm->children)
-    if (c.name == "key") keys[c.attr_or("id", "")] = {c.attr_or("for", ""), c.attr_or("attr.name", ""), c.attr_or("attr.type", "")};
+  for (const auto* cp : gm->children)
+    if (cp->name == "key")
+      keys[cp->attr_or("id", "")] = {cp->attr_or("for", ""), cp->attr_or("attr.name", ""), cp->attr_or("attr.type", "")};
   const Xml* graph = gm->child("graph");
   if (!graph) throw InputError(src + ": no <graph> element");
   SpatialGraph g;
   std::map<std::string, int64_t> ids;
   std::map<std::string, std::vector<float>> nf;
   std::map<std::string, std::vector<int32_t>> nl;
-  for (const auto& c : graph->children) {
+  for (const auto* cp : graph->children) {
+    const Xml& c = *cp;
     if (c.name != "node") continue;
     Vec3 p{0, 0, 0};
     const int64_t i = g.node_count();
-    for (const auto& d : c.children) {
+    for (const auto* dp : c.children) {
+      const Xml& d = *dp;
       if (d.name != "data") continue;
       const Key& k = keys[d.attr_or("key", "")];
       const std::string where = src + ": node " + c.attr_or("id", "") + " '" + k.name + "'";
-      if (k.name == "x" || k.name == "y" || k.name == "z") p[k.name[0] - 'x'] = to_num(d.text, where);
+      const std::string at = src + ":" + std::to_string(d.line) + ": node '" + c.attr_or("id", "") + "' '" + k.name + "'";
+      if (k.name == "x" || k.name == "y" || k.name == "z") p[k.name[0] - 'x'] = finite_num(d.text, at, "a coordinate");
+      else if (k.name == "radius" && (k.type == "float" || k.type == "double"))
+        nf[k.name].resize(i + 1), nf[k.name][i] = static_cast<float>(finite_num(d.text, at, "the radius"));
       else if (k.type == "int" || k.type == "long") nl[k.name].resize(i + 1), nl[k.name][i] = static_cast<int32_t>(to_num(d.text, where));
       else if (k.type == "float" || k.type == "double") nf[k.name].resize(i + 1), nf[k.name][i] = static_cast<float>(to_num(d.text, where));
     }
@@ -917,7 +1007,8 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
   }
   for (auto& [n, v] : nf) v.resize(g.positions.size(), 0.0f), g.node_attributes[n] = std::move(v);
   for (auto& [n, v] : nl) v.resize(g.positions.size(), 0), g.node_labels[n] = std::move(v);
-  for (const auto& c : graph->children) {
+  for (const auto* cp : graph->children) {
+    const Xml& c = *cp;
     if (c.name != "edge") continue;
     auto a = ids.find(c.attr_or("source", "")), b = ids.find(c.attr_or("target", ""));
     if (a == ids.end() || b == ids.end()) {
@@ -925,33 +1016,41 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
       throw InputError(src + ": edge " + (id.empty() ? std::string() : "'" + id + "' ") + "refers to unknown node '" +
                        missing + "'");
     }
+    const std::string edge_name = c.attr("id") ? "'" + c.attr_or("id", "") + "'" : std::string("#") + std::to_string(g.edge_count());
     std::vector<Vec3> pts;
     std::map<std::string, float> ef;
     std::map<std::string, int32_t> el;
     std::map<std::string, std::vector<float>> pa;
-    for (const auto& d : c.children) {
+    for (const auto* dp : c.children) {
+      const Xml& d = *dp;
       if (d.name != "data") continue;
       const Key& k = keys[d.attr_or("key", "")];
       const std::string where = src + ": edge " + c.attr_or("id", "") + " '" + k.name + "'";
+      const std::string what = "edge " + edge_name + " '" + k.name + "'";
       if (k.name == "points") {
         std::string t = d.text;
         std::replace(t.begin(), t.end(), ';', ' ');
-        NumberReader rr(t, 0, t.size(), where);
+        NumberReader rr(t, 0, t.size(), what, src, d.text_line);
         while (!rr.at_end()) {
           Vec3 p{};
-          for (int q = 0; q < 3; ++q) p[q] = rr.next();
+          for (int q = 0; q < 3; ++q) p[q] = rr.next_finite("a coordinate");
           pts.push_back(p);
         }
       } else if (k.name.rfind("point.", 0) == 0) {
-        NumberReader r(d.text, 0, d.text.size(), where);
+        NumberReader r(d.text, 0, d.text.size(), what, src, d.text_line);
         auto& v = pa[k.name.substr(6)];
-        while (!r.at_end()) v.push_back(static_cast<float>(r.next()));
+        const bool radius = k.name == "point.radius";
+        while (!r.at_end()) v.push_back(static_cast<float>(radius ? r.next_finite("a radius") : r.next()));
       } else if (k.type == "int" || k.type == "long") {
         el[k.name] = static_cast<int32_t>(to_num(d.text, where));
       } else if (k.type == "float" || k.type == "double") {
         ef[k.name] = static_cast<float>(to_num(d.text, where));
       }
     }
+    // No 'points' data: a straight edge between its nodes; otherwise a polyline of >= 2 points.
+    if (pts.size() == 1)
+      throw InputError(src + ":" + std::to_string(c.line) + ": edge " + edge_name +
+                       " has 1 point in 'points', expected >= 2 (its end nodes at least)");
     const int64_t e = g.add_edge(a->second, b->second, std::move(pts));
     for (const auto& [n, v] : ef) g.ensure_edge_attribute(n)[e] = v;
     for (const auto& [n, v] : el) g.ensure_edge_label(n)[e] = v;
@@ -1016,9 +1115,19 @@ std::string csv_nodes_write(const SpatialGraph& g) {
 struct CsvTable {
   std::vector<std::string> header;
   std::vector<std::vector<double>> rows;
+  std::vector<int> lines;  // file line of each row
+  std::string src;
+  // Refuses a non-finite value in column `col` (a coordinate or radius), naming the file and line.
+  void check_finite(size_t col, const char* what) const {
+    for (size_t i = 0; i < rows.size(); ++i)
+      if (!std::isfinite(rows[i][col]))
+        throw InputError(src + ":" + std::to_string(lines[i]) + ": column '" + header[col] + "': " + what +
+                         " is not a finite number");
+  }
 };
 CsvTable csv_parse(const std::string& text, const std::string& src) {
   CsvTable t;
+  t.src = src;
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
@@ -1038,6 +1147,7 @@ CsvTable csv_parse(const std::string& text, const std::string& src) {
     std::vector<double> row(f.size());
     for (size_t k = 0; k < f.size(); ++k) row[k] = to_num(f[k], src + ":" + std::to_string(line_no));
     t.rows.push_back(std::move(row));
+    t.lines.push_back(line_no);
   }
   return t;
 }
@@ -1052,6 +1162,9 @@ SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, co
   };
   SpatialGraph g;
   const size_t cx = col(nodes, "x", "nodes"), cy = col(nodes, "y", "nodes"), cz = col(nodes, "z", "nodes");
+  for (size_t c : {cx, cy, cz}) nodes.check_finite(c, "a coordinate");
+  for (size_t k = 0; k < nodes.header.size(); ++k)
+    if (nodes.header[k] == "node:radius") nodes.check_finite(k, "a radius");
   for (const auto& r : nodes.rows) g.add_node({r[cx], r[cy], r[cz]});
   for (size_t k = 0; k < nodes.header.size(); ++k) {
     const auto& h = nodes.header[k];
@@ -1065,17 +1178,27 @@ SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, co
   }
   const size_t ce = col(edges, "edge", "edges"), c0 = col(edges, "node0", "edges"), c1 = col(edges, "node1", "edges");
   const size_t ex = col(edges, "x", "edges"), ey = col(edges, "y", "edges"), ez = col(edges, "z", "edges");
+  for (size_t c : {ex, ey, ez}) edges.check_finite(c, "a coordinate");
+  for (size_t k = 0; k < edges.header.size(); ++k)
+    if (edges.header[k] == "point:radius") edges.check_finite(k, "a radius");
+  auto node_id = [&](size_t row, size_t col) {
+    const double v = edges.rows[row][col];
+    if (!(v >= 0.0 && v < static_cast<double>(g.node_count())) || v != std::floor(v))
+      throw InputError(src + ":" + std::to_string(edges.lines[row]) + ": " + edges.header[col] + ": node id " +
+                       text::format_double(v, 17) + " out of range (" + std::to_string(g.node_count()) + " nodes)");
+    return static_cast<int64_t>(v);
+  };
   std::vector<std::pair<size_t, size_t>> ranges;  // rows of each edge
   for (size_t i = 0; i < edges.rows.size();) {
     size_t j = i;
     while (j < edges.rows.size() && edges.rows[j][ce] == edges.rows[i][ce]) ++j;
     const auto& r = edges.rows[i];
-    const int64_t a = static_cast<int64_t>(r[c0]), b = static_cast<int64_t>(r[c1]);
-    check_node_id(a, g.node_count(), src + ": node0");
-    check_node_id(b, g.node_count(), src + ": node1");
+    const int64_t a = node_id(i, c0), b = node_id(i, c1);
     std::vector<Vec3> pts;
     for (size_t k = i; k < j; ++k) pts.push_back({edges.rows[k][ex], edges.rows[k][ey], edges.rows[k][ez]});
-    if (pts.size() < 2) throw InputError(src + ": edge " + std::to_string(static_cast<int64_t>(r[ce])) + " has fewer than 2 points");
+    if (pts.size() < 2)
+      throw InputError(src + ":" + std::to_string(edges.lines[i]) + ": edge " + text::format_double(r[ce], 17) +
+                       " has fewer than 2 points");
     g.edges.push_back(GraphEdge{a, b, std::move(pts)});
     ranges.emplace_back(i, j);
     i = j;

@@ -244,6 +244,10 @@ DataPtr read_volume(const fs::path& file, const std::string& dataset) {
   std::lock_guard lock(hdf5_mutex());
   quiet();
   Opened o = open_volume(file, dataset);
+  if (o.dims[0] == 0 || o.dims[1] == 0 || o.dims[2] == 0)
+    throw InputError(file.string() + ": dataset '" + dataset + "' is empty (" + std::to_string(o.dims[0]) + "x" +
+                     std::to_string(o.dims[1]) + "x" + std::to_string(o.dims[2]) +
+                     " voxels as x,y,z); a volume needs at least one voxel on every axis");
   const Dims z{0, 0, 0};
   const std::string& t = o.dtype;
   if (t == "uint8") return std::make_shared<VolumeU8>(read_into<uint8_t>(o, file, dataset, z, o.dims));

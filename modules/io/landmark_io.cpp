@@ -88,6 +88,10 @@ LandmarkSet parse_amira(const std::string& text, const std::string& name) {
       in >> tok;
       const double v = parse_number(tok, where(name, i) + ": 'define Markers N'");
       if (v < 0 || v != std::floor(v)) throw InputError(where(name, i) + ": expected 'define Markers N'");
+      // Each marker is 3 ASCII values of >= 2 bytes: refuse a count the file cannot hold.
+      if (v * 6.0 > static_cast<double>(text.size()))
+        throw InputError(where(name, i) + ": 'define Markers " + tok + "' declares more markers than a file of " +
+                         std::to_string(text.size()) + " bytes can hold");
       count = static_cast<int64_t>(v);
     } else if (auto p = l.find("NumSets"); p != std::string::npos) {
       std::string rest = l.substr(p + 7);
@@ -292,7 +296,12 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
   });
   if (numeric) {
     std::sort(set_labels.begin(), set_labels.end(),
-              [](const std::string& a, const std::string& b) { return std::stoll(a) < std::stoll(b); });
+              [](const std::string& a, const std::string& b) {
+                // Numeric order of digit strings of any length (no std::stoll: it throws past int64).
+                const auto sa = a.substr(std::min(a.find_first_not_of('0'), a.size()));
+                const auto sb = b.substr(std::min(b.find_first_not_of('0'), b.size()));
+                return sa.size() != sb.size() ? sa.size() < sb.size() : sa < sb;
+              });
   }
   std::vector<std::string> names;
   std::vector<std::vector<Vec3>> sets;

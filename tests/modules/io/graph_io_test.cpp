@@ -236,3 +236,160 @@ TEST(GraphIo, MalformedFileMessages) {
             "u.vtp:1: unclosed XML element <PolyData> (the file ends at line 1)");
   EXPECT_EQ(message([] { read_graph("/nonexistent/x.am", GraphFormat::amira); }), "/nonexistent/x.am: file not found");
 }
+
+namespace {
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+}  // namespace
+
+// Expat parses GraphML and VTK XML without recursion: 100000 nested elements parse (and the tree is
+// freed) within the default stack, and an unclosed deep file is a located error.
+TEST(GraphIo, DeeplyNestedXmlParsesWithoutRecursion) {
+  constexpr int depth = 100000;
+  std::string deep;
+  for (int i = 0; i < depth; ++i) deep += "<x>";
+  std::string closing;
+  for (int i = 0; i < depth; ++i) closing += "</x>";
+  const std::string gml = "<graphml>\n<key id=\"dx\" for=\"node\" attr.name=\"x\" attr.type=\"double\"/>\n<graph>\n"
+                          "<node id=\"a\"><data key=\"dx\">1.5</data>" + deep + closing + "</node>\n<node id=\"b\"/>\n"
+                          "<edge source=\"a\" target=\"b\"/>\n</graph>\n</graphml>\n";
+  const auto g = graph_from_text(gml, GraphFormat::graphml, {}, "deep.graphml");
+  ASSERT_EQ(g.node_count(), 2);
+  EXPECT_EQ(g.edge_count(), 1);
+  EXPECT_EQ(g.positions[0][0], 1.5);
+  EXPECT_EQ(error_of([&] { graph_from_text("<graphml>\n<graph>\n" + deep, GraphFormat::graphml, {}, "open.graphml"); }),
+            "open.graphml:3: unclosed XML element <x> (the file ends at line 3)");
+  const std::string vtp = "<VTKFile type=\"PolyData\">\n" + deep + closing + "\n</VTKFile>\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(vtp, GraphFormat::vtp, {}, "deep.vtp"); }), "deep.vtp: no <Piece>");
+  // Other syntax errors are expat's, with line and column.
+  EXPECT_EQ(error_of([] { graph_from_text("<graphml>\n<graph></grph>\n</graphml>", GraphFormat::graphml, {}, "m.graphml"); }),
+            "m.graphml:2:10: XML syntax error: mismatched tag");
+}
+
+TEST(GraphIo, SwcParentCycleIsAnError) {
+  // A 3-sample cycle below a valid tree: named by the file, the line and a sample on the cycle.
+  const std::string small = "1 1 0 0 0 1 -1\n2 1 1 0 0 1 1\n3 1 2 0 0 1 5\n4 1 3 0 0 1 3\n5 1 4 0 0 1 4\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(small, GraphFormat::swc, {}, "c.swc"); }),
+            "c.swc:3: sample 3: parent links form a cycle of 3 sample(s) (parent 5); SWC samples must form trees");
+  // A pure 5000-sample cycle (no root at all) used to give an empty graph.
+  std::string ring;
+  for (int i = 1; i <= 5000; ++i)
+    ring += std::to_string(i) + " 3 " + std::to_string(i) + " 0 0 1 " + std::to_string(i == 1 ? 5000 : i - 1) + "\n";
+  const std::string m = error_of([&] { graph_from_text(ring, GraphFormat::swc, {}, "ring.swc"); });
+  EXPECT_TRUE(contains(m, "ring.swc:1: sample 1: parent links form a cycle of 5000 sample(s)")) << m;
+}
+
+TEST(GraphIo, GraphmlOnePointEdgeIsNamed) {
+  const std::string gml =
+      "<graphml>\n<key id=\"p\" for=\"edge\" attr.name=\"points\" attr.type=\"string\"/>\n<graph>\n"
+      "<node id=\"a\"/><node id=\"b\"/>\n<edge id=\"e7\" source=\"a\" target=\"b\"><data key=\"p\">1 2 3</data></edge>\n"
+      "</graph>\n</graphml>\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(gml, GraphFormat::graphml, {}, "one.graphml"); }),
+            "one.graphml:5: edge 'e7' has 1 point in 'points', expected >= 2 (its end nodes at least)");
+}
+
+TEST(GraphIo, DeclaredCountsAreCheckedAgainstTheFileSize) {
+  const std::string huge = "# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 4000000000\ndefine EDGE 0\ndefine POINT 0\n"
+                           "VERTEX { float[3] VertexCoordinates } @1\n@1\n0 0 0\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(huge, GraphFormat::amira, {}, "h.am"); }),
+            "h.am:2: 'define VERTEX 4000000000' declares more elements than a file of " + std::to_string(huge.size()) +
+                " bytes can hold");
+  // Counts that fit one by one but not together (3 coordinates per vertex and point).
+  const std::string both = "# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 12\ndefine EDGE 0\ndefine POINT 12\n@1\n";
+  EXPECT_TRUE(contains(error_of([&] { graph_from_text(both, GraphFormat::amira, {}, "b.am"); }),
+                       "b.am: 'define VERTEX 12', 'define EDGE 0' and 'define POINT 12' need more values than a file of"));
+  // Numbers beyond int64 are input errors, not std::out_of_range.
+  EXPECT_EQ(error_of([] {
+              graph_from_text("# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 99999999999999999999999\n@1\n", GraphFormat::amira,
+                              {}, "o.am");
+            }),
+            "o.am:2: number 99999999999999999999999 is too large");
+  // A per-edge point count larger than the declared points.
+  const std::string npts =
+      "# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 2\ndefine EDGE 1\ndefine POINT 2\n"
+      "VERTEX { float[3] VertexCoordinates } @1\nEDGE { int[2] EdgeConnectivity } @2\n"
+      "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\n"
+      "@1\n0 0 0\n1 0 0\n@2\n0 1\n@3\n3000000000\n@4\n0 0 0 1 0 0\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(npts, GraphFormat::amira, {}, "n.am"); }),
+            "n.am:15: block @3 (NumEdgePoints): an edge has 3000000000 points, more than 'define POINT 2'");
+  // .vtp: the declared sizes must match the arrays; offsets and ids must be indices.
+  const std::string vtp = "<VTKFile type=\"PolyData\"><PolyData>\n<Piece NumberOfPoints=\"4000000000\">\n"
+                          "<Points><DataArray Name=\"Points\" NumberOfComponents=\"3\">0 0 0 1 1 1</DataArray></Points>\n"
+                          "</Piece></PolyData></VTKFile>\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(vtp, GraphFormat::vtp, {}, "p.vtp"); }),
+            "p.vtp:2: <Piece> declares NumberOfPoints=\"4000000000\" but the file holds 2");
+  const std::string offs = "<VTKFile type=\"PolyData\"><PolyData>\n<Piece>\n"
+                           "<Points><DataArray Name=\"Points\" NumberOfComponents=\"3\">0 0 0 1 1 1</DataArray></Points>\n"
+                           "<Lines><DataArray Name=\"connectivity\">0 1</DataArray>"
+                           "<DataArray Name=\"offsets\">-4 2</DataArray></Lines>\n</Piece></PolyData></VTKFile>\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(offs, GraphFormat::vtp, {}, "o.vtp"); }),
+            "o.vtp: line cell 0: offset -4 is not a valid index");
+  const std::string conn = "<VTKFile type=\"PolyData\"><PolyData>\n<Piece>\n"
+                           "<Points><DataArray Name=\"Points\" NumberOfComponents=\"3\">0 0 0 1 1 1</DataArray></Points>\n"
+                           "<Verts><DataArray Name=\"connectivity\">0</DataArray>"
+                           "<DataArray Name=\"offsets\">1 9</DataArray></Verts>\n</Piece></PolyData></VTKFile>\n";
+  EXPECT_EQ(error_of([&] { graph_from_text(conn, GraphFormat::vtp, {}, "v.vtp"); }),
+            "v.vtp: vertex cell 1: offset 1 is past the end of the connectivity (1 values)");
+}
+
+// inf, 1e400 and NaN coordinates or radii are refused by every reader, at their line.
+TEST(GraphIo, NonFiniteCoordinatesAndRadiiAreRefused) {
+  for (const char* bad : {"inf", "1e400", "nan", "-Infinity"}) {
+    const std::string b = bad;
+    SCOPED_TRACE(b);
+    EXPECT_EQ(error_of([&] { graph_from_text("1 1 0 0 0 1 -1\n2 1 " + b + " 0 0 1 1\n", GraphFormat::swc, {}, "f.swc"); }),
+              "f.swc:2: a coordinate is not a finite number");
+    EXPECT_EQ(error_of([&] { graph_from_text("1 1 0 0 0 1 -1\n2 1 1 0 0 " + b + " 1\n", GraphFormat::swc, {}, "r.swc"); }),
+              "r.swc:2: the radius is not a finite number");
+    const std::string am =
+        "# AmiraMesh 3D ASCII 2.0\ndefine VERTEX 2\ndefine EDGE 1\ndefine POINT 2\n"
+        "VERTEX { float[3] VertexCoordinates } @1\nEDGE { int[2] EdgeConnectivity } @2\n"
+        "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\nPOINT { float thickness } @5\n"
+        "@1\n0 0 0\n1 0 0\n@2\n0 1\n@3\n2\n@4\n0 0 0\n1 0 0\n@5\n1\n" + b + "\n";
+    EXPECT_EQ(error_of([&] { graph_from_text(am, GraphFormat::amira, {}, "f.am"); }),
+              "f.am:22: block @5 (thickness): a radius is not a finite number");
+    std::string am_xyz = am;
+    am_xyz.replace(am_xyz.find("@1\n0 0 0\n1 0 0"), 14, "@1\n0 0 0\n1 " + b + " 0");
+    EXPECT_EQ(error_of([&] { graph_from_text(am_xyz, GraphFormat::amira, {}, "x.am"); }),
+              "x.am:12: block @1 (VertexCoordinates): a coordinate is not a finite number");
+    const std::string gml =
+        "<graphml>\n<key id=\"dx\" for=\"node\" attr.name=\"x\" attr.type=\"double\"/>\n"
+        "<key id=\"p\" for=\"edge\" attr.name=\"points\" attr.type=\"string\"/>\n<graph>\n"
+        "<node id=\"a\"><data key=\"dx\">" + b + "</data></node>\n</graph>\n</graphml>\n";
+    EXPECT_TRUE(contains(error_of([&] { graph_from_text(gml, GraphFormat::graphml, {}, "f.graphml"); }),
+                         "f.graphml:5: node 'a' 'x': a coordinate is not a finite number"));
+    const std::string gml_pts =
+        "<graphml>\n<key id=\"p\" for=\"edge\" attr.name=\"points\" attr.type=\"string\"/>\n<graph>\n"
+        "<node id=\"a\"/><node id=\"b\"/>\n<edge id=\"e\" source=\"a\" target=\"b\"><data key=\"p\">0 0 0;\n1 " + b +
+        " 0</data></edge>\n</graph>\n</graphml>\n";
+    EXPECT_EQ(error_of([&] { graph_from_text(gml_pts, GraphFormat::graphml, {}, "p.graphml"); }),
+              "p.graphml:6: edge 'e' 'points': a coordinate is not a finite number");
+    const std::string vtp = "<VTKFile type=\"PolyData\"><PolyData>\n<Piece>\n<Points>\n"
+                            "<DataArray Name=\"Points\" NumberOfComponents=\"3\">0 0 0\n1 " + b +
+                            " 1</DataArray></Points>\n</Piece></PolyData></VTKFile>\n";
+    EXPECT_EQ(error_of([&] { graph_from_text(vtp, GraphFormat::vtp, {}, "f.vtp"); }),
+              "f.vtp:5: DataArray 'Points': a coordinate is not a finite number");
+    EXPECT_EQ(error_of([&] {
+                graph_from_text("edge,node0,node1,point,x,y,z\n0,0,1,0,0,0,0\n0,0,1,1,1," + b + ",0\n", GraphFormat::csv,
+                                "node,x,y,z\n0,0,0,0\n1,1,0,0\n", "f.csv");
+              }),
+              "f.csv:3: column 'y': a coordinate is not a finite number");
+    EXPECT_EQ(error_of([&] {
+                graph_from_text("edge,node0,node1,point,x,y,z\n", GraphFormat::csv, "node,x,y,z\n0,0,0," + b + "\n", "n.csv");
+              }),
+              "n.csv (nodes):2: column 'z': a coordinate is not a finite number");
+  }
+  // CSV node ids beyond the nodes table (also huge ones) are located errors.
+  EXPECT_EQ(error_of([] {
+              graph_from_text("edge,node0,node1,point,x,y,z\n0,0,1e300,0,0,0,0\n0,0,1e300,1,1,0,0\n", GraphFormat::csv,
+                              "node,x,y,z\n0,0,0,0\n1,1,0,0\n", "i.csv");
+            }),
+            "i.csv:2: node1: node id 1.0000000000000001e+300 out of range (2 nodes)");
+}

@@ -248,3 +248,26 @@ TEST(Hdf5, CompressedChunksAreTheBytesOfHdf5sOwnFilterPipeline) {
     H5Fclose(fb);
   }
 }
+
+// A dataset with a zero dimension is not a volume: read_volume says so, naming the file and dataset
+// (it used to return an empty volume that ran through a whole pipeline).
+TEST(Hdf5, ZeroSizeDatasetIsRefused) {
+  const fs::path f = scratch() / "zero.h5";
+  {
+    const hid_t file = H5Fcreate(f.string().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const hsize_t dims[3] = {4, 0, 3};  // [z][y][x]
+    const hid_t space = H5Screate_simple(3, dims, nullptr);
+    const hid_t dset = H5Dcreate2(file, "/volume", H5T_NATIVE_UINT8, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(dset, 0);
+    H5Dclose(dset);
+    H5Sclose(space);
+    H5Fclose(file);
+  }
+  EXPECT_EQ(error_of([&] { io::read_volume(f, "/volume"); }),
+            f.string() + ": dataset '/volume' is empty (3x0x4 voxels as x,y,z); a volume needs at least one voxel on every axis");
+  // The module reports the same.
+  EXPECT_THROW(io::read_volume(f), InputError);
+  // Describing the file still works.
+  EXPECT_EQ(io::read_volume_info(f).dims, (Dims{3, 0, 4}));
+}

@@ -259,3 +259,24 @@ TEST(LandmarkFiles, MalformedFileMessages) {
   EXPECT_EQ(message([] { (void)read_transform("/nonexistent/missing.txt"); }),
             "/nonexistent/missing.txt: file not found");
 }
+
+// Declared sizes are checked against the file before use, and huge numeric set labels do not throw
+// std::out_of_range.
+TEST(LandmarkFiles, DeclaredSizesAndHugeLabels) {
+  auto message = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  const std::string huge = "# AmiraMesh 3D ASCII 2.0\ndefine Markers 4000000000000000000\n"
+                           "Markers { float[3] Coordinates } @1\n@1\n1 2 3\n";
+  EXPECT_EQ(message([&] { (void)parse_landmarks(huge, LandmarkFormat::Amira, "h.landmarkAscii"); }),
+            "h.landmarkAscii:2: 'define Markers 4000000000000000000' declares more markers than a file of " +
+                std::to_string(huge.size()) + " bytes can hold");
+  const auto lm = parse_landmarks("set,name,x,y,z\n100000000000000000000000,a,1,2,3\n2,a,4,5,6\n", LandmarkFormat::Csv, "l.csv");
+  ASSERT_EQ(lm.set_count(), 2);
+  EXPECT_EQ(lm.set(0)[0], (Vec3{4, 5, 6}));  // set "2" before the 24-digit one
+}
