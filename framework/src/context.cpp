@@ -86,8 +86,8 @@ void OutputFiles::commit(std::vector<std::string>* notes) {
     files_.clear();
     std::string what = std::string(e.what()) + "; no output was changed";
     if (!moved.empty())
-      what += " (" + std::to_string(moved.size()) + " file" + (moved.size() == 1 ? "" : "s") +
-              " already moved were taken back: " + std::to_string(restored) + " restored, " + std::to_string(removed) +
+      what += " (" + std::to_string(moved.size()) + (moved.size() == 1 ? " file already moved was" : " files already moved were") +
+              " taken back: " + std::to_string(restored) + " restored, " + std::to_string(removed) +
               " removed)";
     throw Error(what);
   }
