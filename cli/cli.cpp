@@ -51,7 +51,8 @@ commands:
   help
       Shows this text.
 
-exit codes: 0 done, 2 invalid pipeline or input, 1 failure while running, 130 interrupted.
+exit codes: 0 done, 2 invalid pipeline or input (an unwritable output included: found before
+anything runs), 1 failure while running, 130 interrupted (SIGINT, SIGTERM, SIGHUP, SIGQUIT).
 )";
 
 // ---------------------------------------------------------------- progress display

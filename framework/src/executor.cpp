@@ -320,8 +320,10 @@ std::string output_problem(const fs::path& out) {
   fs::path existing = dir;
   while (!fs::exists(existing, ec) && existing.has_parent_path() && existing != existing.parent_path())
     existing = existing.parent_path();
-  if (!fs::is_directory(existing, ec))
-    return "cannot create folder " + dir.string() + ": " + existing.string() + " is not a folder";
+  if (!fs::is_directory(existing, ec)) {
+    if (existing == dir) return "cannot write into " + dir.string() + ": it is a file, not a folder";
+    return "cannot create folder " + dir.string() + ": " + existing.string() + " is a file, not a folder";
+  }
   if (::access(existing.c_str(), W_OK | X_OK) != 0) {
     const int err = errno;
     return "cannot write into folder " + existing.string() + ": " + std::strerror(err);
