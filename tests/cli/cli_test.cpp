@@ -127,6 +127,17 @@ std::vector<std::string> leftovers(const fs::path& d) {
   return r;
 }
 
+// Waits (up to 10 s, for loaded machines) until `folder` holds a file whose name starts with `prefix`.
+bool wait_for_file(const fs::path& folder, const std::string& prefix) {
+  for (int i = 0; i < 1000; ++i) {
+    std::error_code ec;
+    for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec))
+      if (it->path().filename().string().rfind(prefix, 0) == 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
+}
+
 fs::path scratch(const std::string& name) {
   fs::path d = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / ("cli_" + name);
   fs::remove_all(d);
@@ -253,8 +264,11 @@ TEST(Cli, HangupAndQuitCancelLikeTerm) {
     fs::path p = write(d / "p.yaml", std::string(kGood) +
                                          "  slow: {module: test.slow, inputs: {volume: x.volume}, params: {seconds: 60}}\n");
     RunOptions o;
-    o.after_ms = 600;
-    o.signal = sig;
+    o.after_ms = 0;
+    o.during = [&](pid_t pid) {
+      EXPECT_TRUE(wait_for_file(d / "out", ".sum.txt."));  // running, with a temporary to remove
+      kill(pid, sig);
+    };
     Result r = run_with(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "2"}, o);
     EXPECT_EQ(r.code, 130) << "signal " << sig << ": " << r.out;
     EXPECT_NE(r.out.find("skelflow: interrupted; no partial outputs were left"), std::string::npos) << r.out;
@@ -274,6 +288,7 @@ TEST(Cli, TemporariesNameTheRunAndTheProcess) {
   o.after_ms = 600;
   o.during = [&](pid_t pid) {
     child = pid;
+    EXPECT_TRUE(wait_for_file(d / "out", ".sum.txt."));
     for (const auto& e : fs::directory_iterator(d / "out")) seen.push_back(e.path().filename().string());
     kill(pid, SIGINT);
   };
@@ -320,14 +335,18 @@ TEST(Cli, AFailedCommitRestoresTheOutputsAndWritesTheReport) {
 nodes:
   src: {module: test.source, params: {size: [4, 4, 4]}}
   a: {module: test.write, inputs: {volume: src.volume}, params: {path: out/a.txt}}
-  slow: {module: test.slow, inputs: {volume: src.volume}, params: {seconds: 1.5}}
+  slow: {module: test.slow, inputs: {volume: src.volume}, params: {seconds: 3}}
   b: {module: test.write, inputs: {volume: slow.volume}, params: {path: out/summary.csv}}
 )");
   fs::create_directories(d / "out");
   write(d / "out" / "a.txt", "old a");
   RunOptions o;
-  o.after_ms = 500;
-  o.during = [&](pid_t) { fs::create_directories(d / "out" / "summary.csv" / "blocked"); };
+  o.after_ms = 0;
+  o.during = [&](pid_t) {
+    // Once the run has checked its outputs and node a has written its temporary.
+    EXPECT_TRUE(wait_for_file(d / "out", ".a.txt.skelflow-tmp-"));
+    fs::create_directories(d / "out" / "summary.csv" / "blocked");
+  };
   Result r = run_with(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "2", "--report", (d / "run.json").string()}, o);
   EXPECT_EQ(r.code, 1) << r.out;
   const std::string msg = "skelflow: cannot replace " + (d / "out" / "summary.csv").string() +
