@@ -51,7 +51,8 @@ commands:
   help
       Shows this text.
 
-exit codes: 0 done, 2 invalid pipeline or input, 1 failure while running, 130 interrupted.
+exit codes: 0 done, 2 invalid pipeline or input (an unwritable output included: found before
+anything runs), 1 failure while running, 130 interrupted (SIGINT, SIGTERM, SIGHUP, SIGQUIT).
 )";
 
 // ---------------------------------------------------------------- progress display
@@ -91,6 +92,12 @@ public:
     std::lock_guard lock(m_);
     clear_line();
     std::fprintf(stderr, "warning: node '%s': %s\n", node.c_str(), msg.c_str());
+    draw();
+  }
+  void notice(const std::string& msg) {
+    std::lock_guard lock(m_);
+    clear_line();
+    std::fprintf(stderr, "skelflow: %s\n", msg.c_str());
     draw();
   }
   void finish() {
@@ -249,6 +256,22 @@ int cmd_validate(const std::vector<std::string>& args) {
   return kOk;
 }
 
+// `--report` must not overwrite the pipeline or one of its outputs (compared after resolving
+// symbolic links and "..", so another spelling of the same file is caught too).
+void refuse_report_over_outputs(const std::string& report, const std::string& pipeline, const ExecutionPlan& plan) {
+  std::error_code ec;
+  const fs::path r = fs::weakly_canonical(fs::absolute(report), ec);
+  auto same = [&](const fs::path& p) {
+    std::error_code e;
+    return fs::weakly_canonical(fs::absolute(p), e) == r && !e;
+  };
+  if (same(pipeline)) throw InputError("--report " + report + ": this is the pipeline file; choose another file for the report");
+  for (const auto& o : plan.outputs)
+    if (same(o.path))
+      throw InputError("--report " + report + ": this is an output of the pipeline (node '" + o.node + "', parameter '" +
+                       o.param + "'); choose another file for the report");
+}
+
 int cmd_run(const std::vector<std::string>& args) {
   std::string file, report_path;
   ExecOptions opt;
@@ -297,14 +320,16 @@ int cmd_run(const std::vector<std::string>& args) {
   }
   if (file.empty()) throw InputError("run: no PIPELINE given");
   Pipeline p = Pipeline::load_file(file);
+  Executor ex;
+  if (!report_path.empty()) refuse_report_over_outputs(report_path, file, ex.plan(p, opt));
 
   Progress progress(quiet);
   opt.cancel = &g_interrupted;
   opt.on_status = [&](const std::string& n, const NodeStatus& s) { progress.status(n, s); };
   opt.on_progress = [&](double f) { progress.overall(f); };
   opt.on_warning = [&](const std::string& n, const std::string& w) { progress.warning(n, w); };
+  opt.on_notice = [&](const std::string& m) { progress.notice(m); };
 
-  Executor ex;
   auto write_report = [&](const RunReport& r) {
     if (report_path.empty()) return;
     write_atomically(report_path, [&](const fs::path& tmp) {
@@ -348,8 +373,9 @@ int skelflow_main(int argc, char** argv) {
   struct sigaction sa {};
   sa.sa_handler = on_sigint;
   sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  // Ctrl+C, kill, a closed terminal (SIGHUP) and Ctrl+\ (SIGQUIT) all cancel cleanly: the running
+  // nodes stop, temporaries are removed, and the exit code is 130.
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaction(sig, &sa, nullptr);
 
   const std::string cmd = args[0];
   std::vector<std::string> rest(args.begin() + 1, args.end());

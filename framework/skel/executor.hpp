@@ -38,6 +38,8 @@ struct ExecOptions {
   std::function<void(const std::string& node, const NodeStatus&)> on_status;
   std::function<void(double overall)> on_progress;
   std::function<void(const std::string& node, const std::string& message)> on_warning;
+  // Run-level notes (not about one node), e.g. stale temporary files of dead runs removed.
+  std::function<void(const std::string& message)> on_notice;
 };
 
 struct NodeReport {
@@ -59,6 +61,9 @@ struct RunReport {
   double peak_rss_mib = 0;
   int threads = 0;
   std::vector<NodeReport> nodes;  // in completion order
+  // What the run did besides its nodes: stale temporaries removed before it ran, outputs taken back
+  // when moving them into place failed.
+  std::vector<std::string> notes;
   [[nodiscard]] std::string to_json() const;
 };
 
@@ -71,11 +76,18 @@ struct PlannedNode {
   std::vector<size_t> users;        // indices of the nodes reading its outputs
 };
 
+// An output file a planned node will write: a Path parameter with PathRole::Output that is set.
+struct PlannedOutput {
+  std::string node, param;
+  std::filesystem::path path;  // final path, resolved against ExecutionPlan::output_base
+};
+
 struct ExecutionPlan {
   Pipeline pipeline;               // the pipeline that runs: overrides applied, validated
   std::vector<PlannedNode> nodes;  // what the targets need (all nodes if none), in topological order
   int threads = 0;                 // thread budget
   std::filesystem::path input_base, output_base;  // relative input / output paths resolve here
+  std::vector<PlannedOutput> outputs;              // the files the planned nodes write, in node order
   // Index in `nodes`, or -1.
   [[nodiscard]] int64_t index_of(const std::string& id) const;
 };
@@ -88,9 +100,14 @@ public:
   Executor& operator=(const Executor&) = delete;
 
   // Validates, then runs. Throws InputError (invalid pipeline/input: nothing ran, or a node found
-  // its input wrong), Error (a node failed), Cancelled. A node's error reads "file:line:col: node
-  // 'id' (module): ..." (no position for nodes built in code) and Error::site() holds the node.
-  // Output files are renamed into place only when the whole run succeeds; otherwise none is left.
+  // its input wrong), Error (a node failed, or moving the outputs into place failed), Cancelled.
+  // Before any node runs, every output's folder must be creatable and writable and no output may
+  // be an existing folder (InputError at the node's parameter otherwise), and stale temporaries of
+  // dead runs are removed from the output folders (reported through on_notice and report notes).
+  // A node's error reads "file:line:col: node 'id' (module): ..." (no position for nodes built in
+  // code) and Error::site() holds the node.
+  // Output files are moved into place as one set only when the whole run succeeds; otherwise none
+  // is left, and a failure while moving them takes back the ones already moved.
   // The report is filled in every case (see last_report; its `error` is the message thrown).
   RunReport run(const Pipeline& pipeline, const ExecOptions& options = {});
   // The first phase of run() on its own: applies the overrides, validates (throws as run() does),

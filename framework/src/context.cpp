@@ -1,5 +1,7 @@
 #include "context.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <system_error>
 
@@ -17,6 +19,8 @@ fs::path resolve_path(const fs::path& base, const std::string& p) {
   return (base / path).lexically_normal();
 }
 
+OutputFiles::OutputFiles() : run_id_(make_run_id()) {}
+
 fs::path OutputFiles::add(const fs::path& final_path) {
   std::lock_guard lock(mutex_);
   for (const auto& [tmp, fin] : files_) {
@@ -25,18 +29,71 @@ fs::path OutputFiles::add(const fs::path& final_path) {
   std::error_code ec;
   if (final_path.has_parent_path()) fs::create_directories(final_path.parent_path(), ec);
   if (ec) throw InputError("cannot create folder " + final_path.parent_path().string() + ": " + ec.message());
-  fs::path tmp = temp_sibling(final_path);
+  fs::path tmp = temp_sibling(final_path, run_id_);
   files_.emplace_back(tmp, final_path);
   return tmp;
 }
 
-void OutputFiles::commit() {
+void OutputFiles::commit(std::vector<std::string>* notes) {
   std::lock_guard lock(mutex_);
-  for (auto& [tmp, fin] : files_) {
+  struct Moved {
+    fs::path fin, bak;
+    bool had_old;
+  };
+  std::vector<Moved> moved;
+  size_t next = 0;
+  try {
+    for (; next < files_.size(); ++next) {
+      const auto& [tmp, fin] = files_[next];
+      std::error_code ec;
+      if (!fs::exists(fs::symlink_status(tmp, ec))) continue;  // the module chose not to write
+      const auto st = fs::symlink_status(fin, ec);
+      const bool had_old = fs::exists(st);
+      if (fs::is_directory(st)) throw Error("cannot replace " + fin.string() + ": it is a folder");
+      const fs::path bak = backup_sibling(fin, run_id_);
+      if (had_old && ::link(fin.c_str(), bak.c_str()) != 0) {
+        // No hard links here (some network and FUSE file systems): move the old file aside.
+        fs::rename(fin, bak, ec);
+        if (ec) throw Error("cannot keep a backup of " + fin.string() + ": " + ec.message());
+      }
+      fs::rename(tmp, fin, ec);
+      if (ec) {
+        std::error_code e2;
+        if (had_old) fs::rename(bak, fin, e2);  // this file's own step, undone
+        throw Error("cannot move the new " + fin.string() + " into place: " + ec.message());
+      }
+      moved.push_back({fin, bak, had_old});
+    }
+  } catch (const std::exception& e) {
+    size_t restored = 0, removed = 0;
+    for (auto it = moved.rbegin(); it != moved.rend(); ++it) {
+      std::error_code ec;
+      if (it->had_old) {
+        fs::rename(it->bak, it->fin, ec);
+        if (!ec) ++restored;
+        if (notes) notes->push_back(ec ? "could not restore " + it->fin.string() + " from " + it->bak.string() + ": " + ec.message()
+                                       : "restored the previous " + it->fin.string());
+      } else {
+        fs::remove(it->fin, ec);
+        if (!ec) ++removed;
+        if (notes) notes->push_back("removed the new " + it->fin.string());
+      }
+    }
+    for (size_t k = next; k < files_.size(); ++k) {
+      std::error_code ec;
+      fs::remove_all(files_[k].first, ec);
+    }
+    files_.clear();
+    std::string what = std::string(e.what()) + "; no output was changed";
+    if (!moved.empty())
+      what += " (" + std::to_string(moved.size()) + (moved.size() == 1 ? " file already moved was" : " files already moved were") +
+              " taken back: " + std::to_string(restored) + " restored, " + std::to_string(removed) +
+              " removed)";
+    throw Error(what);
+  }
+  for (const auto& m : moved) {
     std::error_code ec;
-    if (!fs::exists(tmp, ec)) continue;  // the module chose not to write (e.g. nothing to write)
-    fs::rename(tmp, fin, ec);
-    if (ec) throw Error("cannot move " + tmp.string() + " to " + fin.string() + ": " + ec.message());
+    if (m.had_old) fs::remove(m.bak, ec);
   }
   files_.clear();
 }

@@ -12,17 +12,27 @@
 
 namespace skel::detail {
 
-// Files written by one run: temporaries renamed into place on success, removed otherwise.
+// Files written by one run: temporaries (named after the run, see skel/fs.hpp) moved into place
+// together when the run succeeds, removed otherwise.
 class OutputFiles {
 public:
+  OutputFiles();
+  // Registers `final_path` and returns the temporary to write it to; creates its folder.
   std::filesystem::path add(const std::filesystem::path& final_path);
-  void commit();     // renames every temporary to its final path
+  // Moves every written temporary into place as one set. A file being replaced is kept as a backup
+  // until the whole set is in place; if any step fails, the files already moved are taken back
+  // (previous files restored, new ones removed), the remaining temporaries are removed, and Error
+  // is thrown saying which file failed and that nothing was changed. `notes` (optional) receives
+  // one line per file taken back.
+  void commit(std::vector<std::string>* notes = nullptr);
   void rollback();   // removes every temporary (never throws)
   [[nodiscard]] std::vector<std::filesystem::path> finals() const;
+  [[nodiscard]] const std::string& run_id() const { return run_id_; }
   ~OutputFiles() { rollback(); }
 
 private:
   mutable std::mutex mutex_;
+  std::string run_id_;
   std::vector<std::pair<std::filesystem::path, std::filesystem::path>> files_;  // tmp, final
 };
 

@@ -1,6 +1,14 @@
+#include <fcntl.h>
+#include <signal.h>
 #include <sys/mman.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
 #include <cmath>
 #include <exception>
 #include <iomanip>
@@ -189,18 +197,102 @@ const Grid& volume_grid(const DataObject& data, const std::string& what) {
 }
 
 // ---------------------------------------------------------------- fs
-std::filesystem::path temp_sibling(const std::filesystem::path& final_path) {
+namespace {
+constexpr const char* kTmpTag = ".skelflow-tmp-";
+constexpr const char* kBakTag = ".skelflow-bak-";
+
+std::filesystem::path tagged_sibling(const std::filesystem::path& final_path, const char* tag, const std::string& run_id) {
+  return final_path.parent_path() /
+         ("." + final_path.filename().string() + tag + (run_id.empty() ? make_run_id() : run_id) + "-" +
+          std::to_string(static_cast<long>(getpid())));
+}
+
+bool process_alive(long pid) {
+  if (pid <= 0) return false;
+  return kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM;
+}
+}  // namespace
+
+std::string make_run_id() {
   static std::atomic<uint64_t> counter{0};
   std::random_device rd;
-  std::ostringstream name;
-  name << "." << final_path.filename().string() << ".tmp-" << std::hex << std::setw(6)
-       << std::setfill('0') << ((rd() ^ (counter++ * 2654435761u)) & 0xffffff);
-  return final_path.parent_path() / name.str();
+  const uint64_t r = (static_cast<uint64_t>(rd()) << 16) ^ (counter++ * 2654435761u) ^
+                     static_cast<uint64_t>(std::chrono::steady_clock::now().time_since_epoch().count());
+  std::ostringstream s;
+  s << std::hex << std::setw(8) << std::setfill('0') << (r & 0xffffffffu);
+  return s.str();
+}
+
+std::filesystem::path temp_sibling(const std::filesystem::path& final_path, const std::string& run_id) {
+  return tagged_sibling(final_path, kTmpTag, run_id);
+}
+
+std::filesystem::path backup_sibling(const std::filesystem::path& final_path, const std::string& run_id) {
+  return tagged_sibling(final_path, kBakTag, run_id);
+}
+
+bool parse_temp_name(const std::filesystem::path& path, TempName& out) {
+  const std::string name = path.filename().string();
+  if (name.size() < 2 || name[0] != '.') return false;
+  size_t at = name.rfind(kTmpTag);
+  bool backup = false;
+  if (at == std::string::npos) {
+    at = name.rfind(kBakTag);
+    backup = true;
+  }
+  if (at == std::string::npos || at < 2) return false;
+  const std::string rest = name.substr(at + std::char_traits<char>::length(kTmpTag));  // both tags have one length
+  const size_t dash = rest.find('-');
+  if (dash == 0 || dash == std::string::npos || dash + 1 >= rest.size()) return false;
+  const std::string id = rest.substr(0, dash), pid = rest.substr(dash + 1);
+  if (!std::all_of(id.begin(), id.end(), [](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; }))
+    return false;
+  if (pid.size() > 9 || !std::all_of(pid.begin(), pid.end(), [](char c) { return c >= '0' && c <= '9'; })) return false;
+  out.backup = backup;
+  out.final = path.parent_path() / name.substr(1, at - 1);
+  out.run_id = id;
+  out.pid = std::stol(pid);
+  return true;
+}
+
+std::filesystem::path display_path(const std::filesystem::path& path) {
+  TempName t;
+  if (parse_temp_name(path, t) && !t.backup) return t.final;
+  return path;
+}
+
+std::vector<std::string> remove_stale_temps(const std::filesystem::path& folder) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> done;
+  std::error_code ec;
+  std::vector<std::pair<fs::path, TempName>> stale;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    TempName t;
+    if (parse_temp_name(it->path(), t) && !process_alive(t.pid)) stale.emplace_back(it->path(), t);
+  }
+  std::sort(stale.begin(), stale.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [p, t] : stale) {
+    std::error_code e;
+    if (t.backup && !fs::exists(fs::symlink_status(t.final, e))) {
+      fs::rename(p, t.final, e);
+      if (!e) done.push_back("restored " + t.final.string() + " from " + p.filename().string());
+      continue;
+    }
+    fs::remove_all(p, e);
+    if (!e) done.push_back("removed " + p.string());
+  }
+  return done;
 }
 
 void write_atomically(const std::filesystem::path& final_path,
                       const std::function<void(const std::filesystem::path&)>& write) {
   namespace fs = std::filesystem;
+  TempName t;
+  if (parse_temp_name(final_path, t) && !t.backup) {
+    // Already the engine's temporary: it renames (or removes) the file when the run ends.
+    write(final_path);
+    return;
+  }
   if (final_path.has_parent_path()) {
     std::error_code ec;
     fs::create_directories(final_path.parent_path(), ec);
@@ -220,6 +312,28 @@ void write_atomically(const std::filesystem::path& final_path,
     fs::remove(tmp, ec);
     throw;
   }
+}
+
+void write_file_atomically(const std::filesystem::path& path, const std::string& bytes) {
+  write_atomically(path, [&](const std::filesystem::path& tmp) {
+    auto fail = [&](int err) {
+      throw Error("cannot write " + display_path(path).string() + ": " + std::strerror(err));
+    };
+    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) fail(errno);
+    size_t done = 0;
+    while (done < bytes.size()) {
+      const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0) {
+        const int err = errno;
+        ::close(fd);
+        fail(err);
+      }
+      done += static_cast<size_t>(n);
+    }
+    if (::close(fd) != 0) fail(errno);
+  });
 }
 
 }  // namespace skel

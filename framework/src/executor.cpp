@@ -10,8 +10,13 @@
 #include <unordered_map>
 
 #include <sys/resource.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include "context.hpp"
+#include "skel/fs.hpp"
 #include "skel/parallel.hpp"
 #include "skel/text.hpp"
 
@@ -106,7 +111,9 @@ std::string RunReport::to_json() const {
       o << (j ? ", " : "") << "\"" << json_escape(n.warnings[j]) << "\"";
     o << "]}";
   }
-  o << "\n  ]\n}\n";
+  o << "\n  ],\n  \"notes\": [";
+  for (size_t j = 0; j < notes.size(); ++j) o << (j ? ", " : "") << "\"" << json_escape(notes[j]) << "\"";
+  o << "]\n}\n";
   return o.str();
 }
 
@@ -273,6 +280,18 @@ ExecutionPlan Executor::Impl::make_plan(const Pipeline& pipeline_in, const ExecO
   plan.threads = effective_threads(opt.threads);
   plan.input_base = p.base_dir();
   plan.output_base = opt.output_dir.empty() ? p.base_dir() : fs::absolute(opt.output_dir);
+  for (const auto& pn : plan.nodes) {
+    const PipelineNode& node = *p.find(pn.id);
+    const ModuleSpec& spec = *im.registry.find(node.module);
+    const ParamMap eff = effective_params(node, spec);
+    for (const auto& ps : spec.params()) {
+      if (ps.type != ParamType::Path || ps.path_role != PathRole::Output) continue;
+      auto it = eff.find(ps.name);
+      const auto* value = it == eff.end() ? nullptr : std::get_if<std::string>(&it->second);
+      if (value && !value->empty())
+        plan.outputs.push_back({pn.id, ps.name, detail::resolve_path(plan.output_base, *value)});
+    }
+  }
 
   // Dependencies: each distinct upstream node once.
   std::unordered_map<std::string, size_t> idx;
@@ -287,6 +306,61 @@ ExecutionPlan Executor::Impl::make_plan(const Pipeline& pipeline_in, const ExecO
   }
   return plan;
 }
+
+// ---------------------------------------------------------------- phase 1b: output folders
+namespace {
+
+// Why `out` cannot be written, or "" when it can: it is a folder, or the nearest existing folder
+// above it is not writable (or is a file).
+std::string output_problem(const fs::path& out) {
+  std::error_code ec;
+  if (fs::is_directory(out, ec)) return out.string() + " is a folder; give a file name";
+  fs::path dir = out.parent_path();
+  if (dir.empty()) dir = ".";
+  fs::path existing = dir;
+  while (!fs::exists(existing, ec) && existing.has_parent_path() && existing != existing.parent_path())
+    existing = existing.parent_path();
+  if (!fs::is_directory(existing, ec)) {
+    if (existing == dir) return "cannot write into " + dir.string() + ": it is a file, not a folder";
+    return "cannot create folder " + dir.string() + ": " + existing.string() + " is a file, not a folder";
+  }
+  if (::access(existing.c_str(), W_OK | X_OK) != 0) {
+    const int err = errno;
+    return "cannot write into folder " + existing.string() + ": " + std::strerror(err);
+  }
+  return {};
+}
+
+// Every output must be writable before anything runs: a user-caused problem found before any work
+// is an input error (exit code 2), the same for every writer.
+void check_outputs(const ExecutionPlan& plan) {
+  for (const auto& o : plan.outputs) {
+    const std::string why = output_problem(o.path);
+    if (why.empty()) continue;
+    const PipelineNode& n = *plan.pipeline.find(o.node);
+    auto at = n.param_pos.find(o.param);
+    const SourcePos pos = at != n.param_pos.end() && at->second.known() ? at->second : n.pos;
+    std::string where = "parameter '" + o.param + "'";
+    if (auto origin = n.param_origin.find(o.param); origin != n.param_origin.end()) where = origin->second + ": " + where;
+    throw InputError(ErrorSite{plan.pipeline.file(), pos.line, pos.column, n.id, n.module, where + ": " + why});
+  }
+}
+
+// Removes the temporaries that dead runs left in the output folders; returns one note or none.
+std::vector<std::string> remove_stale_outputs(const ExecutionPlan& plan) {
+  std::set<fs::path> folders;
+  for (const auto& o : plan.outputs) folders.insert(o.path.parent_path().empty() ? fs::path(".") : o.path.parent_path());
+  std::vector<std::string> done;
+  for (const auto& f : folders)
+    for (auto& d : remove_stale_temps(f)) done.push_back(std::move(d));
+  if (done.empty()) return {};
+  std::string note = "cleaned up after " + std::string(done.size() == 1 ? "a run" : "runs") +
+                     " that did not finish (" + std::to_string(done.size()) + " file" + (done.size() == 1 ? "" : "s") + "): ";
+  for (size_t i = 0; i < done.size(); ++i) note += (i ? "; " : "") + done[i];
+  return {note};
+}
+
+}  // namespace
 
 // ---------------------------------------------------------------- phase 2: cache lookup
 // Marks the planned nodes whose results are cached (and whose output files still exist) and returns
@@ -566,7 +640,19 @@ void Executor::Scheduler::conclude(double seconds) {
   report_.peak_rss_mib = peak_rss_mib();
   const bool cancelled = im_.cancel.load() || (opt_.cancel && opt_.cancel->load());
   if (!first_error_ && !cancelled) {
-    files_.commit();
+    std::vector<std::string> notes;
+    try {
+      files_.commit(&notes);
+    } catch (const std::exception& e) {
+      report_.ok = false;
+      report_.error = e.what();
+      report_.notes.insert(report_.notes.end(), notes.begin(), notes.end());
+      {
+        std::lock_guard lock(im_.cache_mutex);
+        im_.last = report_;
+      }
+      throw;
+    }
     report_.ok = true;
     store_in_cache();
     return;
@@ -613,9 +699,13 @@ RunReport Executor::run(const Pipeline& pipeline, const ExecOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
 
   ExecutionPlan plan = im.make_plan(pipeline, opt);
+  check_outputs(plan);
   RunReport report;
   report.pipeline = plan.pipeline.file();
   report.threads = plan.threads;
+  report.notes = remove_stale_outputs(plan);
+  if (opt.on_notice)
+    for (const auto& n : report.notes) opt.on_notice(n);
   Scheduler run(im, plan, opt, im.lookup_cache(plan), modules_run_, report);
   run.run_all();
   run.conclude(std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());

@@ -1281,14 +1281,7 @@ void write_graph(const SpatialGraph& g, const std::filesystem::path& path, Graph
     throw InputError("parameter 'nodes_path': required for CSV graphs (the nodes table goes there)");
   std::string nodes;
   const std::string text = graph_to_text(g, f, &nodes);
-  auto put = [](const std::filesystem::path& p, const std::string& t) {
-    write_atomically(p, [&](const std::filesystem::path& tmp) {
-      std::ofstream out(tmp, std::ios::binary);
-      if (!out) throw InputError("cannot open '" + p.string() + "' for writing");
-      out.write(t.data(), static_cast<std::streamsize>(t.size()));
-      if (!out) throw Error("writing '" + p.string() + "' failed");
-    });
-  };
+  auto put = [](const std::filesystem::path& p, const std::string& t) { write_file_atomically(p, t); };
   put(path, text);
   if (f == GraphFormat::csv) put(nodes_path, nodes);
 }

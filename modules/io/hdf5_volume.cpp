@@ -10,6 +10,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "io/hdf5_write_driver.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/parallel.hpp"
@@ -66,10 +67,25 @@ struct Handle {
     if (id >= 0 && close) close(id);
   }
   explicit operator bool() const { return id >= 0; }
+  // Closes now and reports whether that worked (the destructor cannot).
+  bool close_now() {
+    const hid_t i = id;
+    id = -1;
+    return i < 0 || !close || close(i) >= 0;
+  }
 };
 
 [[noreturn]] void fail(const fs::path& file, const std::string& what) {
-  throw InputError(file.string() + ": " + what + hdf5_reason());
+  throw InputError(display_path(file).string() + ": " + what + hdf5_reason());
+}
+
+// A failed write: a failure while running (Error), naming the file the user asked for (not the
+// temporary it is written under) and the OS's reason when the driver saw one.
+[[noreturn]] void fail_write(const fs::path& file, const std::string& what) {
+  const int err = detail::first_write_errno();
+  const std::string hdf5 = hdf5_reason();
+  throw Error("cannot write " + display_path(file).string() + ": " + what + ": " +
+              (err != 0 ? std::string(std::strerror(err)) : hdf5.empty() ? std::string("HDF5 error") : hdf5.substr(2, hdf5.size() - 3)));
 }
 
 Handle open_file(const fs::path& file, bool write = false) {
@@ -78,7 +94,8 @@ Handle open_file(const fs::path& file, bool write = false) {
   if (fs::is_directory(file, ec)) throw InputError(file.string() + ": is a folder, not an HDF5 file");
   const htri_t is = H5Fis_hdf5(file.c_str());
   if (is <= 0) fail(file, "not an HDF5 file, or the file is truncated or corrupt");
-  Handle f(H5Fopen(file.c_str(), write ? H5F_ACC_RDWR : H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  Handle fapl(write ? detail::safe_write_fapl() : H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  Handle f(H5Fopen(file.c_str(), write ? H5F_ACC_RDWR : H5F_ACC_RDONLY, fapl.id), H5Fclose);
   if (!f) fail(file, "cannot open as HDF5: the file is truncated or corrupt");
   return f;
 }
@@ -318,12 +335,14 @@ void check_write_args(const std::string& dataset, const WriteOptions& opt) {
 // Caller holds the mutex.
 std::pair<Handle, Handle> create_dataset(const fs::path& file, const std::string& dataset, hid_t type, const Grid& g,
                                          const WriteOptions& opt) {
-  Handle f(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-  if (!f) fail(file, "cannot create the file");
+  Handle fapl(detail::safe_write_fapl(), H5Pclose);
+  Handle f(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.id), H5Fclose);
+  if (!f) fail_write(file, "cannot create the file");
   const Dims& n = g.dims;
   const hsize_t dims[3] = {static_cast<hsize_t>(n[2]), static_cast<hsize_t>(n[1]), static_cast<hsize_t>(n[0])};
   Handle space(H5Screate_simple(3, dims, nullptr), H5Sclose);
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  H5Pset_obj_track_times(dcpl.id, 0);  // no modification times: the same volume gives the same bytes
   const size_t elem = H5Tget_size(type);
   if (g.voxel_count() > 0) {
     std::array<int64_t, 3> c = automatic_chunks(n, static_cast<int64_t>(elem));
@@ -340,12 +359,12 @@ std::pair<Handle, Handle> create_dataset(const fs::path& file, const std::string
   Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
   H5Pset_create_intermediate_group(lcpl.id, 1);
   Handle d(H5Dcreate2(f.id, dataset.c_str(), type, space.id, lcpl.id, dcpl.id, H5P_DEFAULT), H5Dclose);
-  if (!d) fail(file, "cannot create dataset '" + dataset + "'");
+  if (!d) fail_write(file, "cannot create dataset '" + dataset + "'");
   for (const auto& [name, val] : {std::pair{"spacing", g.spacing}, std::pair{"origin", g.origin}}) {
     const hsize_t three = 3;
     Handle as(H5Screate_simple(1, &three, nullptr), H5Sclose);
     Handle a(H5Acreate2(d.id, name, H5T_IEEE_F64LE, as.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-    if (!a || H5Awrite(a.id, H5T_NATIVE_DOUBLE, val.data()) < 0) fail(file, std::string("cannot write attribute ") + name);
+    if (!a || H5Awrite(a.id, H5T_NATIVE_DOUBLE, val.data()) < 0) fail_write(file, std::string("cannot write attribute ") + name);
   }
   return {std::move(f), std::move(d)};
 }
@@ -415,7 +434,7 @@ void write_compressed_chunks(hid_t d, const Volume<T>& v, int level, int threads
       const hsize_t offset[3] = {static_cast<hsize_t>((c / (gx * gy)) * cz), static_cast<hsize_t>((c / gx % gy) * cy),
                                  static_cast<hsize_t>((c % gx) * cx)};
       if (H5Dwrite_chunk(d, H5P_DEFAULT, 0, offset, out_size[static_cast<size_t>(k)], out[static_cast<size_t>(k)].data()) < 0)
-        fail(file, "cannot write dataset '" + dataset + "' (disk full?)");
+        fail_write(file, "dataset '" + dataset + "'");
     }
   }
 }
@@ -433,8 +452,10 @@ void write_volume(const fs::path& file, const DataObject& volume, const std::str
       if (v.size() > 0 && opt.compression > 0)
         write_compressed_chunks(d.id, v, opt.compression, opt.threads, file, dataset);
       else if (v.size() > 0 && H5Dwrite(d.id, native<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0)
-        fail(file, "cannot write dataset '" + dataset + "' (disk full?)");
-      if (H5Fflush(f.id, H5F_SCOPE_GLOBAL) < 0) fail(file, "cannot flush (disk full?)");
+        fail_write(file, "dataset '" + dataset + "'");
+      if (H5Fflush(f.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
+      // Closed here so that a failure is reported; the flush above leaves close little to write.
+      if (!d.close_now() || !f.close_now() || detail::first_write_errno() != 0) fail_write(file, "dataset '" + dataset + "'");
     });
   });
 }
@@ -447,7 +468,7 @@ void create_volume_dataset(const fs::path& file, const std::string& dataset, con
   std::lock_guard lock(hdf5_mutex());
   quiet();
   auto fd = create_dataset(file, dataset, type, grid, opt);
-  if (H5Fflush(fd.first.id, H5F_SCOPE_GLOBAL) < 0) fail(file, "cannot flush (disk full?)");
+  if (H5Fflush(fd.first.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
 }
 
 template <class T>
@@ -469,8 +490,8 @@ void write_box(const fs::path& file, const std::string& dataset, const Volume<T>
     fail(file, "invalid box for dataset '" + dataset + "'");
   Handle mem(H5Screate_simple(3, count, nullptr), H5Sclose);
   if (H5Dwrite(o.dset.id, native<T>(), mem.id, o.space.id, H5P_DEFAULT, block.data()) < 0)
-    fail(file, "cannot write to dataset '" + dataset + "' (disk full?)");
-  if (H5Fflush(o.file.id, H5F_SCOPE_GLOBAL) < 0) fail(file, "cannot flush (disk full?)");
+    fail_write(file, "dataset '" + dataset + "'");
+  if (H5Fflush(o.file.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
 }
 template void write_box(const fs::path&, const std::string&, const Volume<uint8_t>&, Dims);
 template void write_box(const fs::path&, const std::string&, const Volume<uint16_t>&, Dims);

@@ -1,8 +1,8 @@
 // Volume and table file modules (HDF5 volumes, CSV tables) and the HDF5 inspector for `skelflow info`.
-#include <fstream>
 
 #include "io/hdf5_volume.hpp"
 #include "io/names.hpp"
+#include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 #include "volume/convert.hpp"
@@ -76,10 +76,7 @@ public:
 (17 significant digits for floats), so reading them back is lossless.)");
   }
   void run(RunContext& ctx) override {
-    auto t = ctx.input<Table>("table");
-    std::ofstream o(ctx.output_path("path"), std::ios::binary);
-    o << t->to_csv();
-    if (!o.flush()) throw Error("cannot write " + ctx.final_output_path("path").string());
+    write_file_atomically(ctx.output_path("path"), ctx.input<Table>("table")->to_csv());
   }
 };
 SKEL_REGISTER_MODULE(WriteTable);

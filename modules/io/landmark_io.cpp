@@ -48,13 +48,7 @@ std::string read_file(const std::filesystem::path& path) {
   return s.str();
 }
 
-void write_file(const std::filesystem::path& path, const std::string& text) {
-  write_atomically(path, [&](const std::filesystem::path& tmp) {
-    std::ofstream out(tmp, std::ios::binary);
-    out << text;
-    if (!out.flush()) throw Error("cannot write '" + path.string() + "'");
-  });
-}
+void write_file(const std::filesystem::path& path, const std::string& text) { write_file_atomically(path, text); }
 
 void check_name_for_csv(const std::string& n, const char* format) {
   if (n.find_first_of(",\"\r\n") != std::string::npos) {

@@ -1,18 +1,24 @@
 // The skelflow command line: exit codes, messages, --set, --report, SIGINT, and no partial outputs.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/resource.h>
+#include <grp.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <regex>
 #include <sstream>
 #include <thread>
 
 namespace fs = std::filesystem;
 
 namespace {
+
+int setgroups_none() { return setgroups(0, nullptr); }
 
 struct Result {
   int code = -1;
@@ -48,6 +54,88 @@ Result run(const std::string& bin, const std::vector<std::string>& args, int kil
   r.out = ss.str();
   fs::remove(log);
   return r;
+}
+
+struct RunOptions {
+  int after_ms = -1;                       // then send `signal`, or call `during` instead
+  int signal = SIGINT;
+  std::function<void(pid_t)> during;
+  long file_size_limit = -1;               // RLIMIT_FSIZE in bytes (SIGXFSZ ignored), as `ulimit -f`
+  bool unprivileged = false;               // run as user nobody when the tests run as root
+};
+
+// Runs `bin args...` with stdout and stderr read through a pipe (a file would fall under the file
+// size limit too), with the limits and the signal or action of `o`.
+Result run_with(const std::string& bin, const std::vector<std::string>& args, const RunOptions& o) {
+  int fds[2];
+  if (pipe(fds) != 0) return {};
+  const pid_t pid = fork();
+  if (pid == 0) {
+    dup2(fds[1], STDOUT_FILENO);
+    dup2(fds[1], STDERR_FILENO);
+    close(fds[0]);
+    close(fds[1]);
+    if (o.file_size_limit >= 0) {
+      const rlimit r{static_cast<rlim_t>(o.file_size_limit), static_cast<rlim_t>(o.file_size_limit)};
+      signal(SIGXFSZ, SIG_IGN);  // writes beyond the limit fail with EFBIG instead of killing
+      if (setrlimit(RLIMIT_FSIZE, &r) != 0) _exit(125);
+    }
+    if (o.unprivileged && geteuid() == 0 && (setgroups_none() != 0 || setgid(65534) != 0 || setuid(65534) != 0))
+      _exit(124);
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(bin.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(bin.c_str(), argv.data());
+    _exit(127);
+  }
+  close(fds[1]);
+  Result r;
+  std::thread reader([&] {
+    char buf[4096];
+    for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) > 0;) r.out.append(buf, static_cast<size_t>(n));
+  });
+  if (o.after_ms >= 0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(o.after_ms));
+    if (o.during) o.during(pid);
+    else kill(pid, o.signal);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  reader.join();
+  close(fds[0]);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Every file under `d` whose name marks it as a temporary or a backup.
+std::vector<std::string> leftovers(const fs::path& d) {
+  std::vector<std::string> r;
+  for (const auto& e : fs::recursive_directory_iterator(d)) {
+    const std::string n = e.path().filename().string();
+    if (n.find("skelflow-tmp") != std::string::npos || n.find("skelflow-bak") != std::string::npos ||
+        n.find(".tmp-") != std::string::npos)
+      r.push_back(e.path().string());
+  }
+  return r;
+}
+
+// Waits (up to 10 s, for loaded machines) until `folder` holds a file whose name starts with `prefix`.
+bool wait_for_file(const fs::path& folder, const std::string& prefix) {
+  for (int i = 0; i < 1000; ++i) {
+    std::error_code ec;
+    for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec))
+      if (it->path().filename().string().rfind(prefix, 0) == 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
 }
 
 fs::path scratch(const std::string& name) {
@@ -166,4 +254,221 @@ TEST(Cli, ModulesDocsAndInfo) {
   Result u = run(SKELFLOW_TESTCLI, {"info", write(d / "x.unknownext", "hello").string()});
   EXPECT_EQ(u.code, 2);
   EXPECT_NE(u.out.find("unknown file type '.unknownext'"), std::string::npos) << u.out;
+}
+
+// A closed terminal (SIGHUP) and Ctrl+\ (SIGQUIT) cancel as SIGTERM and Ctrl+C do: exit code 130,
+// no output and no temporary left (before: killed by the signal, the temporary stayed).
+TEST(Cli, HangupAndQuitCancelLikeTerm) {
+  for (int sig : {SIGTERM, SIGHUP, SIGQUIT}) {
+    fs::path d = scratch("signal_" + std::to_string(sig));
+    fs::path p = write(d / "p.yaml", std::string(kGood) +
+                                         "  slow: {module: test.slow, inputs: {volume: x.volume}, params: {seconds: 60}}\n");
+    RunOptions o;
+    o.after_ms = 0;
+    o.during = [&](pid_t pid) {
+      EXPECT_TRUE(wait_for_file(d / "out", ".sum.txt."));  // running, with a temporary to remove
+      kill(pid, sig);
+    };
+    Result r = run_with(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "2"}, o);
+    EXPECT_EQ(r.code, 130) << "signal " << sig << ": " << r.out;
+    EXPECT_NE(r.out.find("skelflow: interrupted; no partial outputs were left"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(d / "out" / "sum.txt"));
+    EXPECT_EQ(leftovers(d), std::vector<std::string>{}) << "signal " << sig;
+  }
+}
+
+// While a run goes on, its temporary carries the run id and the process id.
+TEST(Cli, TemporariesNameTheRunAndTheProcess) {
+  fs::path d = scratch("tmpname");
+  fs::path p = write(d / "p.yaml", std::string(kGood) +
+                                       "  slow: {module: test.slow, inputs: {volume: x.volume}, params: {seconds: 60}}\n");
+  std::vector<std::string> seen;
+  pid_t child = 0;
+  RunOptions o;
+  o.after_ms = 600;
+  o.during = [&](pid_t pid) {
+    child = pid;
+    EXPECT_TRUE(wait_for_file(d / "out", ".sum.txt."));
+    for (const auto& e : fs::directory_iterator(d / "out")) seen.push_back(e.path().filename().string());
+    kill(pid, SIGINT);
+  };
+  Result r = run_with(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "2"}, o);
+  EXPECT_EQ(r.code, 130) << r.out;
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_TRUE(std::regex_match(seen[0], std::regex("\\.sum\\.txt\\.skelflow-tmp-[0-9a-f]{8}-" + std::to_string(child))))
+      << seen[0];
+  EXPECT_EQ(leftovers(d), std::vector<std::string>{});
+}
+
+// The next run into a folder removes what a killed run left there, and says so in one line; the
+// temporaries of a process still running are left alone.
+TEST(Cli, StaleTemporariesOfDeadRunsAreRemovedAndReported) {
+  fs::path d = scratch("stale");
+  fs::path p = write(d / "p.yaml", kGood);
+  fs::create_directories(d / "out");
+  const pid_t dead = fork();
+  if (dead == 0) _exit(0);
+  waitpid(dead, nullptr, 0);
+  const fs::path stale = d / "out" / (".sum.txt.skelflow-tmp-0badc0de-" + std::to_string(dead));
+  const fs::path live = d / "out" / (".other.h5.skelflow-tmp-12345678-" + std::to_string(getpid()));
+  write(stale, "partial");
+  write(live, "being written");
+  Result r = run(SKELFLOW_TESTCLI, {"run", p.string(), "--report", (d / "run.json").string()});
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(fs::exists(live));
+  EXPECT_TRUE(fs::exists(d / "out" / "sum.txt"));
+  const std::string line = "skelflow: cleaned up after a run that did not finish (1 file): removed " + stale.string() + "\n";
+  EXPECT_NE(r.out.find(line), std::string::npos) << r.out;
+  EXPECT_NE(read_text(d / "run.json").find("\"notes\": [\"cleaned up after a run that did not finish (1 file): removed " +
+                                           stale.string() + "\"]"),
+            std::string::npos)
+      << read_text(d / "run.json");
+}
+
+// An output that cannot be moved into place after another was: the other is restored, the run
+// fails with exit code 1, and the report says what happened (before: the first output stayed
+// replaced and no report was written).
+TEST(Cli, AFailedCommitRestoresTheOutputsAndWritesTheReport) {
+  fs::path d = scratch("commit");
+  fs::path p = write(d / "p.yaml", R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [4, 4, 4]}}
+  a: {module: test.write, inputs: {volume: src.volume}, params: {path: out/a.txt}}
+  slow: {module: test.slow, inputs: {volume: src.volume}, params: {seconds: 3}}
+  b: {module: test.write, inputs: {volume: slow.volume}, params: {path: out/summary.csv}}
+)");
+  fs::create_directories(d / "out");
+  write(d / "out" / "a.txt", "old a");
+  RunOptions o;
+  o.after_ms = 0;
+  o.during = [&](pid_t) {
+    // Once the run has checked its outputs and node a has written its temporary.
+    EXPECT_TRUE(wait_for_file(d / "out", ".a.txt.skelflow-tmp-"));
+    fs::create_directories(d / "out" / "summary.csv" / "blocked");
+  };
+  Result r = run_with(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "2", "--report", (d / "run.json").string()}, o);
+  EXPECT_EQ(r.code, 1) << r.out;
+  const std::string msg = "skelflow: cannot replace " + (d / "out" / "summary.csv").string() +
+                          ": it is a folder; no output was changed (1 file already moved was taken back: 1 restored, 0 removed)\n";
+  EXPECT_NE(r.out.find(msg), std::string::npos) << r.out;
+  EXPECT_EQ(read_text(d / "out" / "a.txt"), "old a");
+  EXPECT_EQ(leftovers(d), std::vector<std::string>{});
+  const std::string report = read_text(d / "run.json");
+  EXPECT_NE(report.find("\"ok\": false"), std::string::npos) << report;
+  EXPECT_NE(report.find("it is a folder; no output was changed"), std::string::npos) << report;
+  EXPECT_NE(report.find("\"notes\": [\"restored the previous " + (d / "out" / "a.txt").string() + "\"]"), std::string::npos)
+      << report;
+}
+
+// --report may not name an output of the pipeline, through any spelling of its path, nor the
+// pipeline itself: refused before anything runs (before: the output was silently overwritten).
+TEST(Cli, ReportMayNotOverwriteAnOutputOrThePipeline) {
+  fs::path d = scratch("report_clash");
+  fs::path p = write(d / "p.yaml", kGood);
+  fs::create_directories(d / "out");
+  fs::create_directory_symlink(d / "out", d / "link");
+  for (const fs::path& rep : {d / "out" / "sum.txt", d / "link" / "sum.txt", d / "out" / ".." / "out" / "sum.txt"}) {
+    Result r = run(SKELFLOW_TESTCLI, {"run", p.string(), "--report", rep.string()});
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(r.out, "skelflow: --report " + rep.string() +
+                         ": this is an output of the pipeline (node 'w', parameter 'path'); choose another file for "
+                         "the report\n");
+    EXPECT_FALSE(fs::exists(d / "out" / "sum.txt"));
+  }
+  Result r = run(SKELFLOW_TESTCLI, {"run", p.string(), "--report", p.string()});
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("this is the pipeline file"), std::string::npos) << r.out;
+  EXPECT_EQ(read_text(p), kGood);
+}
+
+// One writer per kind of data, each writing `out/<file>` from a small synthetic source.
+struct Writer {
+  std::string module, port_in, source, file;
+};
+const std::vector<Writer>& writers() {
+  static const std::vector<Writer> w{
+      {"io.write_table", "table", "alt.summary", "t.csv"},
+      {"io.write_transform", "transform", "alt.transform", "t.tfm"},
+      {"io.write_landmarks", "landmarks", "alt.landmarks", "l.landmarkAscii"},
+      {"io.write_volume", "volume", "alt.before_mask", "v.h5"},
+      {"io.write_graph", "graph", "tree.graph", "g.graphml"},
+  };
+  return w;
+}
+std::string writer_pipeline(const Writer& w, const std::string& folder) {
+  const bool tree = w.source.rfind("tree.", 0) == 0;
+  return std::string("skelflow: 1\nnodes:\n") +
+         (tree ? "  tree: {module: synthetic.vessel_tree, params: {size: [32, 32, 32]}}\n"
+               : "  alt: {module: synthetic.altered_network, params: {size: [48, 48, 48], landmarks: 3}}\n") +
+         "  w: {module: " + w.module + ", inputs: {" + w.port_in + ": " + w.source + "}, params: {path: " + folder + "/" +
+         w.file + "}}\n";
+}
+
+// An output folder the user cannot write to is found before anything runs, with the same exit code
+// (2) and message for every writer (before: 1 for tables, transforms and landmarks, 2 for volumes
+// and graphs, each with its own wording).
+TEST(Cli, EveryWriterReportsAnUnwritableFolderAlike) {
+  fs::path d = scratch("unwritable");
+  fs::permissions(d, fs::perms::all);  // the unprivileged run reads its pipelines here
+  fs::create_directories(d / "locked");
+  fs::permissions(d / "locked", fs::perms::owner_read | fs::perms::owner_exec | fs::perms::group_read |
+                                    fs::perms::group_exec | fs::perms::others_read | fs::perms::others_exec);
+  for (const auto& w : writers()) {
+    fs::path p = write(d / (w.module + ".yaml"), writer_pipeline(w, "locked"));
+    fs::permissions(p, fs::perms::all);
+    RunOptions o;
+    o.unprivileged = true;
+    Result r = run_with(SKELFLOW_BIN, {"run", p.string(), "--quiet"}, o);
+    if (r.code == 124) GTEST_SKIP() << "cannot run as an unprivileged user here";
+    EXPECT_EQ(r.code, 2) << w.module << ": " << r.out;
+    // At the parameter's value in the file.
+    const std::string text = writer_pipeline(w, "locked");
+    const size_t line4 = text.find("  w: ");
+    const std::string column = std::to_string(text.find("locked/") - line4 + 1);
+    EXPECT_EQ(r.out, "skelflow: " + p.string() + ":4:" + column + ": node 'w' (" + w.module + "): parameter 'path': cannot write into folder " +
+                         (d / "locked").string() + ": Permission denied\n");
+    EXPECT_TRUE(fs::is_empty(d / "locked"));
+  }
+}
+
+// A write that fails while running (here: beyond the file size limit, as when the disk is full)
+// is exit code 1 with one message shape for every writer, naming the file asked for and the OS's
+// reason; no temporary is left and nothing crashes (before: HDF5 crashed in H5F__close_cb at exit,
+// rc 139, after printing a message naming its temporary of a temporary).
+TEST(Cli, EveryWriterReportsAFailedWriteAlike) {
+  fs::path d = scratch("fsize");
+  for (const auto& w : writers()) {
+    fs::path p = write(d / (w.module + ".yaml"), writer_pipeline(w, "out"));
+    RunOptions o;
+    o.file_size_limit = 0;
+    Result r = run_with(SKELFLOW_BIN, {"run", p.string(), "--quiet"}, o);
+    EXPECT_EQ(r.code, 1) << w.module << ": " << r.out;
+    const std::string head = "skelflow: " + p.string() + ":4:3: node 'w' (" + w.module + "): cannot write " +
+                             (d / "out" / w.file).string() + ": ";
+    EXPECT_EQ(r.out.rfind(head, 0), 0u) << r.out;
+    EXPECT_EQ(r.out.substr(r.out.size() - std::min<size_t>(r.out.size(), 17)), ": File too large\n") << r.out;
+    EXPECT_EQ(r.out.find('\n'), r.out.size() - 1) << "one line: " << r.out;
+    EXPECT_TRUE(fs::is_empty(d / "out")) << w.module;
+  }
+}
+
+// An HDF5 volume larger than the file size limit: the error, not a crash, and nothing of HDF5's
+// own error stack on stderr ("HDF5-DIAG", "infinite loop closing library" before).
+TEST(Cli, Hdf5WriteBeyondTheFileSizeLimitFailsCleanly) {
+  fs::path d = scratch("h5_fsize");
+  for (const char* compression : {"0", "1"}) {
+    fs::path p = write(d / "p.yaml", std::string(R"(skelflow: 1
+nodes:
+  ph: {module: synthetic.network, params: {shape: rods, size: [64, 64, 64], seed: 1}}
+  save: {module: io.write_volume, inputs: {volume: ph.image}, params: {path: out/image.h5, compression: )") +
+                                         compression + "}}\n");
+    RunOptions o;
+    o.file_size_limit = 16384;
+    Result r = run_with(SKELFLOW_BIN, {"run", p.string(), "--quiet"}, o);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_EQ(r.out, "skelflow: " + p.string() + ":4:3: node 'save' (io.write_volume): cannot write " +
+                         (d / "out" / "image.h5").string() + ": dataset '/volume': File too large\n");
+    EXPECT_TRUE(fs::is_empty(d / "out"));
+  }
 }

@@ -2,9 +2,10 @@
 // and a file writer, to exercise the engine without the real modules.
 #include <atomic>
 #include <chrono>
-#include <fstream>
+#include <sstream>
 #include <thread>
 
+#include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 #include "skel/volume.hpp"
@@ -127,8 +128,9 @@ public:
     auto v = ctx.input<VolumeF32>("volume");
     double s = 0;
     for (float x : *v) s += x;
-    std::ofstream o(ctx.output_path("path"));
+    std::ostringstream o;
     o << s << "\n";
+    write_file_atomically(ctx.output_path("path"), o.str());
   }
 };
 

@@ -7,8 +7,10 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <thread>
 
 #include "io/hdf5_volume.hpp"
+#include "skel/fs.hpp"
 #include "skel/run_module.hpp"
 #include "skel/table.hpp"
 
@@ -270,4 +272,54 @@ TEST(Hdf5, ZeroSizeDatasetIsRefused) {
   EXPECT_THROW(io::read_volume(f), InputError);
   // Describing the file still works.
   EXPECT_EQ(io::read_volume_info(f).dims, (Dims{3, 0, 4}));
+
+namespace {
+std::string file_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+}  // namespace
+
+// The same volume written twice, a second apart, gives the same bytes (before: HDF5 stored the
+// dataset's modification time, one byte differed), compressed or not, in a group or not.
+TEST(Hdf5, WritingTheSameVolumeTwiceGivesTheSameBytes) {
+  const auto v = random_volume<uint16_t>(Dims{40, 30, 20}, 5);
+  for (const int compression : {0, 1}) {
+    for (const std::string dataset : {"/volume", "/group/sub/volume"}) {
+      io::WriteOptions o;
+      o.compression = compression;
+      const fs::path a = scratch() / "same_a.h5", b = scratch() / "same_b.h5";
+      io::write_volume(a, v, dataset, o);
+      std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+      io::write_volume(b, v, dataset, o);
+      const std::string x = file_bytes(a), y = file_bytes(b);
+      ASSERT_FALSE(x.empty());
+      EXPECT_TRUE(x == y) << "compression " << compression << ", " << dataset;
+    }
+  }
+}
+
+// The engine's temporary is written in place and a failed write names the final file
+// (before: the writer made a temporary of the temporary and named it in its messages).
+TEST(Hdf5, WritesTheEnginesTemporaryInPlaceAndNamesTheFinalFile) {
+  const fs::path dir = scratch() / "engine_tmp";
+  fs::create_directories(dir);
+  const fs::path tmp = temp_sibling(dir / "image.h5", "5eed5eed");
+  const auto v = random_volume<uint8_t>(Dims{8, 8, 8}, 1);
+  io::write_volume(tmp, v, "/volume");
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  EXPECT_EQ(names, std::vector<std::string>{tmp.filename().string()});
+  const auto back = std::dynamic_pointer_cast<const VolumeU8>(io::read_volume(tmp, "/volume"));
+  ASSERT_TRUE(back);
+  EXPECT_TRUE(std::equal(back->begin(), back->end(), v.begin(), v.end()));
+  // A temporary in a folder that does not exist cannot be created.
+  const fs::path missing = temp_sibling(dir / "gone" / "image.h5", "5eed5eed");
+  try {
+    io::write_volume(missing, v, "/volume");
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "cannot write " + (dir / "gone" / "image.h5").string() +
+                                         ": cannot create the file: No such file or directory");
+  }
 }
