@@ -39,11 +39,14 @@ const char* kUsage = R"(usage: skelflow <command> [options]
 
 commands:
   run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]
-               [--target NODE]... [--quiet]
+               [--target NODE]... [--quiet] [--allow-outside-output-dir]
       Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths
       resolve against --output-dir when given. Outputs appear only when the whole run succeeds.
-  validate PIPELINE
-      Checks a pipeline (modules, parameters, connections, types, cycles) without running it.
+      With --output-dir, every output must lie inside D: absolute paths, '..' and symbolic links
+      that lead out of D are refused before anything runs, unless --allow-outside-output-dir.
+  validate PIPELINE [--output-dir D] [--allow-outside-output-dir]
+      Checks a pipeline without running it: modules, parameters, connections, types, cycles, input
+      files that do not exist, output extensions, two outputs into one file, outputs outside D.
   modules [--markdown] [NAME]
       Lists the modules, or documents one (or all, with --markdown) in full.
   info FILE
@@ -146,6 +149,8 @@ std::string range_text(const ParamSpec& p) {
       << (p.max ? format_value(*p.max) : std::string("inf")) << "]";
   }
   if (p.list_length >= 0) s << (s.str().empty() ? "" : ", ") << p.list_length << " values";
+  for (size_t i = 0; i < p.extensions.size(); ++i) s << (i ? " \\| " : "") << p.extensions[i];
+  if (!p.extensions.empty() && !p.extensions_unless.empty()) s << " (" << p.extensions_unless << ": auto)";
   return s.str();
 }
 
@@ -249,10 +254,27 @@ int cmd_info(const std::vector<std::string>& args) {
 
 // ---------------------------------------------------------------- validate / run
 int cmd_validate(const std::vector<std::string>& args) {
-  if (args.size() != 1) throw InputError("validate: expected one PIPELINE file");
-  Pipeline p = Pipeline::load_file(args[0]);
-  validate_or_throw(p);
-  std::printf("%s: valid (%zu nodes)\n", args[0].c_str(), p.nodes().size());
+  std::string file;
+  PathPolicy paths;
+  for (size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    if (a == "--output-dir") {
+      if (i + 1 >= args.size()) throw InputError("validate: --output-dir needs a value");
+      paths.output_dir = args[++i];
+    } else if (a == "--allow-outside-output-dir") {
+      paths.allow_outside = true;
+    } else if (!a.empty() && a[0] == '-') {
+      throw InputError("validate: unknown option " + a);
+    } else if (file.empty()) {
+      file = a;
+    } else {
+      throw InputError("validate: expected one PIPELINE file");
+    }
+  }
+  if (file.empty()) throw InputError("validate: expected one PIPELINE file");
+  Pipeline p = Pipeline::load_file(file);
+  validate_or_throw(p, Registry::instance(), paths);
+  std::printf("%s: valid (%zu nodes)\n", file.c_str(), p.nodes().size());
   return kOk;
 }
 
@@ -296,14 +318,14 @@ int cmd_run(const std::vector<std::string>& args) {
       }
     } else if (a == "--threads") {
       const std::string& v = need(i, "--threads");
-      try {
-        opt.threads = std::stoi(v);
-      } catch (...) {
-        throw InputError("--threads " + v + ": expected a number");
-      }
-      if (opt.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+      int64_t n = 0;
+      if (!text::parse_int(v, n) || n < 0 || n > 4096)
+        throw InputError("--threads " + v + ": expected a whole number from 0 (all cores) to 4096");
+      opt.threads = static_cast<int>(n);
     } else if (a == "--output-dir") {
       opt.output_dir = need(i, "--output-dir");
+    } else if (a == "--allow-outside-output-dir") {
+      opt.allow_outside_output_dir = true;
     } else if (a == "--report") {
       report_path = need(i, "--report");
     } else if (a == "--target") {

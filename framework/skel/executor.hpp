@@ -29,7 +29,9 @@ struct NodeStatus {
 
 struct ExecOptions {
   int threads = 0;                        // total thread budget; 0 = all hardware threads
-  std::filesystem::path output_dir;       // relative output paths resolve here if set
+  std::filesystem::path output_dir;       // relative output paths resolve here if set; every output
+                                          // must then lie inside it (validation error otherwise)
+  bool allow_outside_output_dir = false;  // --allow-outside-output-dir: lifts that confinement
   bool keep_outputs = false;              // GUI: keep every output in the cache for viewing
   std::vector<std::string> targets;       // run only these and what they need; empty = all
   std::map<std::string, ParamMap> overrides;  // --set node.param=value (already typed)

@@ -11,10 +11,14 @@ namespace skel {
 
 // A new uint8 0/1 mask of `data`, 1 where voxel > 0 (a VolumeU8 is copied and made 0/1 as well).
 // Throws InputError naming `what` (e.g. "input 'mask'") for floating-point volumes and non-volumes.
-VolumeU8 to_mask(const DataObject& data, const std::string& what);
+// With `warning`, sets it to a message naming `what` when the volume holds values other than 0 and
+// 1 (a grey or label image wired into a mask: all of it > 0 is object), else leaves it empty; the
+// check rides on the conversion pass (a uint8 volume costs one extra read-only pass).
+VolumeU8 to_mask(const DataObject& data, const std::string& what, std::string* warning = nullptr);
 
 // `data` as a mask without a copy when it already is a VolumeU8 (shared as it is: non-zero is
-// object); other integer volumes go through to_mask (1 byte per voxel). Same errors.
-std::shared_ptr<const VolumeU8> shared_mask(const DataPtr& data, const std::string& what);
+// object); other integer volumes go through to_mask (1 byte per voxel). Same errors and warning.
+std::shared_ptr<const VolumeU8> shared_mask(const DataPtr& data, const std::string& what,
+                                            std::string* warning = nullptr);
 
 }  // namespace skel

@@ -225,6 +225,9 @@ public:
   ModuleSpec& unit(std::string unit);
   ModuleSpec& length(int n);          // lists: exact length
   ModuleSpec& optional_value();       // empty string / empty list means "not given"
+  // A Path parameter's accepted file extensions (".h5", any case in the path), checked at
+  // validation for outputs; with `unless_param`, only while that choice parameter is "auto".
+  ModuleSpec& extensions(std::vector<std::string> exts, std::string unless_param = {});
   ModuleSpec& renamed_from(std::string old_name);
   // Overrides the default of the last parameter (a bound parameter whose module default differs
   // from the algorithm's, e.g. a pipeline-friendly default).

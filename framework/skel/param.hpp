@@ -34,6 +34,11 @@ struct ParamSpec {
   int list_length = -1;                  // for lists: required length, -1 = any
   PathRole path_role = PathRole::None;   // for Path
   bool optional_value = false;           // an empty string / list means "not given"
+  // Output paths: the file extensions the writer accepts (lower case, with dot), checked by
+  // validate(); empty = any. While the choice parameter `extensions_unless` is not "auto" (a format
+  // given explicitly), any extension is accepted.
+  std::vector<std::string> extensions;
+  std::string extensions_unless;
   std::vector<std::string> old_names;    // renamed parameters still accepted when loading YAML
   // Binding to a member of an algorithm's options struct (ModuleSpec::param(name, &Opt::member, doc)):
   // the struct's type and a function that stores a checked value into that member of an Opt object.

@@ -8,6 +8,7 @@
 //     phantom: {module: synthetic.network, params: {shape: rods, size: [128, 128, 128]}}
 //     seg:     {module: segmentation.threshold, inputs: {image: phantom.image}, params: {low: 0.5}}
 //   gui: {}   # optional; preserved untouched
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -62,7 +63,9 @@ public:
   Pipeline() = default;
 
   // Loading: YAML syntax errors and structural errors (not a mapping, bad node.port syntax, unknown
-  // top-level keys, wrong format version) throw InputError with file:line:column. Semantic problems
+  // or duplicate keys, a second YAML document, nesting deeper than kMaxYamlDepth, wrong format
+  // version) throw InputError with file:line:column; load_file() refuses what is not a regular file
+  // or is larger than kMaxPipelineFileBytes before reading it. Semantic problems
   // (unknown module, bad params, ...) are left to validate().
   static Pipeline load_file(const std::filesystem::path& path);
   static Pipeline parse(const std::string& yaml_text, const std::string& file_name = "<string>",
@@ -124,12 +127,30 @@ ParamValue parse_param_text(const std::string& text);
 // float list); returns nullopt if it cannot.
 std::optional<ParamValue> coerce_param(const ParamSpec& spec, const ParamValue& v);
 
+// Where a run's files go, for the file checks of validate().
+struct PathPolicy {
+  // Relative output paths resolve here; empty = the pipeline's folder (base_dir()). When set (the
+  // `--output-dir` of a run), every output must resolve inside it, symbolic links of existing
+  // folders followed, unless `allow_outside` (`--allow-outside-output-dir`).
+  std::filesystem::path output_dir;
+  bool allow_outside = false;
+};
+
 // All problems of `p` against the registry: unknown module, unknown/mistyped parameter, value out of
-// range, unknown port, port type mismatch, missing required input, dangling connection, cycles.
-// Duplicate ids and YAML errors are caught when loading.
-std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry = Registry::instance());
+// range, unknown port, port type mismatch, missing required input, dangling connection, cycles (the
+// nodes on one cycle), and the files: an input file that does not exist, an output file whose
+// extension its writer does not accept, two outputs resolving to one file (symbolic links of the
+// existing folders followed), an output outside `paths.output_dir`. Duplicate ids and YAML errors
+// are caught when loading.
+std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry = Registry::instance(),
+                                 const PathPolicy& paths = {});
 // Throws InputError with all diagnostics (one per line) if validate() finds any.
-void validate_or_throw(const Pipeline& p, const Registry& registry = Registry::instance());
+void validate_or_throw(const Pipeline& p, const Registry& registry = Registry::instance(),
+                       const PathPolicy& paths = {});
+
+// The largest pipeline file load_file() reads, and the deepest nesting of mappings and lists.
+inline constexpr uintmax_t kMaxPipelineFileBytes = 64ull << 20;
+inline constexpr int kMaxYamlDepth = 64;
 
 // Parameters of `node` with defaults applied and values coerced to their declared types.
 ParamMap effective_params(const PipelineNode& node, const ModuleSpec& spec);

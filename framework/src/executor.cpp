@@ -265,7 +265,7 @@ ExecutionPlan Executor::Impl::make_plan(const Pipeline& pipeline_in, const ExecO
   apply_overrides(p, opt.overrides);
   for (const auto& t : opt.targets)
     if (!p.find(t)) throw InputError("no node '" + t + "' in " + p.file() + did_you_mean(t, node_ids(p)));
-  validate_or_throw(p, im.registry);
+  validate_or_throw(p, im.registry, PathPolicy{opt.output_dir, opt.allow_outside_output_dir});
   const std::vector<std::string> order_all = p.topological_order();
   const std::set<std::string> wanted = p.upstream_closure(opt.targets);
   const auto keys = im.keys(p, order_all, nullptr);

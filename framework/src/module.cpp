@@ -1,6 +1,7 @@
 #include "skel/module.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <sstream>
 
@@ -161,6 +162,17 @@ ModuleSpec& ModuleSpec::max(double hi) { last(params_, "max").max = hi; return *
 ModuleSpec& ModuleSpec::unit(std::string u) { last(params_, "unit").unit = std::move(u); return *this; }
 ModuleSpec& ModuleSpec::length(int n) { last(params_, "length").list_length = n; return *this; }
 ModuleSpec& ModuleSpec::optional_value() { last(params_, "optional_value").optional_value = true; return *this; }
+ModuleSpec& ModuleSpec::extensions(std::vector<std::string> exts, std::string unless_param) {
+  auto& p = last(params_, "extensions");
+  if (p.type != ParamType::Path) throw Error("ModuleSpec::extensions: parameter '" + p.name + "' is not a path");
+  for (auto& e : exts) {
+    if (e.size() < 2 || e[0] != '.') throw Error("ModuleSpec::extensions: '" + e + "' must start with '.'");
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  }
+  p.extensions = std::move(exts);
+  p.extensions_unless = std::move(unless_param);
+  return *this;
+}
 ModuleSpec& ModuleSpec::renamed_from(std::string old_name) {
   last(params_, "renamed_from").old_names.push_back(std::move(old_name));
   return *this;

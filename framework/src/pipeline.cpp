@@ -6,7 +6,9 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <system_error>
 
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
 #include "skel/fs.hpp"
@@ -227,22 +229,75 @@ ParamMap effective_params(const PipelineNode& node, const ModuleSpec& spec) {
 
 // ---------------------------------------------------------------- load
 Pipeline Pipeline::load_file(const fs::path& path) {
+  // What is not a regular file (/dev/zero, a FIFO, a folder) or is huge is refused before reading.
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (!fs::exists(st)) throw InputError(path.string() + ": pipeline file not found");
+  if (!fs::is_regular_file(st))
+    throw InputError(path.string() + ": not a regular file (a pipeline is a YAML file)");
+  const uintmax_t size = fs::file_size(path, ec);
+  auto too_large = [&] {
+    return InputError(path.string() + ": the file is larger than the " + std::to_string(kMaxPipelineFileBytes >> 20) +
+                      " MiB a pipeline file may have");
+  };
+  if (!ec && size > kMaxPipelineFileBytes) throw too_large();
   std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    std::error_code ec;
-    if (!fs::exists(path, ec)) throw InputError(path.string() + ": pipeline file not found");
-    throw InputError(path.string() + ": cannot read the pipeline file");
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
+  if (!in) throw InputError(path.string() + ": cannot read the pipeline file");
+  // At most the limit (and one byte more to notice a file that grew meanwhile).
+  std::string text(static_cast<size_t>(kMaxPipelineFileBytes) + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  if (text.size() > kMaxPipelineFileBytes) throw too_large();
   fs::path base = fs::absolute(path).parent_path();
-  Pipeline p = parse(ss.str(), path.string(), base);
+  Pipeline p = parse(text, path.string(), base);
   return p;
 }
+
+namespace {
+// A first pass over the YAML events, before building the tree: refuses nesting deeper than
+// kMaxYamlDepth (yaml-cpp's own guard, at 500 levels, says only "bad file") and a second document.
+class StructureCheck final : public YAML::EventHandler {
+public:
+  explicit StructureCheck(const std::string& file) : file_(file) {}
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    if (++documents_ > 1)
+      fail(file_, {mark.line + 1, mark.column + 1},
+           "a second YAML document (after '---'); a pipeline file holds one document");
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    enter(mark);
+  }
+  void OnSequenceEnd() override { --depth_; }
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {
+    enter(mark);
+  }
+  void OnMapEnd() override { --depth_; }
+
+private:
+  void enter(const YAML::Mark& mark) {
+    if (++depth_ > kMaxYamlDepth)
+      fail(file_, {mark.line + 1, mark.column + 1},
+           "mappings and lists nested deeper than " + std::to_string(kMaxYamlDepth) + " levels");
+  }
+  const std::string& file_;
+  int depth_ = 0, documents_ = 0;
+};
+}  // namespace
 
 Pipeline Pipeline::parse(const std::string& text, const std::string& file, const fs::path& base_dir) {
   YAML::Node root;
   try {
+    {
+      std::istringstream in(text);
+      YAML::Parser parser(in);
+      StructureCheck check(file);
+      while (parser.HandleNextDocument(check)) {
+      }
+    }
     root = YAML::Load(text);
   } catch (const YAML::ParserException& e) {
     fail(file, {e.mark.line + 1, e.mark.column + 1}, "YAML syntax error: " + e.msg);
@@ -254,8 +309,17 @@ Pipeline Pipeline::parse(const std::string& text, const std::string& file, const
   p.base_dir_ = base_dir;
   if (!root.IsMap()) fail(file, pos_of(root), "a pipeline must be a mapping with keys 'skelflow' and 'nodes'");
   bool have_version = false, have_nodes = false;
+  // Keys given twice (yaml-cpp keeps both) are errors at the second one.
+  auto once = [&](std::map<std::string, SourcePos>& seen, const YAML::Node& key, const std::string& what) {
+    const SourcePos at = pos_of(key);
+    auto [it, fresh] = seen.emplace(key.Scalar(), at);
+    if (!fresh)
+      fail(file, at, what + "'" + key.Scalar() + "' given twice (first at line " + std::to_string(it->second.line) + ")");
+  };
+  std::map<std::string, SourcePos> top_keys;
   for (const auto& kv : root) {
     const std::string key = kv.first.Scalar();
+    once(top_keys, kv.first, "top-level key ");
     if (key == "skelflow") {
       have_version = true;
       int64_t v = 0;
@@ -280,8 +344,10 @@ Pipeline Pipeline::parse(const std::string& text, const std::string& file, const
         }
         const YAML::Node& body = nkv.second;
         if (!body.IsMap()) fail(file, pos_of(body), "node '" + n.id + "' must be a mapping with 'module'");
+        std::map<std::string, SourcePos> node_keys;
         for (const auto& f : body) {
           const std::string fk = f.first.Scalar();
+          once(node_keys, f.first, "node '" + n.id + "': key ");
           if (fk == "module") {
             if (!f.second.IsScalar()) fail(file, pos_of(f.second), "node '" + n.id + "': 'module' must be a name");
             n.module = f.second.Scalar();
@@ -574,17 +640,48 @@ std::vector<size_t> kahn_order(const std::vector<PipelineNode>& nodes, std::vect
   return order;
 }
 
-std::string cycle_message(const std::vector<PipelineNode>& nodes, const std::vector<size_t>& left) {
+// One cycle among the nodes Kahn's algorithm left (each of them reads from another one left, so
+// following inputs inside that set must come back to a node already seen): the nodes on it in the
+// direction data flows, starting with the one earliest in the file. Nodes merely downstream of a
+// cycle are not on it.
+std::vector<size_t> find_cycle(const std::vector<PipelineNode>& nodes, const std::vector<size_t>& left) {
+  std::map<std::string, size_t> index;
+  for (size_t i : left) index[nodes[i].id] = i;
+  std::vector<size_t> path;
+  std::map<size_t, size_t> at;  // node -> position in path
+  size_t cur = left.front();
+  while (!at.count(cur)) {
+    at[cur] = path.size();
+    path.push_back(cur);
+    size_t next = cur;
+    for (const auto& [port, ref] : nodes[cur].inputs)
+      if (auto it = index.find(ref.node); it != index.end()) {
+        next = it->second;
+        break;
+      }
+    cur = next;
+  }
+  std::vector<size_t> cycle(path.begin() + static_cast<std::ptrdiff_t>(at[cur]), path.end());
+  std::reverse(cycle.begin(), cycle.end());  // walked against the data flow
+  std::rotate(cycle.begin(), std::min_element(cycle.begin(), cycle.end()), cycle.end());
+  return cycle;
+}
+
+std::string cycle_message(const std::vector<PipelineNode>& nodes, const std::vector<size_t>& cycle) {
   std::string cyc;
-  for (size_t i : left) { if (!cyc.empty()) cyc += ", "; cyc += nodes[i].id; }
-  return "the pipeline has a cycle through nodes " + cyc;
+  for (size_t i : cycle) cyc += "'" + nodes[i].id + "' -> ";
+  return "the pipeline has a cycle: " + cyc + "'" + nodes[cycle.front()].id + "'";
 }
 }  // namespace
 
 std::vector<std::string> Pipeline::topological_order() const {
   std::vector<size_t> left;
   const std::vector<size_t> order = kahn_order(nodes_, left);
-  if (!left.empty()) throw InputError(file_ + ": " + cycle_message(nodes_, left));
+  if (!left.empty()) {
+    const std::vector<size_t> cycle = find_cycle(nodes_, left);
+    const PipelineNode& first = nodes_[cycle.front()];
+    throw InputError(Diagnostic{file_, first.pos, "", cycle_message(nodes_, cycle)}.format());
+  }
   std::vector<std::string> ids;
   for (size_t i : order) ids.push_back(nodes_[i].id);
   return ids;
@@ -652,7 +749,35 @@ std::string did_you_mean(const std::string& name, const std::vector<std::string>
   return best.empty() ? std::string() : " (did you mean '" + best + "'?)";
 }
 
-std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
+namespace {
+// As the executor resolves a path parameter (detail::resolve_path): against `base` unless absolute.
+fs::path resolve_against(const fs::path& base, const std::string& value) {
+  const fs::path path(value);
+  if (path.is_absolute() || base.empty()) return path.lexically_normal();
+  return (base / path).lexically_normal();
+}
+// The path with the symbolic links of its existing part resolved, absolute, without a trailing '/'.
+fs::path real_path(const fs::path& path) {
+  std::error_code ec;
+  fs::path r = fs::weakly_canonical(fs::absolute(path, ec), ec);
+  if (ec) r = fs::absolute(path, ec).lexically_normal();
+  if (!r.has_filename() && r.has_parent_path() && r != r.root_path()) r = r.parent_path();
+  return r;
+}
+bool is_inside(const fs::path& path, const fs::path& dir) {
+  auto d = dir.begin(), p = path.begin();
+  for (; d != dir.end(); ++d, ++p)
+    if (p == path.end() || *p != *d) return false;
+  return true;
+}
+std::string join_or(const std::vector<std::string>& xs) {
+  std::string s;
+  for (size_t i = 0; i < xs.size(); ++i) s += (i == 0 ? "" : i + 1 == xs.size() ? " or " : ", ") + xs[i];
+  return s;
+}
+}  // namespace
+
+std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, const PathPolicy& paths) {
   std::vector<Diagnostic> ds;
   auto add = [&](const PipelineNode& n, SourcePos pos, std::string msg) {
     ds.push_back({p.file(), pos.known() ? pos : n.pos, n.id, std::move(msg)});
@@ -731,15 +856,82 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry) {
       if (ip.required && !n.inputs.count(ip.name))
         add(n, n.pos, "required input '" + ip.name + "' (" + join_types(ip.types) + ") is not connected");
   }
+  // Files: inputs that do not exist, outputs with an extension their writer does not know, outputs
+  // outside --output-dir, two outputs into one file (compared with symbolic links resolved).
+  const fs::path out_base = paths.output_dir.empty() ? p.base_dir() : fs::absolute(paths.output_dir);
+  const fs::path confine = paths.output_dir.empty() || paths.allow_outside ? fs::path() : real_path(out_base);
+  struct Writer {
+    std::string node, param, where;
+  };
+  std::map<fs::path, Writer> writers;
+  for (const auto& n : p.nodes()) {
+    const ModuleSpec* spec = registry.find(n.module);
+    if (!spec) continue;
+    const ParamMap eff = effective_params(n, *spec);
+    for (const auto& ps : spec->params()) {
+      if (ps.type != ParamType::Path || ps.path_role == PathRole::None) continue;
+      const auto* value = std::get_if<std::string>(&eff.at(ps.name));
+      if (!value || value->empty()) continue;  // a bad value is reported above, a missing one too
+      const SourcePos pos = n.param_pos.count(ps.name) ? n.param_pos.at(ps.name) : n.pos;
+      const std::string param = "param '" + ps.name + "': ";
+      if (ps.path_role == PathRole::Input) {
+        const fs::path f = resolve_against(p.base_dir(), *value);
+        std::error_code ec;
+        const fs::file_status st = fs::status(f, ec);
+        if (!fs::exists(st)) add_param(n, ps.name, pos, param + "input file '" + f.string() + "' not found");
+        else if (fs::is_directory(st)) add_param(n, ps.name, pos, param + "'" + f.string() + "' is a folder, not a file");
+        continue;
+      }
+      const fs::path f = resolve_against(out_base, *value);
+      if (!ps.extensions.empty()) {
+        bool check = true;
+        if (!ps.extensions_unless.empty())
+          if (auto it = eff.find(ps.extensions_unless); it != eff.end())
+            if (auto* c = std::get_if<std::string>(&it->second); c && *c != "auto") check = false;
+        const std::string ext = text::to_lower(f.extension().string());
+        if (check && std::find(ps.extensions.begin(), ps.extensions.end(), ext) == ps.extensions.end())
+          add_param(n, ps.name, pos,
+                    param + "'" + *value + "': " + (ext.empty() ? "no file extension" : "unknown extension '" + ext + "'") +
+                        "; " + n.module + " writes " + join_or(ps.extensions) +
+                        (ps.extensions_unless.empty() ? "" : " (or set '" + ps.extensions_unless + "')"));
+      }
+      const fs::path real = real_path(f);
+      if (!confine.empty() && !is_inside(real, confine)) {
+        add_param(n, ps.name, pos,
+                  param + "output '" + *value + "' resolves to " + real.string() + ", outside the output folder " +
+                      confine.string() + " (--allow-outside-output-dir allows it)");
+        continue;
+      }
+      std::error_code ec;
+      if (fs::is_directory(real, ec)) {
+        add_param(n, ps.name, pos, param + "output '" + real.string() + "' is an existing folder");
+        continue;
+      }
+      auto o = n.param_origin.find(ps.name);
+      std::string where;
+      if (o != n.param_origin.end()) where = o->second;
+      else if (pos.known()) where = p.file() + ":" + std::to_string(pos.line) + ":" + std::to_string(pos.column);
+      auto [it, fresh] = writers.emplace(real, Writer{n.id, ps.name, where});
+      if (!fresh) {
+        const Writer& w = it->second;
+        add_param(n, ps.name, pos,
+                  param + "writes the same file " + real.string() + " as node '" + w.node + "' param '" + w.param + "'" +
+                      (w.where.empty() ? "" : " (" + w.where + ")"));
+      }
+    }
+  }
   // A cycle is reported at the first of its nodes in the file.
   std::vector<size_t> left;
   (void)kahn_order(p.nodes(), left);
-  if (!left.empty()) ds.push_back({p.file(), p.nodes()[left.front()].pos, "", cycle_message(p.nodes(), left)});
+  if (!left.empty()) {
+    const std::vector<size_t> cycle = find_cycle(p.nodes(), left);
+    ds.push_back({p.file(), p.nodes()[cycle.front()].pos, "", cycle_message(p.nodes(), cycle)});
+  }
   return ds;
 }
 
-void validate_or_throw(const Pipeline& p, const Registry& registry) {
-  auto ds = validate(p, registry);
+void validate_or_throw(const Pipeline& p, const Registry& registry, const PathPolicy& paths) {
+  auto ds = validate(p, registry, paths);
   if (ds.empty()) return;
   std::string msg;
   for (const auto& d : ds) { if (!msg.empty()) msg += "\n"; msg += d.format(); }

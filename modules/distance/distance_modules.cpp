@@ -12,11 +12,15 @@ namespace skel::distance {
 namespace {
 
 // The mask input as a VolumeU8 (voxel > 0 is object): uint8 masks are used as they are, other integer
-// volumes are converted (1 extra byte per voxel), floating-point ones are an InputError naming the port.
+// volumes are converted (1 extra byte per voxel), floating-point ones are an InputError naming the port;
+// values other than 0 and 1 (a grey image wired in) give a warning.
 std::shared_ptr<const VolumeU8> mask_input(RunContext& ctx, const std::string& port) {
   DataPtr d = ctx.input_data(port);
   if (!d) throw InputError("input '" + port + "' is not connected");
-  return shared_mask(d, port);
+  std::string warning;
+  auto m = shared_mask(d, "input '" + port + "'", &warning);
+  if (!warning.empty()) ctx.warn(warning);
+  return m;
 }
 
 const char* kMaskDoc = "object mask: any integer volume, voxel > 0 is object, 0 is background";

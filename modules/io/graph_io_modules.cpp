@@ -38,8 +38,10 @@ public:
     return ModuleSpec(names::write_graph, "Write a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
         .input<SpatialGraph>("graph", "the graph")
         .path("path", "", PathRole::Output, "graph file; the format follows the extension")
+        .extensions({".am", ".vtp", ".swc", ".graphml", ".csv"})
         .path("nodes_path", "", PathRole::Output, "CSV only (required there): nodes table file")
         .optional_value()
+        .extensions({".csv"})
         .details(std::string(kGraphFormats) +
                  " Files appear only when the whole run succeeds (temporary file + rename). Coordinates: "
                  "float in .am (Amira's layout), 17 significant digits elsewhere.");

@@ -48,6 +48,7 @@ public:
     return ModuleSpec(names::write_volume, "Write a volume to an HDF5 file")
         .add_input("volume", all_volume_types(), "volume to write", true)
         .path("path", "", PathRole::Output, "HDF5 file to create (.h5); written to a temporary file and renamed when the run succeeds")
+        .extensions({".h5", ".hdf5"})
         .param<std::string>("dataset", "/volume", "dataset name (groups are created)")
         .param("compression", &io::WriteOptions::compression, "deflate level (0 = none; 1 is fast and compresses masks ~20x)").range(0, 9)
         .details(R"(Writes the volume as a dataset of shape [z][y][x] in its own voxel type, with attributes
@@ -71,6 +72,7 @@ public:
     return ModuleSpec(names::write_table, "Write a table to a CSV file")
         .input<Table>("table", "table to write")
         .path("path", "", PathRole::Output, "CSV file to create; written to a temporary file and renamed when the run succeeds")
+        .extensions({".csv"})
         .details(R"(Comma-separated values with one header line; a column with a unit is headed
 "name [unit]". Text containing commas or quotes is quoted. Numbers are written with full precision
 (17 significant digits for floats), so reading them back is lossless.)");

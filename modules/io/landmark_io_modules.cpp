@@ -50,6 +50,7 @@ public:
     return ModuleSpec(names::write_landmarks, "Write landmarks (Amira .landmarkAscii, Slicer .fcsv, CSV)")
         .input<LandmarkSet>("landmarks", "landmarks to write")
         .path("path", "", PathRole::Output, "file to create (.landmarkAscii, .fcsv or .csv); renamed into place when the run succeeds")
+        .extensions({".landmarkascii", ".am", ".fcsv", ".csv"}, "format")
         .choice("format", {"auto", "amira", "fcsv", "csv"}, "auto", "file format (auto: by extension)")
         .param<int64_t>("set", -1, "write only this set (-1 = all sets; .fcsv holds one set per file)").min(-1)
         .details(R"(Writes the layout Amira writes for a LandmarkSet (`# AmiraMesh 3D ASCII 2.0`,
@@ -99,7 +100,8 @@ public:
   static ModuleSpec spec() {
     return ModuleSpec(names::write_transform, "Write a transform (4x4 text matrix or ITK .tfm)")
         .input<Transform>("transform", "transform to write (moving → fixed)")
-        .path("path", "", PathRole::Output, "file to create (.tfm for ITK, else a text matrix); renamed into place when the run succeeds")
+        .path("path", "", PathRole::Output, "file to create (.tfm for ITK; .txt or .mat a text matrix); renamed into place when the run succeeds")
+        .extensions({".tfm", ".txt", ".mat"}, "format")
         .choice("format", {"auto", "matrix", "itk"}, "auto", "file format (auto: .tfm is ITK, anything else a matrix)")
         .details(R"(Matrix: a comment `# skelflow transform kind=<kind> maps moving -> fixed` and the 4x4
 homogeneous matrix (17 significant digits). ITK `.tfm`: `AffineTransform_double_3_3` holding the

@@ -11,6 +11,15 @@
 namespace skel::segmentation {
 namespace {
 
+// The `mask` input as a 0/1 copy; a volume holding other values than 0 and 1 (a grey image wired into
+// the port) gives a warning naming the port.
+VolumeU8 mask_input(RunContext& ctx) {
+  std::string warning;
+  VolumeU8 m = to_mask(*ctx.input_data("mask"), "input 'mask'", &warning);
+  if (!warning.empty()) ctx.warn(warning);
+  return m;
+}
+
 class Threshold final : public Module {
 public:
   static ModuleSpec spec() {
@@ -84,7 +93,7 @@ Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run a
 (typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).)");
   }
   void run(RunContext& ctx) override {
-    auto r = connected_components(to_mask(*ctx.input_data("mask"), "input 'mask'"), ctx.options<ComponentOptions>());
+    auto r = connected_components(mask_input(ctx), ctx.options<ComponentOptions>());
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     ctx.output("labels", std::move(r.labels));
     ctx.output("mask", std::move(r.mask));
@@ -168,7 +177,7 @@ full volume: dilation gives a full volume, erosion keeps voxels farther than rad
 Memory: 4 bytes per voxel (squared distances) + 1 (output); open/close hold one intermediate mask more.)");
   }
   void run(RunContext& ctx) override {
-    ctx.output("mask", morphology(to_mask(*ctx.input_data("mask"), "input 'mask'"), ctx.options<MorphologyOptions>()));
+    ctx.output("mask", morphology(mask_input(ctx), ctx.options<MorphologyOptions>()));
   }
 };
 SKEL_REGISTER_MODULE(Morphology);
@@ -188,7 +197,7 @@ plus about 24 bytes per background run.)");
   }
   void run(RunContext& ctx) override {
     int64_t filled = 0;
-    VolumeU8 m = segmentation::fill_cavities(to_mask(*ctx.input_data("mask"), "input 'mask'"), &filled,
+    VolumeU8 m = segmentation::fill_cavities(mask_input(ctx), &filled,
                                               ctx.threads());
     if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
     ctx.output("mask", std::move(m));

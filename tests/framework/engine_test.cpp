@@ -152,7 +152,105 @@ TEST(PipelineValidate, Cycle) {
       "skelflow: 1\nnodes:\n"
       "  a: {module: test.scale, inputs: {volume: b.volume}}\n"
       "  b: {module: test.scale, inputs: {volume: a.volume}}\n");
-  EXPECT_NE(e.find("the pipeline has a cycle through nodes a, b"), std::string::npos) << e;
+  EXPECT_EQ(e, "p.yaml:3:3: the pipeline has a cycle: 'a' -> 'b' -> 'a'\n");
+}
+
+// Only the nodes on the cycle are named (not those behind it), at the first of them in the file,
+// by validate() and by topological_order() alike.
+TEST(PipelineValidate, CycleNamesOnlyItsNodes) {
+  const std::string yaml =
+      "skelflow: 1\nnodes:\n"
+      "  behind: {module: test.scale, inputs: {volume: c.volume}}\n"
+      "  a: {module: test.scale, inputs: {volume: c.volume}}\n"
+      "  b: {module: test.scale, inputs: {volume: a.volume}}\n"
+      "  c: {module: test.scale, inputs: {volume: b.volume}}\n"
+      "  self: {module: test.scale, inputs: {volume: self.volume}}\n";
+  const std::string e = validation_errors(yaml);
+  EXPECT_EQ(e, "p.yaml:4:3: the pipeline has a cycle: 'a' -> 'b' -> 'c' -> 'a'\n");
+  const Pipeline p = Pipeline::parse(yaml, "p.yaml");
+  EXPECT_EQ(error_of([&] { (void)p.topological_order(); }), "p.yaml:4:3: the pipeline has a cycle: 'a' -> 'b' -> 'c' -> 'a'");
+  const Pipeline one = Pipeline::parse("skelflow: 1\nnodes:\n  self: {module: test.scale, inputs: {volume: self.volume}}\n", "q.yaml");
+  EXPECT_EQ(error_of([&] { (void)one.topological_order(); }), "q.yaml:3:3: the pipeline has a cycle: 'self' -> 'self'");
+}
+
+// Keys given twice, a second document and deep nesting are load errors at their line:column.
+TEST(PipelineYaml, DuplicateKeysSecondDocumentAndDepth) {
+  auto load_error = [](const std::string& yaml) { return error_of([&] { (void)Pipeline::parse(yaml, "p.yaml"); }); };
+  EXPECT_EQ(load_error("skelflow: 1\nnodes: {}\nskelflow: 1\n"),
+            "p.yaml:3:1: top-level key 'skelflow' given twice (first at line 1)");
+  EXPECT_EQ(load_error("skelflow: 1\nnodes:\n  a: {module: test.source, module: test.scale}\n"),
+            "p.yaml:3:28: node 'a': key 'module' given twice (first at line 3)");
+  EXPECT_EQ(load_error("skelflow: 1\nnodes: {}\n---\nskelflow: 1\n"),
+            "p.yaml:3:1: a second YAML document (after '---'); a pipeline file holds one document");
+  const std::string deep = "skelflow: 1\nnodes: {a: {module: test.source, params: {size: " + std::string(500, '[') +
+                           std::string(500, ']') + "}}}\n";
+  EXPECT_EQ(load_error(deep), "p.yaml:2:" + std::to_string(49 + kMaxYamlDepth - 4) +
+                                  ": mappings and lists nested deeper than 64 levels");
+  // (the root mapping, nodes, a, params: the 61st '[' at column 49 + 60 is level 65) Depth 64 itself loads.
+  std::string ok = "skelflow: 1\nnodes: {}\ngui: ";
+  ok += std::string(kMaxYamlDepth - 1, '[') + std::string(kMaxYamlDepth - 1, ']') + "\n";
+  EXPECT_EQ(load_error(ok), "(no error)");
+}
+
+// Two outputs into one file, also through a symbolic link of a folder, are found by validate() at
+// the second writer, naming the first with its line:column; files are compared after resolving links.
+TEST(PipelineValidate, TwoWritersOfOneFile) {
+  const fs::path d = scratch("two_writers");
+  fs::create_directories(d / "real");
+  fs::create_directory_symlink(d / "real", d / "alias");
+  Pipeline p = Pipeline::parse(
+      "skelflow: 1\nnodes:\n"
+      "  src: {module: test.source, params: {size: [2, 2, 2]}}\n"
+      "  w1: {module: test.write, inputs: {volume: src.volume}, params: {path: real/t.txt}}\n"
+      "  w2: {module: test.write, inputs: {volume: src.volume}, params: {path: alias/t.txt}}\n"
+      "  w3: {module: test.write, inputs: {volume: src.volume}, params: {path: real/../real/t.txt}}\n"
+      "  w4: {module: test.write, inputs: {volume: src.volume}, params: {path: alias/other.txt}}\n",
+      "p.yaml", d);
+  std::string all;
+  for (const auto& x : validate(p)) all += x.format() + "\n";
+  const std::string f = fs::canonical(d / "real").string() + "/t.txt";
+  EXPECT_EQ(all, "p.yaml:5:73: node 'w2': param 'path': writes the same file " + f +
+                     " as node 'w1' param 'path' (p.yaml:4:73)\n"
+                     "p.yaml:6:73: node 'w3': param 'path': writes the same file " + f +
+                     " as node 'w1' param 'path' (p.yaml:4:73)\n");
+  // The executor refuses before any node runs.
+  Executor ex;
+  EXPECT_NE(error_of([&] { ex.run(p); }).find("node 'w2': param 'path': writes the same file"), std::string::npos);
+  EXPECT_EQ(ex.modules_run(), 0);
+  EXPECT_TRUE(fs::is_empty(d / "real"));
+}
+
+// Declared extensions of an output path are checked (unless the named format choice is not auto);
+// input files must exist.
+TEST(PipelineValidate, OutputExtensionsAndMissingInputs) {
+  Registry reg;
+  reg.add(ModuleSpec("x.write", "writes")
+              .path("path", "", PathRole::Output, "file")
+              .extensions({".H5", ".hdf5"}, "format")
+              .choice("format", {"auto", "raw"}, "auto", "format"),
+          nullptr);
+  reg.add(ModuleSpec("x.read", "reads").path("path", "", PathRole::Input, "file"), nullptr);
+  const fs::path d = scratch("extensions");
+  std::ofstream(d / "here.bin") << "x";
+  Pipeline p = Pipeline::parse(
+      "skelflow: 1\nnodes:\n"
+      "  a: {module: x.write, params: {path: out/a.tif}}\n"
+      "  b: {module: x.write, params: {path: out/b.HDF5}}\n"
+      "  c: {module: x.write, params: {path: out/c, format: raw}}\n"
+      "  d: {module: x.write, params: {path: out/d}}\n"
+      "  e: {module: x.read, params: {path: missing.bin}}\n"
+      "  f: {module: x.read, params: {path: here.bin}}\n"
+      "  g: {module: x.read, params: {path: out}}\n",
+      "p.yaml", d);
+  fs::create_directories(d / "out");
+  std::string all;
+  for (const auto& x : validate(p, reg)) all += x.format() + "\n";
+  EXPECT_EQ(all,
+            "p.yaml:3:39: node 'a': param 'path': 'out/a.tif': unknown extension '.tif'; x.write writes .h5 or .hdf5 (or set 'format')\n"
+            "p.yaml:6:39: node 'd': param 'path': 'out/d': no file extension; x.write writes .h5 or .hdf5 (or set 'format')\n"
+            "p.yaml:7:38: node 'e': param 'path': input file '" + (d / "missing.bin").string() + "' not found\n"
+            "p.yaml:9:38: node 'g': param 'path': '" + (d / "out").string() + "' is a folder, not a file\n");
+  EXPECT_THROW(ModuleSpec("x.y", "z").param("n", 1, "n").extensions({".a"}), Error);
 }
 
 TEST(PipelineValidate, ValidPipelineHasNoDiagnostics) {

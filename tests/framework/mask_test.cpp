@@ -2,6 +2,9 @@
 // are an error naming the port. (Moved from the distance tests, where binary_mask lived.)
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <memory>
 #include <string>
 
@@ -43,6 +46,70 @@ TEST(Mask, SharedMaskKeepsUint8AndConvertsOthers) {
   EXPECT_EQ(0, (*conv)[0]);
   EXPECT_EQ(conv->grid().dims, u16->grid().dims);
   EXPECT_THROW((void)shared_mask(std::make_shared<VolumeF64>(Dims{1, 1, 1}, 1.0), "mask"), InputError);
+}
+
+// A grey image in a mask port is "all object" where it is > 0: a volume holding values other than 0
+// and 1 gives a warning naming the port (and saying so when every voxel is > 0); 0/1 masks give none.
+TEST(Mask, ValuesOtherThanZeroAndOneGiveAWarning) {
+  std::string w = "stale";
+  VolumeU16 grey({4, 3, 2}, 0);
+  for (int64_t i = 0; i < grey.size(); ++i) grey[i] = static_cast<uint16_t>(100 + i);  // every voxel > 0
+  VolumeU8 m = to_mask(grey, "input 'mask'", &w);
+  EXPECT_EQ(m[0], 1);
+  EXPECT_NE(w.find("input 'mask': a mask holds 0 and 1, but this volume holds values from 100 to 123"),
+            std::string::npos) << w;
+  EXPECT_NE(w.find("here all of them"), std::string::npos) << w;
+
+  VolumeI32 labels({4, 3, 2}, 0);
+  labels[5] = -1;  // negative: not 0/1 either, though background
+  (void)to_mask(labels, "input 'mask'", &w);
+  EXPECT_NE(w.find("from -1 to 0"), std::string::npos) << w;
+  EXPECT_EQ(w.find("all of them"), std::string::npos) << w;
+
+  VolumeU16 binary({4, 3, 2}, 0);
+  binary[7] = 1;
+  (void)to_mask(binary, "input 'mask'", &w);
+  EXPECT_TRUE(w.empty()) << w;
+
+  auto u8 = std::make_shared<VolumeU8>(Dims{70000, 1, 1}, uint8_t{1});
+  (void)shared_mask(u8, "seeds", &w);
+  EXPECT_TRUE(w.empty()) << w;
+  (*u8)[69999] = 200;  // past the first block of the blocked passes
+  auto same = shared_mask(u8, "seeds", &w);
+  EXPECT_EQ(same.get(), u8.get());
+  EXPECT_NE(w.find("seeds: a mask holds 0 and 1, but this volume holds values from 1 to 200"), std::string::npos) << w;
+  auto grey16 = std::make_shared<VolumeU16>(Dims{70000, 1, 1}, uint16_t{0});
+  (*grey16)[69999] = 2;
+  (void)shared_mask(grey16, "seeds", &w);
+  EXPECT_NE(w.find("from 0 to 2"), std::string::npos) << w;
+  // Without a place for the warning, nothing is checked and the result is the same.
+  EXPECT_EQ(to_mask(grey, "input 'mask'")[3], 1);
+}
+
+// The check rides on the conversion: on 256³ voxels it adds little to the pass that was there before.
+TEST(Mask, ValueCheckCostsLittle) {
+  VolumeU16 v({256, 256, 256}, 0);
+  for (int64_t i = 0; i < v.size(); i += 3) v[i] = 1;
+  auto u8 = std::make_shared<VolumeU8>(v.grid(), uint8_t{0});
+  auto time = [](auto&& f) {
+    double best = 1e9;
+    for (int r = 0; r < 3; ++r) {
+      const auto t0 = std::chrono::steady_clock::now();
+      f();
+      best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    }
+    return best;
+  };
+  std::string w;
+  const double plain = time([&] { (void)to_mask(v, "m"); });
+  const double checked = time([&] { (void)to_mask(v, "m", &w); });
+  const double u8_check = time([&] { (void)shared_mask(u8, "m", &w); });
+  std::printf("to_mask 256^3 uint16: %.1f ms, with the check %.1f ms; uint8 check alone %.1f ms\n", plain * 1e3,
+              checked * 1e3, u8_check * 1e3);
+  EXPECT_TRUE(w.empty());
+  // Loose bounds (shared, loaded test machines): the check must not double the conversion.
+  EXPECT_LT(checked, 2.0 * plain + 0.005);
+  EXPECT_LT(u8_check, plain + 0.005);
 }
 
 }  // namespace

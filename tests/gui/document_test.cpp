@@ -356,9 +356,12 @@ TEST_F(DocTest, RunControllerReportsRunTimeErrorsAtTheNodesLine) {
   QCoreApplication app(argc, argv);
   QTemporaryDir dir;
   ASSERT_TRUE(dir.isValid());
+  // A file that exists (a missing one is found by validation) but is not HDF5: found while running.
+  const std::string broken = (std::filesystem::path(dir.path().toStdString()) / "broken.h5").string();
+  std::ofstream(broken) << "not an HDF5 file\n";
   doc.load_text(
       "skelflow: 1\nnodes:\n"
-      "  image: {module: io.read_volume, params: {path: missing.h5}}\n"
+      "  image: {module: io.read_volume, params: {path: broken.h5}}\n"
       "  t: {module: gui_test.threshold, inputs: {image: image.volume}}\n",
       "pipes/gui.yaml", dir.path());
   RunController run(&doc);
@@ -368,9 +371,8 @@ TEST_F(DocTest, RunControllerReportsRunTimeErrorsAtTheNodesLine) {
   const auto args = finished.takeFirst();
   EXPECT_FALSE(args.at(0).toBool());
   // The run's message has the format of validation errors; the node shows its own message.
-  const std::string missing = (std::filesystem::path(dir.path().toStdString()) / "missing.h5").string();
-  EXPECT_EQ(args.at(1).toString().toStdString(),
-            "pipes/gui.yaml:3:3: node 'image' (io.read_volume): " + missing + ": file not found");
+  const std::string reason = broken + ": not an HDF5 file, or the file is truncated or corrupt";
+  EXPECT_EQ(args.at(1).toString().toStdString(), "pipes/gui.yaml:3:3: node 'image' (io.read_volume): " + reason);
   EXPECT_EQ(run.status("image").state, NodeState::Error);
-  EXPECT_EQ(run.status("image").message, missing + ": file not found");
+  EXPECT_EQ(run.status("image").message, reason);
 }
