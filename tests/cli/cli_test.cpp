@@ -471,6 +471,7 @@ nodes:
                          (d / "out" / "image.h5").string() + ": dataset '/volume': File too large\n");
     EXPECT_TRUE(fs::is_empty(d / "out"));
   }
+}
 
 // What is not a regular file, or is larger than a pipeline may be, is refused before it is read
 // (`validate /dev/zero` used to read 4 GB and die of bad_alloc).
