@@ -272,6 +272,7 @@ TEST(Hdf5, ZeroSizeDatasetIsRefused) {
   EXPECT_THROW(io::read_volume(f), InputError);
   // Describing the file still works.
   EXPECT_EQ(io::read_volume_info(f).dims, (Dims{3, 0, 4}));
+}
 
 namespace {
 std::string file_bytes(const fs::path& p) {
