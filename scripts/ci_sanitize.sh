@@ -12,8 +12,10 @@ build_dir="$here/build-asan"
 [ "${1:-}" = --build-dir ] && build_dir=$2
 jobs=$(nproc)
 start=$(date +%s)
-cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSKEL_SANITIZE=ON \
-  -DSKEL_BUILD_GUI=OFF -DSKEL_BUILD_BENCH=OFF >/dev/null
+# -O1 -g1 (Debug type with its flags replaced): ASan's usual level. With ASan + UBSan one file took
+# 8 s of CPU at -O1 -g1 against 30 s at the tree's -O3 -g (5.7 s without sanitizers).
+cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -g1 -DNDEBUG" \
+  -DSKEL_SANITIZE=ON -DSKEL_BUILD_GUI=OFF -DSKEL_BUILD_BENCH=OFF >/dev/null
 cmake --build "$build_dir" -j "$jobs"
 built=$(date +%s)
 # halt_on_error: a UBSan report fails its test (gcc's default is to print and go on).
