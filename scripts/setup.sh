@@ -4,7 +4,9 @@
 #   scripts/setup.sh [demo|test] [--no-build] [--build-dir DIR] [--build-type TYPE]
 #     (no command)  install + configure + build everything
 #     demo          install + build the CLI + run the vessel pipeline (pipelines/vessel_network.yaml); results go to out/demo/
-#     test          install + build everything + run the whole test suite (ctest)
+#     test          install + build everything + run the whole test suite (ctest); CI (.ci/run) then
+#                   runs scripts/ci_sanitize.sh: the suite again under ASan + UBSan in build-asan/
+# clang and libclang-rt-14-dev (libFuzzer) are for the fuzz targets: scripts/fuzz.sh, fuzz/README.md.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir="$here/build"
@@ -29,6 +31,7 @@ packages=(
   libeigen3-dev libtbb-dev libnanoflann-dev libexpat1-dev
   libopenmpi-dev libhdf5-openmpi-dev
   xvfb xauth
+  clang libclang-rt-14-dev
   python3-scipy python3-skimage python3-h5py python3-numpy
 )
 missing=()

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -48,7 +49,13 @@ double polyline_length(const std::vector<Vec3>& pts) {
   return l;
 }
 
-std::string fmt(double d) { return text::format_double(d, 9); }
+// Shortest text that reads back as exactly the same double: a journal replays to the identical graph
+// (move_node's target, set's value), 9 digits would move a node by up to 1e-7 relative.
+std::string fmt(double d) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, d);
+  return std::string(buf, r.ptr);
+}
 std::string fmt(const Vec3& v) { return "[" + fmt(v[0]) + ", " + fmt(v[1]) + ", " + fmt(v[2]) + "]"; }
 
 // ---- whole-element records for exact undo of removals

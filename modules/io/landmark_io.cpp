@@ -91,7 +91,10 @@ LandmarkSet parse_amira(const std::string& text, const std::string& name) {
       std::string rest = l.substr(p + 7);
       rest.erase(std::remove(rest.begin(), rest.end(), ','), rest.end());
       const auto nums = parse_numbers(rest, where(name, i));
-      if (nums.size() != 1 || nums[0] < 1) throw InputError(where(name, i) + ": expected 'NumSets k'");
+      // k ≥ 1, an integer, and at most one set per declaration line the file can hold.
+      if (nums.size() != 1 || !(nums[0] >= 1 && nums[0] <= static_cast<double>(text.size())) ||
+          nums[0] != std::floor(nums[0]))
+        throw InputError(where(name, i) + ": expected 'NumSets k'");
       num_sets = static_cast<int64_t>(nums[0]);
     } else if (l.rfind("Markers", 0) == 0 && l.find('{') != std::string::npos) {
       const auto at = l.rfind('@');
@@ -99,9 +102,12 @@ LandmarkSet parse_amira(const std::string& text, const std::string& name) {
       if (l.find("Coordinates") == std::string::npos) continue;  // other per-marker data: ignored
       const auto nums = parse_numbers(l.substr(at + 1), where(name, i));
       if (nums.size() != 1) throw InputError(where(name, i) + ": expected '@K' at the end of the declaration");
+      if (!(nums[0] >= 0 && nums[0] <= 1e9) || nums[0] != std::floor(nums[0]))
+        throw InputError(where(name, i) + ": expected a block number '@K' (K >= 0)");
       const auto block = static_cast<int64_t>(nums[0]);
       const auto set_index = static_cast<int64_t>(block_of_set.size());
-      block_of_set[block] = set_index;
+      if (!block_of_set.emplace(block, set_index).second)
+        throw InputError(where(name, i) + ": data block @" + std::to_string(block) + " is declared twice");
     }
   }
   if (count < 0) throw InputError(name + ": missing 'define Markers N'");
@@ -284,9 +290,10 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
     rows[s].push_back({trim(f[cn]), {parse_number(f[cx], where(name, i)), parse_number(f[cy], where(name, i)),
                                      parse_number(f[cz], where(name, i))}});
   }
-  // Sets ordered numerically when all labels are integers, else by first appearance.
+  // Sets ordered numerically when all labels are integers (of up to 18 digits: they fit int64), else
+  // by first appearance.
   const bool numeric = std::all_of(set_labels.begin(), set_labels.end(), [](const std::string& s) {
-    return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+    return !s.empty() && s.size() <= 18 && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
   });
   if (numeric) {
     std::sort(set_labels.begin(), set_labels.end(),

@@ -213,6 +213,43 @@ TEST(TransformFiles, PlainMatrixVariants) {
 }
 
 // The messages of malformed landmark and transform files: the file, the line where known, what is wrong.
+// Found by fuzz_landmarks (fuzz/corpus/landmarks/amira_duplicate_block.txt): two coordinate
+// declarations with the same @K overflowed the vector of sets (ASan heap-buffer-overflow); a huge
+// 'define Markers' count overflowed 3·N.
+TEST(LandmarkFiles, AmiraDuplicateBlockAndHugeCountAreRefused) {
+  auto message = [](const std::string& text) -> std::string {
+    try {
+      (void)parse_landmarks(text, LandmarkFormat::Amira, "d.landmarkAscii");
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  EXPECT_EQ(message("# AmiraMesh 3D ASCII 2.0\ndefine Markers 1\nMarkers { float[3] Coordinates } @1\n"
+                    "Markers { float[3] Coordinates2 } @1\n@1\n1 2 3\n"),
+            "d.landmarkAscii:4: data block @1 is declared twice");
+  EXPECT_EQ(message("# AmiraMesh 3D ASCII 2.0\ndefine Markers 4000000000000000000\n"
+                    "Markers { float[3] Coordinates } @1\n@1\n1 2 3\n"),
+            "d.landmarkAscii:2: 'define Markers 4000000000000000000' declares more markers than a file of 105 bytes can hold");
+  EXPECT_EQ(message("# AmiraMesh 3D ASCII 2.0\ndefine Markers 1\nMarkers { float[3] Coordinates } @-1\n@1\n1 2 3\n"),
+            "d.landmarkAscii:3: expected a block number '@K' (K >= 0)");
+  // fuzz/corpus/landmarks/amira_huge_numsets.txt: 'NumSets 1e300' was cast to int64 (UBSan).
+  EXPECT_EQ(message("# AmiraMesh 3D ASCII 2.0\ndefine Markers 1\nParameters {\n NumSets 1e300\n}\n"
+                    "Markers { float[3] Coordinates } @1\n@1\n1 2 3\n"),
+            "d.landmarkAscii:4: expected 'NumSets k'");
+}
+
+// Found by fuzz_landmarks (fuzz/corpus/landmarks/csv_long_set_label.txt): a set label of 30 digits
+// threw std::out_of_range from std::stoll (an uncaught exception, not an InputError). Such labels are
+// names: the sets keep the order of their first appearance.
+TEST(LandmarkFiles, CsvSetLabelsTooLongForANumberAreNames) {
+  const LandmarkSet lm = parse_landmarks(
+      "set,name,x,y,z\n111111111111111111111111111111,a,1,2,3\n5,a,4,5,6\n", LandmarkFormat::Csv, "long.csv");
+  ASSERT_EQ(lm.set_count(), 2);
+  EXPECT_EQ(lm.sets[0][0], (Vec3{1, 2, 3}));
+  EXPECT_EQ(lm.sets[1][0], (Vec3{4, 5, 6}));
+}
+
 TEST(LandmarkFiles, MalformedFileMessages) {
   auto message = [](const std::function<void()>& f) -> std::string {
     try {
