@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
     ed.split(0, 1);
     ed.connect(3, 4);
     ed.move_node(0, {0, 1, 0});
-    ed.set_attribute("edge", {1}, "radius", 3);
+    ed.set_attribute(graph::Level::edge, {1}, "radius", 3);
     ed.undo();
     ed.redo();
     ed.merge(1);

@@ -290,10 +290,10 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
     rows[s].push_back({trim(f[cn]), {parse_number(f[cx], where(name, i)), parse_number(f[cy], where(name, i)),
                                      parse_number(f[cz], where(name, i))}});
   }
-  // Sets ordered numerically when all labels are integers (of up to 18 digits: they fit int64), else
-  // by first appearance.
+  // Sets ordered numerically when all labels are digit strings (of any length), else by first
+  // appearance.
   const bool numeric = std::all_of(set_labels.begin(), set_labels.end(), [](const std::string& s) {
-    return !s.empty() && s.size() <= 18 && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+    return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
   });
   if (numeric) {
     std::sort(set_labels.begin(), set_labels.end(),

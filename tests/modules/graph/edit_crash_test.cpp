@@ -95,11 +95,11 @@ void run_session(GraphEditor& ed, Done done) {
           break;
         }
         case 4:
-          ed.set_attribute("edge", {rnd(ne)}, "radius", 0.5 + static_cast<double>(rnd(20)) / 4);
+          ed.set_attribute(graph::Level::edge, {rnd(ne)}, "radius", 0.5 + static_cast<double>(rnd(20)) / 4);
           wrote = true;
           break;
         case 5:
-          ed.set_attribute("edge", {rnd(ne)}, "tree", static_cast<double>(rnd(4)));
+          ed.set_attribute(graph::Level::edge, {rnd(ne)}, "tree", static_cast<double>(rnd(4)));
           wrote = true;
           break;
         case 6:

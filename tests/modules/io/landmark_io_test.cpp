@@ -242,12 +242,14 @@ TEST(LandmarkFiles, AmiraDuplicateBlockAndHugeCountAreRefused) {
 // Found by fuzz_landmarks (fuzz/corpus/landmarks/csv_long_set_label.txt): a set label of 30 digits
 // threw std::out_of_range from std::stoll (an uncaught exception, not an InputError). Such labels are
 // names: the sets keep the order of their first appearance.
-TEST(LandmarkFiles, CsvSetLabelsTooLongForANumberAreNames) {
+// A 30-digit set label used to throw std::out_of_range from std::stoll; digit strings of any length
+// are ordered as numbers.
+TEST(LandmarkFiles, CsvSetLabelsTooLongForAnInt64AreOrderedAsNumbers) {
   const LandmarkSet lm = parse_landmarks(
       "set,name,x,y,z\n111111111111111111111111111111,a,1,2,3\n5,a,4,5,6\n", LandmarkFormat::Csv, "long.csv");
   ASSERT_EQ(lm.set_count(), 2);
-  EXPECT_EQ(lm.sets[0][0], (Vec3{1, 2, 3}));
-  EXPECT_EQ(lm.sets[1][0], (Vec3{4, 5, 6}));
+  EXPECT_EQ(lm.sets[0][0], (Vec3{4, 5, 6}));
+  EXPECT_EQ(lm.sets[1][0], (Vec3{1, 2, 3}));
 }
 
 TEST(LandmarkFiles, MalformedFileMessages) {
