@@ -1,6 +1,7 @@
 // Lee94 thinning, voxel-for-voxel compatible with scikit-image skeletonize_3d / Fiji Skeletonize3D
 // (see lee94.hpp for the algorithm and the implementation notes).
 #include "thinning/lee94.hpp"
+#include "thinning/cube_word.hpp"
 
 #include <algorithm>
 #include <array>
@@ -14,27 +15,9 @@ namespace skel::thinning {
 namespace {
 
 // ---------------------------------------------------------------- the 27-bit cube word
-// Bit (dx+1) + 3 (dy+1) + 9 (dz+1) is the voxel at offset (dx, dy, dz); centre = bit 13.
-constexpr uint32_t kCube = (1u << 27) - 1;
-constexpr uint32_t kCentre = 1u << 13;
-
-constexpr uint32_t cube_plane_mask(int axis, int value) {
-  uint32_t m = 0;
-  for (int c = 0; c < 27; ++c) {
-    const int v = axis == 0 ? c % 3 : axis == 1 ? (c / 3) % 3 : c / 9;
-    if (v == value) m |= 1u << c;
-  }
-  return m;
-}
-constexpr uint32_t kNotX0 = kCube & ~cube_plane_mask(0, 0), kNotX2 = kCube & ~cube_plane_mask(0, 2);
-constexpr uint32_t kNotY0 = kCube & ~cube_plane_mask(1, 0), kNotY2 = kCube & ~cube_plane_mask(1, 2);
-
-// 26-dilation of a set of cube bits (masked shifts; a shift must not wrap into the next row/plane).
-inline uint32_t dilate26(uint32_t s) {
-  s |= ((s << 1) & kNotX0) | ((s >> 1) & kNotX2);
-  s |= ((s << 3) & kNotY0) | ((s >> 3) & kNotY2);
-  return (s | (s << 9) | (s >> 9)) & kCube;
-}
+using cube::dilate26;
+using cube::kCentre;
+using cube::kCube;
 
 // skimage's is_simple_point: the object voxels of the 26-neighbourhood (centre excluded) form at
 // most one 26-component (its octree labelling is a flood fill: two neighbours of the centre are

@@ -1,6 +1,8 @@
 // Simple-voxel test (Characterization 2, bit-parallel) with a lazily memoised 2^26 table.
 #include "thinning/local_topology.hpp"
 
+#include "thinning/cube_word.hpp"
+
 #include <array>
 #include <atomic>
 #include <memory>
@@ -102,35 +104,15 @@ int background_components6(uint32_t nb) {
   return count;
 }
 
-// Bit-parallel 3x3x3 morphology on a 27-bit cube word (bit x + 3y + 9z, centre = bit 13): a dilation
-// is a few shifts, masked where a shift would wrap from one row or plane into the next.
-constexpr uint32_t kCube = (1u << 27) - 1;
-constexpr uint32_t cube_mask(int axis, int value) {
-  uint32_t m = 0;
-  for (int c = 0; c < 27; ++c) {
-    const int v = axis == 0 ? c % 3 : axis == 1 ? (c / 3) % 3 : c / 9;
-    if (v == value) m |= 1u << c;
-  }
-  return m;
-}
-constexpr uint32_t kNotX0 = kCube & ~cube_mask(0, 0), kNotX2 = kCube & ~cube_mask(0, 2);
-constexpr uint32_t kNotY0 = kCube & ~cube_mask(1, 0), kNotY2 = kCube & ~cube_mask(1, 2);
-constexpr uint32_t kCentre = 1u << 13;
+using cube::dilate26;
+using cube::dilate6;
+using cube::kCentre;
+using cube::kCube;
 // Face neighbours of the centre and the 18-neighbourhood (centre excluded) in cube bits.
 constexpr uint32_t kCubeN6 = (1u << 4) | (1u << 10) | (1u << 12) | (1u << 14) | (1u << 16) | (1u << 22);
 constexpr uint32_t kCubeCorners = (1u << 0) | (1u << 2) | (1u << 6) | (1u << 8) | (1u << 18) | (1u << 20) |
                                   (1u << 24) | (1u << 26);
 constexpr uint32_t kCubeN18 = kCube & ~kCubeCorners & ~kCentre;
-
-inline uint32_t dilate26(uint32_t s) {
-  s |= ((s << 1) & kNotX0) | ((s >> 1) & kNotX2);
-  s |= ((s << 3) & kNotY0) | ((s >> 3) & kNotY2);
-  return (s | (s << 9) | (s >> 9)) & kCube;
-}
-inline uint32_t dilate6(uint32_t s) {
-  return (s | ((s << 1) & kNotX0) | ((s >> 1) & kNotX2) | ((s << 3) & kNotY0) | ((s >> 3) & kNotY2) | (s << 9) |
-          (s >> 9)) & kCube;
-}
 
 bool is_simple_direct(uint32_t nb) {
   nb &= (1u << 26) - 1;
