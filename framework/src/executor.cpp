@@ -310,11 +310,11 @@ ExecutionPlan Executor::Impl::make_plan(const Pipeline& pipeline_in, const ExecO
 // ---------------------------------------------------------------- phase 1b: output folders
 namespace {
 
-// Why `out` cannot be written, or "" when it can: it is a folder, or the nearest existing folder
-// above it is not writable (or is a file).
+// Why `out` cannot be written, or "" when it can: the nearest existing folder above it is not
+// writable (or is a file). An output that is itself a folder is refused by validate(), which runs
+// before this.
 std::string output_problem(const fs::path& out) {
   std::error_code ec;
-  if (fs::is_directory(out, ec)) return out.string() + " is a folder; give a file name";
   fs::path dir = out.parent_path();
   if (dir.empty()) dir = ".";
   fs::path existing = dir;
