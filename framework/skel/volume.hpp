@@ -1,6 +1,7 @@
 #pragma once
 // Volume<T>: a 3D image stored x-fastest (C-order [z][y][x], index = x + nx*(y + ny*z)), 64-bit
-// dims, spacing and origin in physical units (µm by default), reported as (x, y, z).
+// dims, spacing and origin in the grid's physical unit (µm when the file names none), reported as
+// (x, y, z).
 // No virtual call per voxel: voxel access is inline on a contiguous buffer.
 #include <array>
 #include <cstdint>
@@ -32,14 +33,25 @@ template <> struct VoxelTraits<int32_t> { static constexpr const char* id = "vol
 template <> struct VoxelTraits<float> { static constexpr const char* id = "volume.f32"; static constexpr const char* name = "float32"; };
 template <> struct VoxelTraits<double> { static constexpr const char* id = "volume.f64"; static constexpr const char* name = "float64"; };
 
-// Geometry shared by every volume: dims, spacing, origin.
+// The unit of a volume or graph whose file names none.
+inline constexpr const char* kDefaultUnit = "µm";
+// 3x3 direction cosines, row-major: column k is the physical direction of voxel axis k (x, y, z),
+// as in ITK/MetaImage/NRRD/NIfTI. Identity for axis-aligned data.
+using Direction = std::array<double, 9>;
+inline constexpr Direction kIdentityDirection{1, 0, 0, 0, 1, 0, 0, 0, 1};
+
+// Geometry shared by every volume: dims, spacing, origin, the physical unit of spacing and origin,
+// and the direction cosines (physical position of voxel i = origin + direction * (i .* spacing);
+// the algorithms work in the axis-aligned frame, the direction travels to the outputs).
 struct Grid {
   Grid() = default;
-  explicit Grid(Dims d, Vec3 s = {1.0, 1.0, 1.0}, Vec3 o = {0.0, 0.0, 0.0})
-      : dims(d), spacing(s), origin(o) {}
+  explicit Grid(Dims d, Vec3 s = {1.0, 1.0, 1.0}, Vec3 o = {0.0, 0.0, 0.0}, std::string u = kDefaultUnit)
+      : dims(d), spacing(s), origin(o), unit(std::move(u)) {}
   Dims dims{0, 0, 0};
   Vec3 spacing{1.0, 1.0, 1.0};
   Vec3 origin{0.0, 0.0, 0.0};
+  std::string unit{kDefaultUnit};        // physical unit of spacing and origin ("µm", "mm", "nm", ...)
+  Direction direction{kIdentityDirection};
 
   [[nodiscard]] int64_t voxel_count() const { return dims[0] * dims[1] * dims[2]; }
   [[nodiscard]] int64_t index(int64_t x, int64_t y, int64_t z) const {
@@ -112,6 +124,15 @@ public:
   [[nodiscard]] const Vec3& origin() const { return grid_.origin; }
   void set_spacing(const Vec3& s) { grid_.spacing = s; }
   void set_origin(const Vec3& o) { grid_.origin = o; }
+  [[nodiscard]] const std::string& unit() const { return grid_.unit; }
+  void set_unit(std::string u) { grid_.unit = std::move(u); }
+  void set_direction(const Direction& d) { grid_.direction = d; }
+  // Takes spacing, origin, unit and direction from `g`; the dims stay.
+  void copy_geometry(const Grid& g) {
+    const Dims d = grid_.dims;
+    grid_ = g;
+    grid_.dims = d;
+  }
   [[nodiscard]] int64_t nx() const { return grid_.dims[0]; }
   [[nodiscard]] int64_t ny() const { return grid_.dims[1]; }
   [[nodiscard]] int64_t nz() const { return grid_.dims[2]; }
@@ -149,7 +170,7 @@ public:
     std::ostringstream s;
     s << type_id() << " " << nx() << "x" << ny() << "x" << nz() << " (x,y,z), spacing "
       << grid_.spacing[0] << " " << grid_.spacing[1] << " " << grid_.spacing[2] << ", origin "
-      << grid_.origin[0] << " " << grid_.origin[1] << " " << grid_.origin[2];
+      << grid_.origin[0] << " " << grid_.origin[1] << " " << grid_.origin[2] << " " << grid_.unit;
     return s.str();
   }
 

@@ -1,0 +1,85 @@
+#pragma once
+// One home for volume file formats: each format (HDF5, TIFF, NRRD, ...) lives in its own file
+// modules/io/volume_<format>.cpp and describes itself as a VolumeFormat (name, extensions, magic
+// bytes, header reader, reader, optional box reader and writer, describer). volume_formats() holds
+// them all in one list (volume_formats.cpp: a new format = one file + one line there + its round-trip
+// test). io.read_volume / io.write_volume, `skelflow info`, `skelflow validate` and the GUI's file
+// dialogs ask this registry; nothing else names a volume format.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "skel/data.hpp"
+#include "skel/volume.hpp"
+
+namespace skel::io {
+
+// What a reader knows without reading the voxels.
+struct VolumeHeader {
+  Grid grid;                  // dims (x, y, z), spacing, origin, unit, direction
+  std::string dtype;          // voxel type as stored: uint8, int8, uint16, int16, uint32, int32, uint64,
+                              // int64, float32, float64
+  bool has_spacing = false;   // the file states the spacing (else 1)
+  bool has_origin = false;    // the file states the origin (else 0)
+  bool has_unit = false;      // the file states the unit (else kDefaultUnit)
+  std::vector<std::string> details;  // extra "key: value" lines for `skelflow info` (compression, chunks, pages...)
+};
+
+struct VolumeReadOptions {
+  std::string dataset;  // HDF5 dataset / Zarr array path inside the file; "" = the format's default
+  int level = 0;        // multiscale level (OME-Zarr), 0 = full resolution
+  int threads = 0;      // decompression threads; <= 0: all hardware threads
+};
+
+struct VolumeWriteOptions {
+  std::string dataset;   // HDF5 dataset / Zarr array path; "" = the format's default
+  int compression = 1;   // format-specific level; 0 = none
+  int threads = 0;       // compression threads; <= 0: all hardware threads
+};
+
+struct VolumeFormat {
+  std::string name;                     // "TIFF", "NRRD", ... as shown to users
+  std::vector<std::string> extensions;  // lower case, with the dot; compound ones allowed (".nii.gz")
+  // True when the file's first bytes (up to 512) are this format's; null: known by extension only.
+  std::function<bool(std::string_view head)> sniff;
+  // Required. Throws InputError naming the file and what is wrong.
+  std::function<VolumeHeader(const std::filesystem::path&, const VolumeReadOptions&)> read_header;
+  // Required. Returns a Volume<T> of the stored type (int8/int16 widen to int32, int64 to float64,
+  // as HDF5 does) with the header's grid.
+  std::function<DataPtr(const std::filesystem::path&, const VolumeReadOptions&)> read;
+  // Optional: a box [begin, begin + size) (x, y, z) as Volume<T>, for streaming into block-wise
+  // stages without reading the whole file.
+  std::function<DataPtr(const std::filesystem::path&, const VolumeReadOptions&, Dims begin, Dims size)> read_box;
+  // Optional (null: read-only). Writes `volume` (any Volume<T>) to exactly `path` (the engine stages
+  // outputs under a temporary name and renames them; a writer that cannot store the voxel type,
+  // unit or direction throws InputError saying so).
+  std::function<void(const std::filesystem::path&, const DataObject& volume, const VolumeWriteOptions&)> write;
+  // Optional: a multi-line description for `skelflow info`; null: made from read_header.
+  std::function<std::string(const std::filesystem::path&)> describe;
+};
+
+// Every volume format, in a fixed order.
+const std::vector<VolumeFormat>& volume_formats();
+
+// The format of `path` for reading: by its extension (the longest matching one, any case); when no
+// extension matches, by the file's first bytes. Throws InputError naming the file and listing the
+// known extensions.
+const VolumeFormat& volume_format_for_read(const std::filesystem::path& path);
+// The format that writes `path`, by extension only. Throws InputError naming the file and listing
+// the extensions that can be written.
+const VolumeFormat& volume_format_for_write(const std::filesystem::path& path);
+// Extensions that can be read / written, for ModuleSpec::extensions and file dialogs.
+std::vector<std::string> readable_volume_extensions();
+std::vector<std::string> writable_volume_extensions();
+
+// Convenience: header / volume of any supported file.
+VolumeHeader read_volume_header(const std::filesystem::path& path, const VolumeReadOptions& options = {});
+DataPtr read_any_volume(const std::filesystem::path& path, const VolumeReadOptions& options = {});
+void write_any_volume(const std::filesystem::path& path, const DataObject& volume, const VolumeWriteOptions& options = {});
+// `skelflow info` text of a volume file (the format's describe, or one made from its header).
+std::string describe_volume_file(const std::filesystem::path& path);
+
+}  // namespace skel::io

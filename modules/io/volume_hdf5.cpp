@@ -1,0 +1,38 @@
+// HDF5 as a VolumeFormat (the reader and writer themselves are in hdf5_volume.cpp).
+#include "io/hdf5_volume.hpp"
+#include "io/volume_format.hpp"
+
+namespace skel::io {
+
+VolumeFormat hdf5_volume_format() {
+  VolumeFormat f;
+  f.name = "HDF5";
+  f.extensions = {".h5", ".hdf5", ".he5"};
+  f.sniff = [](std::string_view head) { return head.substr(0, 8) == std::string_view("\x89HDF\r\n\x1a\n", 8); };
+  f.read_header = [](const std::filesystem::path& p, const VolumeReadOptions& o) {
+    const VolumeInfo i = read_volume_info(p, o.dataset.empty() ? "/volume" : o.dataset);
+    VolumeHeader h;
+    h.grid = Grid(i.dims, i.spacing, i.origin);
+    h.dtype = i.dtype;
+    h.has_spacing = i.has_spacing;
+    h.has_origin = i.has_origin;
+    if (i.chunks[0])
+      h.details.push_back("chunks: " + std::to_string(i.chunks[0]) + "x" + std::to_string(i.chunks[1]) + "x" +
+                          std::to_string(i.chunks[2]));
+    for (const auto& fl : i.filters) h.details.push_back("filter: " + fl);
+    return h;
+  };
+  f.read = [](const std::filesystem::path& p, const VolumeReadOptions& o) {
+    return read_volume(p, o.dataset.empty() ? "/volume" : o.dataset);
+  };
+  f.write = [](const std::filesystem::path& p, const DataObject& v, const VolumeWriteOptions& o) {
+    WriteOptions w;
+    w.compression = o.compression;
+    w.threads = o.threads;
+    write_volume(p, v, o.dataset.empty() ? "/volume" : o.dataset, w);
+  };
+  f.describe = [](const std::filesystem::path& p) { return describe_file(p); };
+  return f;
+}
+
+}  // namespace skel::io
