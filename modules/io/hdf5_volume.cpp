@@ -257,6 +257,45 @@ VolumeInfo read_volume_info(const fs::path& file, const std::string& dataset) {
   return info;
 }
 
+namespace {
+
+// The dims a file declares are checked against the data it holds before the volume is allocated, so
+// a corrupt or hostile 4 KB file cannot make Skelflow allocate terabytes. Unfiltered data must be
+// all there; deflate cannot compress better than 1032:1 (shuffle and fletcher32 add nothing), so a
+// compressed dataset may declare at most ~1100 times what it stores. Filters this HDF5 cannot decode
+// are refused here too, instead of after the allocation.
+void check_declared_size(const Opened& o, const fs::path& file, const std::string& dataset) {
+  Handle t(H5Dget_type(o.dset.id), H5Tclose);
+  const double voxels = static_cast<double>(o.dims[0]) * static_cast<double>(o.dims[1]) * static_cast<double>(o.dims[2]);
+  const double declared = voxels * static_cast<double>(H5Tget_size(t.id));
+  const double held = static_cast<double>(H5Dget_storage_size(o.dset.id));
+  Handle plist(H5Dget_create_plist(o.dset.id), H5Pclose);
+  const int nf = H5Pget_nfilters(plist.id);
+  for (int i = 0; i < nf; ++i) {
+    unsigned flags = 0, config = 0;
+    size_t nelem = 0;
+    char name[64] = {0};
+    const H5Z_filter_t f = H5Pget_filter2(plist.id, static_cast<unsigned>(i), &flags, &nelem, nullptr, sizeof name, name, &config);
+    if (f < 0 || H5Zfilter_avail(f) <= 0) {
+      H5Eclear2(H5E_DEFAULT);
+      throw InputError(file.string() + ": dataset '" + dataset + "' is compressed with HDF5 filter " +
+                       std::to_string(f) + (name[0] ? std::string(" (") + name + ")" : std::string()) +
+                       ", which this HDF5 library cannot decode; rewrite it with gzip/deflate or without compression");
+    }
+  }
+  const double max_ratio = nf > 0 ? 1100.0 : 1.0;
+  if (declared > held * max_ratio) {
+    std::ostringstream s;
+    s << file.string() << ": dataset '" << dataset << "' declares " << o.dims[0] << "x" << o.dims[1] << "x" << o.dims[2]
+      << " voxels (x,y,z) of " << o.dtype << " (" << declared << " bytes) but the file holds only " << held
+      << " bytes of data for it" << (nf > 0 ? " (more than deflate can compress)" : "")
+      << ": the file is truncated or corrupt";
+    throw InputError(s.str());
+  }
+}
+
+}  // namespace
+
 DataPtr read_volume(const fs::path& file, const std::string& dataset) {
   std::lock_guard lock(hdf5_mutex());
   quiet();
@@ -265,6 +304,7 @@ DataPtr read_volume(const fs::path& file, const std::string& dataset) {
     throw InputError(file.string() + ": dataset '" + dataset + "' is empty (" + std::to_string(o.dims[0]) + "x" +
                      std::to_string(o.dims[1]) + "x" + std::to_string(o.dims[2]) +
                      " voxels as x,y,z); a volume needs at least one voxel on every axis");
+  check_declared_size(o, file, dataset);
   const Dims z{0, 0, 0};
   const std::string& t = o.dtype;
   if (t == "uint8") return std::make_shared<VolumeU8>(read_into<uint8_t>(o, file, dataset, z, o.dims));

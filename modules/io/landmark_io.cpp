@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -23,7 +24,15 @@ std::string where(const std::string& name, size_t line) { return name + ":" + st
 double parse_number(const std::string& text, const std::string& context) {
   const std::string t = trim(text);
   double v = 0.0;
-  if (!text::parse_double(t, v)) throw InputError(context + ": '" + t + "' is not a number");
+  if (!text::parse_double(t, v)) {
+    // A number too large for a double (1e400) is a number, but not a finite one.
+    char* end = nullptr;
+    (void)std::strtod(t.c_str(), &end);
+    const bool overflow = !t.empty() && end == t.c_str() + t.size();
+    throw InputError(context + ": '" + t + (overflow ? "' is not a finite number" : "' is not a number"));
+  }
+  // inf, nan and overflowing numbers (1e400) would poison every distance computed from them.
+  if (!std::isfinite(v)) throw InputError(context + ": '" + t + "' is not a finite number");
   return v;
 }
 

@@ -324,3 +324,67 @@ TEST(Hdf5, WritesTheEnginesTemporaryInPlaceAndNamesTheFinalFile) {
                                          ": cannot create the file: No such file or directory");
   }
 }
+
+// A small file that declares a huge dataset is refused before anything is allocated (before: a
+// 4 KB file declaring 2000³ voxels made read_volume allocate 8 GB and then fail reading; the fuzz
+// reproducer fuzz/crashes/hdf5/crash-a7c9… is such a file). Unfiltered data must be all there; a
+// deflate-compressed dataset may declare at most ~1100 times the bytes it stores.
+TEST(Hdf5, DeclaredSizeIsCheckedAgainstTheStoredDataBeforeAllocating) {
+  auto make = [](const fs::path& f, bool chunked) {
+    const hid_t file = H5Fcreate(f.string().c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const hsize_t dims[3] = {2000, 2000, 2000};  // [z][y][x], never written
+    const hid_t space = H5Screate_simple(3, dims, nullptr);
+    const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    if (chunked) {
+      const hsize_t chunk[3] = {64, 64, 64};
+      H5Pset_chunk(dcpl, 3, chunk);
+      H5Pset_deflate(dcpl, 1);
+      // One chunk written: 64³ zeros compress to a few hundred bytes.
+    }
+    const hid_t dset = H5Dcreate2(file, "/volume", H5T_NATIVE_DOUBLE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    ASSERT_GE(dset, 0);
+    if (chunked) {
+      std::vector<double> zeros(64 * 64 * 64, 0.0);
+      const hsize_t start[3] = {0, 0, 0}, count[3] = {64, 64, 64};
+      const hid_t fspace = H5Dget_space(dset);
+      H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count, nullptr);
+      const hid_t mspace = H5Screate_simple(3, count, nullptr);
+      ASSERT_GE(H5Dwrite(dset, H5T_NATIVE_DOUBLE, mspace, fspace, H5P_DEFAULT, zeros.data()), 0);
+      H5Sclose(mspace);
+      H5Sclose(fspace);
+    }
+    H5Pclose(dcpl);
+    H5Dclose(dset);
+    H5Sclose(space);
+    H5Fclose(file);
+  };
+  for (const bool chunked : {false, true}) {
+    const fs::path f = scratch() / (chunked ? "huge_chunked.h5" : "huge_contiguous.h5");
+    make(f, chunked);
+    ASSERT_LT(fs::file_size(f), 1u << 20);
+    const std::string e = error_of([&] { io::read_volume(f, "/volume"); });
+    EXPECT_NE(e.find(f.string() + ": dataset '/volume' declares 2000x2000x2000 voxels (x,y,z) of float64"), std::string::npos) << e;
+    EXPECT_NE(e.find("truncated or corrupt"), std::string::npos) << e;
+  }
+  // A well-formed compressed volume that compresses extremely well (all zeros) still reads.
+  const fs::path ok = scratch() / "zeros.h5";
+  io::write_volume(ok, VolumeU8(Dims{256, 256, 64}, 0));
+  EXPECT_EQ(io::read_volume(ok)->bytes(), 256u * 256u * 64u);
+}
+
+// The libFuzzer reproducers of the HDF5 target are clear errors, not crashes.
+TEST(Hdf5, FuzzReproducersAreClearErrors) {
+  const fs::path dir = fs::path(SKEL_SOURCE_DIR) / "fuzz" / "crashes" / "hdf5";
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    ++n;
+    try {
+      (void)io::read_volume_info(e.path(), "/volume");
+      (void)io::read_volume(e.path(), "/volume");
+    } catch (const InputError& err) {
+      EXPECT_NE(std::string(err.what()).find(e.path().string()), std::string::npos) << err.what();
+    }
+  }
+  EXPECT_GT(n, 0);
+}

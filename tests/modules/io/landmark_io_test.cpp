@@ -150,6 +150,25 @@ TEST(LandmarkFiles, CsvMatchesSetsByName) {
   EXPECT_THROW((void)resolve_landmark_format(LandmarkFormat::Auto, "x.txt"), InputError);
 }
 
+// Non-finite coordinates are refused with the file, the line and the token (before, `inf` and
+// `1e400` were read and gave infinite distances; `nan` a misleading message downstream).
+TEST(LandmarkFiles, RefusesNonFiniteCoordinates) {
+  for (const std::string bad : {"inf", "-inf", "nan", "1e400"}) {
+    try {
+      (void)parse_landmarks("set,name,x,y,z\n0,a,1," + bad + ",3\n", LandmarkFormat::Csv, "t.csv");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("t.csv:2"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("not a finite number"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW((void)parse_landmarks("# AmiraMesh 3D ASCII 2.0\ndefine Markers 1\nMarkers { float[3] Coordinates } @1\n@1\n1 " +
+                                           bad + " 3\n",
+                                       LandmarkFormat::Amira, "x.landmarkAscii"),
+                 InputError)
+        << bad;
+  }
+}
+
 TEST(TransformFiles, RoundTripEveryFormat) {
   for (const Transform& t : {known_rigid(), known_similarity(), known_affine()}) {
     SCOPED_TRACE(to_string(t.kind()));
