@@ -14,6 +14,7 @@ with the CLI's message). See docs/python.md.
 from __future__ import annotations
 
 import inspect
+import keyword
 import os
 import sys
 import types
@@ -25,7 +26,7 @@ from . import _skelflow as _core
 
 __all__ = [
     "Error", "InputError", "Cancelled", "Volume", "Graph", "Table", "Data", "Outputs", "Pipeline", "run",
-    "modules", "module_names", "branch_table", "__version__",
+    "modules", "module_names", "branch_table", "last_report", "__version__",
 ]
 
 __version__ = _core.version()
@@ -467,6 +468,16 @@ def run(pipeline, set: Optional[Mapping[str, Any]] = None, inputs: Optional[Mapp
     return {k: _from_data(v) for k, v in result.items()}
 
 
+def last_report() -> Optional[dict]:
+    """The run report of the last skelflow.run or module function call in this process, as
+    `skelflow run --report` writes it (per node: seconds, peak memory, files written, warnings);
+    None before the first run."""
+    import json
+
+    text = _core.last_report()
+    return json.loads(text) if text else None
+
+
 # ---------------------------------------------------------------- modules as functions
 _OPTION_NAMES = ("threads", "output_dir")
 
@@ -572,7 +583,8 @@ def _make_function(spec: dict):
         default = inspect.Parameter.empty if p["required"] else None
         params.append(inspect.Parameter(p["name"], inspect.Parameter.POSITIONAL_OR_KEYWORD, default=default))
     for p in spec["params"]:
-        if p["name"].isidentifier() and p["name"] not in in_names and p["name"] not in _OPTION_NAMES:
+        if p["name"].isidentifier() and not keyword.iskeyword(p["name"]) and p["name"] not in in_names \
+                and p["name"] not in _OPTION_NAMES:
             params.append(inspect.Parameter(p["name"], inspect.Parameter.KEYWORD_ONLY, default=p["default"]))
     params.append(inspect.Parameter("threads", inspect.Parameter.KEYWORD_ONLY, default=0))
     params.append(inspect.Parameter("output_dir", inspect.Parameter.KEYWORD_ONLY, default=None))

@@ -22,6 +22,7 @@
 #include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -475,6 +476,17 @@ R run_interruptible(std::atomic<bool>& cancel, std::function<R()> f) {
   return result.get();
 }
 
+// The run report (as `skelflow run --report` writes it) of the last run or module call, for
+// skelflow.last_report().
+std::mutex g_report_mutex;
+std::string g_last_report;
+
+void remember_report(const Executor& ex) {
+  const std::string json = ex.last_report().to_json();
+  std::lock_guard lock(g_report_mutex);
+  g_last_report = json;
+}
+
 struct RunArgs {
   std::map<std::string, ParamMap> overrides;
   std::map<std::string, DataPtr> given;
@@ -511,7 +523,13 @@ std::map<std::string, DataPtr> run_pipeline(Pipeline p, RunArgs a) {
         if (plan.index_of(ref->node) < 0)
           throw InputError("outputs: '" + key + "': node '" + ref->node + "' does not run for the targets given");
       }
-    ex.run(p, opt);
+    try {
+      ex.run(p, opt);
+    } catch (...) {
+      remember_report(ex);
+      throw;
+    }
+    remember_report(ex);
     std::map<std::string, DataPtr> out;
     for (const auto& pn : plan.nodes) {
       const ModuleSpec& spec = *reg.find(pn.module);
@@ -608,7 +626,13 @@ std::map<std::string, Data> run_module(const std::string& module, const py::dict
   opt.targets = {id};
   std::function<std::map<std::string, DataPtr>()> work = [&]() {
     Executor ex(reg);
-    ex.run(p, opt);
+    try {
+      ex.run(p, opt);
+    } catch (...) {
+      remember_report(ex);
+      throw;
+    }
+    remember_report(ex);
     std::map<std::string, DataPtr> out;
     for (const auto& port : spec->outputs())
       if (DataPtr d = ex.output(p, id, port.name)) out[port.name] = std::move(d);
@@ -645,6 +669,10 @@ PYBIND11_MODULE(_skelflow, m) {
     }
   });
 
+  m.def("last_report", [] {
+    std::lock_guard lock(g_report_mutex);
+    return g_last_report;
+  }, "The JSON run report of the last run or module call (empty before the first).");
   m.def("specs", &specs, "Every registered module's spec as a list of dicts.");
   m.def("version", [] { return std::string(SKEL_VERSION_STRING); });
 

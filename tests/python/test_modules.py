@@ -48,6 +48,11 @@ def test_module_function_equals_the_pipeline_node(data_dir):
     skel = skelflow.modules.thinning.doht(mask, dist, variant="smooth", end_point_length=2, threads=2).skeleton
     np.testing.assert_array_equal(skel, out["skeleton.skeleton"])
     assert skel.dtype == np.uint8 and skel.sum() > 0
+    # The call's run report, as `skelflow run --report` writes it: the one node that ran is doht.
+    report = skelflow.last_report()
+    assert report["ok"] is True
+    assert [n["id"] for n in report["nodes"] if n["module"] == "thinning.doht"] == ["doht"]
+    assert all(n["seconds"] >= 0 for n in report["nodes"])
 
 
 def test_module_function_writes_files_like_a_node(tmp_path):
@@ -56,6 +61,32 @@ def test_module_function_writes_files_like_a_node(tmp_path):
     back = skelflow.modules.io.read_volume(path=str(tmp_path / "v.h5"))
     np.testing.assert_array_equal(back, v)
     assert back.spacing == (3.0, 2.0, 1.0)
+
+
+def test_the_gil_is_released_while_a_module_runs():
+    import threading
+
+    phantom = skelflow.modules.synthetic.vessel_tree(size=[128, 128, 128], seed=2, roots=4)
+    counts, done = [0], threading.Event()
+
+    def count():
+        while not done.is_set():
+            counts[0] += 1
+
+    worker = threading.Thread(target=count)
+    worker.start()
+    try:
+        time.sleep(0.05)
+        before = counts[0]
+        t = time.monotonic()
+        skelflow.modules.distance.euclidean(phantom.mask, threads=1)
+        elapsed = time.monotonic() - t
+        during = counts[0] - before
+    finally:
+        done.set()
+        worker.join()
+    # With the GIL held for the whole call the counting thread could not run at all.
+    assert elapsed > 0 and during > 1000, (during, elapsed)
 
 
 CHILD = textwrap.dedent("""

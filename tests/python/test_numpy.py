@@ -59,6 +59,17 @@ def test_outputs_own_the_volume_without_copy():
     assert view[0, 0] == 0.0
 
 
+def test_volumes_pickle_with_their_geometry():
+    import pickle
+
+    v = skelflow.Volume(np.arange(8, dtype=np.float32).reshape(2, 2, 2), spacing=(3, 2, 1), origin=(1, 0, 0), unit="mm")
+    w = pickle.loads(pickle.dumps(v))
+    assert isinstance(w, skelflow.Volume) and w.spacing == (3.0, 2.0, 1.0) and w.origin == (1.0, 0.0, 0.0)
+    assert w.unit == "mm"
+    np.testing.assert_array_equal(w, v)
+    assert w[1].spacing == (3.0, 2.0, 1.0)  # views keep the attributes
+
+
 def test_bool_arrays_are_read_as_uint8_without_copy():
     b = np.zeros((4, 4, 4), bool)
     b[1:3, 1:3, 1:3] = True
