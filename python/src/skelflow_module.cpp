@@ -680,8 +680,7 @@ PYBIND11_MODULE(_skelflow, m) {
       .def_property_readonly("type_id", &Data::type_id)
       .def_property_readonly("bytes", [](const Data& d) { return checked(d).ptr->bytes(); })
       .def("describe", [](const Data& d) { return checked(d).ptr->describe(); })
-      .def("__repr__", [](const Data& d) { return "<skelflow data " + checked(d).ptr->describe() + ">"; })
-      .def("same_object", [](const Data& a, const Data& b) { return a.ptr == b.ptr; });
+      .def("__repr__", [](const Data& d) { return "<skelflow data " + checked(d).ptr->describe() + ">"; });
 
   m.def("volume_from_array", &volume_from_array, py::arg("array"), py::arg("spacing"), py::arg("origin"),
         "Wraps a C-contiguous 3-D array [z][y][x] as a volume without copying (the volume keeps the array "
