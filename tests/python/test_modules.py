@@ -124,3 +124,26 @@ def test_ctrl_c_cancels_a_run_and_leaves_no_output(tmp_path):
     assert out.startswith("interrupted"), out
     assert time.monotonic() - t < 30  # the run stopped, it did not finish first
     assert not any(pathlib.Path(tmp_path).rglob("*")), list(pathlib.Path(tmp_path).rglob("*"))
+
+
+CHILD_MODULE = textwrap.dedent("""
+    import time, skelflow
+    print("started", flush=True)
+    t = time.monotonic()
+    try:
+        skelflow.modules.synthetic.network(shape="rods", size=[640, 640, 640], sigma=2.0, threads=1)
+        print("finished", flush=True)
+    except KeyboardInterrupt:
+        print("interrupted after %.1f s" % (time.monotonic() - t), flush=True)
+""")
+
+
+def test_ctrl_c_cancels_a_module_function():
+    proc = subprocess.Popen([sys.executable, "-c", CHILD_MODULE], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "started"
+    time.sleep(1.0)
+    t = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 0 and out.startswith("interrupted"), out
+    assert time.monotonic() - t < 30
