@@ -33,6 +33,7 @@ packages=(
   xvfb xauth
   clang libclang-rt-14-dev
   python3-scipy python3-skimage python3-h5py python3-numpy
+  python3-dev pybind11-dev python3-pytest python3-networkx python3-pandas
 )
 missing=()
 for p in "${packages[@]}"; do
@@ -51,7 +52,9 @@ fi
 
 [ $do_build = 1 ] || exit 0
 jobs=$(nproc)
-cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="$build_type"
+# The Python module (build/python/skelflow, `import skelflow` with PYTHONPATH=build/python) is built
+# against Debian's python3, where numpy, networkx and pytest are installed.
+cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE="$build_type" -DPython3_EXECUTABLE=/usr/bin/python3
 case "$command" in
   demo)
     cmake --build "$build_dir" -j "$jobs" --target skelflow

@@ -100,6 +100,19 @@ public:
     allocate();
     std::fill_n(data_.get(), size(), fill);
   }
+  // A volume on memory that someone else owns (a NumPy array in the Python module): `data` holds
+  // grid.voxel_count() voxels, x fastest, and stays valid while `owner` lives; the volume keeps
+  // `owner` alive and never frees `data` itself. Copies of it own a fresh buffer as usual.
+  static Volume wrap(const Grid& grid, T* data, std::shared_ptr<const void> owner) {
+    grid.validate();
+    if (grid.voxel_count() > 0 && data == nullptr) throw Error("Volume::wrap: no memory for a non-empty grid");
+    Volume v;
+    v.grid_ = grid;
+    v.data_ = Buffer(data, BufferDeleter{std::move(owner)});
+    return v;
+  }
+  // Whether the voxels live in memory owned by someone else (see wrap()).
+  [[nodiscard]] bool wraps_external_memory() const { return data_.get_deleter().owner != nullptr; }
   // Allocates without initialising the voxels (for outputs every voxel of which is written).
   static Volume uninitialized(const Grid& grid) {
     Volume v;
@@ -175,13 +188,21 @@ public:
   }
 
 private:
+  // Frees a buffer the volume allocated, or only drops the reference to the owner of wrapped memory.
+  struct BufferDeleter {
+    std::shared_ptr<const void> owner;
+    void operator()(T* p) const {
+      if (!owner) delete[] p;
+    }
+  };
+  using Buffer = std::unique_ptr<T[], BufferDeleter>;
   void allocate() {
     grid_.validate();
-    data_.reset(size() > 0 ? new T[static_cast<size_t>(size())] : nullptr);
+    data_ = Buffer(size() > 0 ? new T[static_cast<size_t>(size())] : nullptr, BufferDeleter{});
     if (size() > 0) advise_huge_pages(data_.get(), static_cast<size_t>(size()) * sizeof(T));
   }
   Grid grid_;
-  std::unique_ptr<T[]> data_;
+  Buffer data_;
 };
 
 using VolumeU8 = Volume<uint8_t>;

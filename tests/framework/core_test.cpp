@@ -3,7 +3,9 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <numeric>
+#include <vector>
 
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
@@ -24,6 +26,35 @@ TEST(Volume, IndexingIsXFastest) {
   EXPECT_EQ(c, v);
   c(0, 0, 0) = 1;
   EXPECT_FALSE(c == v);
+}
+
+// Volume::wrap (the Python module's NumPy arrays): the volume reads the owner's memory in place,
+// keeps the owner alive while it lives, never frees the memory itself, and copies own a new buffer.
+TEST(Volume, WrapsMemoryItDoesNotOwn) {
+  auto buffer = std::make_shared<std::vector<float>>(4 * 3 * 2, 1.5f);
+  std::weak_ptr<std::vector<float>> alive = buffer;
+  float* data = buffer->data();
+  {
+    VolumeF32 v = VolumeF32::wrap(Grid(Dims{4, 3, 2}, Vec3{0.5, 1, 2}), data, buffer);
+    buffer.reset();  // the volume is now the only owner
+    EXPECT_FALSE(alive.expired());
+    EXPECT_TRUE(v.wraps_external_memory());
+    EXPECT_EQ(v.data(), data);
+    EXPECT_EQ(v(3, 2, 1), 1.5f);
+    v(3, 2, 1) = 7.0f;
+    EXPECT_EQ(data[23], 7.0f);  // same memory, x fastest
+    VolumeF32 copy = v;
+    EXPECT_FALSE(copy.wraps_external_memory());
+    EXPECT_NE(copy.data(), data);
+    EXPECT_EQ(copy, v);
+    VolumeF32 moved = std::move(v);
+    EXPECT_EQ(moved.data(), data);
+    EXPECT_FALSE(alive.expired());
+  }
+  EXPECT_TRUE(alive.expired());  // released with the last volume, freed by its owner
+  EXPECT_FALSE(VolumeU8(Dims{2, 2, 2}).wraps_external_memory());
+  EXPECT_THROW(VolumeU8::wrap(Grid(Dims{2, 2, 2}), nullptr, nullptr), Error);
+  EXPECT_THROW(VolumeU8::wrap(Grid(Dims{2, 2, 2}, Vec3{0, 1, 1}), nullptr, nullptr), InputError);
 }
 
 TEST(Volume, RejectsBadSpacing) {
