@@ -79,13 +79,13 @@ def _volume_to_data(a: np.ndarray) -> Data:
         arr = arr.view(np.uint8)  # same memory: False/True are bytes 0/1
     if not arr.flags.c_contiguous:
         arr = np.ascontiguousarray(arr)  # the one case that copies (documented)
-    return _core.volume_from_array(arr, tuple(spacing), tuple(origin))
+    return _core.volume_from_array(arr, tuple(spacing), tuple(origin), getattr(a, "unit", DEFAULT_UNIT))
 
 
 def _data_to_volume(d: Data) -> Volume:
-    arr, spacing, origin = _core.volume_to_array(d)
+    arr, spacing, origin, unit = _core.volume_to_array(d)
     v = arr.view(Volume)
-    v.spacing, v.origin, v.unit = spacing, origin, DEFAULT_UNIT
+    v.spacing, v.origin, v.unit = spacing, origin, unit
     return v
 
 

@@ -156,9 +156,10 @@ std::shared_ptr<const void> keep_alive(py::object o) {
   });
 }
 
-Grid grid_of(const py::array& a, const std::array<double, 3>& spacing_zyx, const std::array<double, 3>& origin_zyx) {
+Grid grid_of(const py::array& a, const std::array<double, 3>& spacing_zyx, const std::array<double, 3>& origin_zyx,
+             const std::string& unit) {
   return Grid(Dims{a.shape(2), a.shape(1), a.shape(0)}, Vec3{spacing_zyx[2], spacing_zyx[1], spacing_zyx[0]},
-              Vec3{origin_zyx[2], origin_zyx[1], origin_zyx[0]});
+              Vec3{origin_zyx[2], origin_zyx[1], origin_zyx[0]}, unit.empty() ? std::string(kDefaultUnit) : unit);
 }
 
 template <class T>
@@ -169,13 +170,14 @@ Data wrap_typed(const py::array& a, const Grid& g) {
 }
 
 // A NumPy array [z][y][x] as a volume without a copy: C-contiguous, one of the voxel types.
-Data volume_from_array(const py::array& a, std::array<double, 3> spacing, std::array<double, 3> origin) {
+Data volume_from_array(const py::array& a, std::array<double, 3> spacing, std::array<double, 3> origin,
+                       const std::string& unit) {
   if (a.ndim() != 3)
     throw InputError("a volume is a 3-dimensional array [z][y][x]; this array has " + std::to_string(a.ndim()) +
                      " dimension(s)");
   if (!(a.flags() & py::array::c_style))
     throw InputError("the array is not C-contiguous (wrap it with numpy.ascontiguousarray)");
-  const Grid g = grid_of(a, spacing, origin);
+  const Grid g = grid_of(a, spacing, origin, unit);
   const py::dtype dt = a.dtype();
   const char kind = dt.kind();
   const auto size = dt.itemsize();
@@ -193,7 +195,7 @@ Data volume_from_array(const py::array& a, std::array<double, 3> spacing, std::a
 }
 
 // The voxels of a volume as a NumPy array [z][y][x] without a copy; the array holds a reference to
-// the volume. Returns (array, spacing (z, y, x), origin (z, y, x)).
+// the volume. Returns (array, spacing (z, y, x), origin (z, y, x), unit).
 py::tuple volume_to_array(const Data& d) {
   checked(d);
   return visit_volume(*d.ptr, "volume_to_array", [&](const auto& v) -> py::tuple {
@@ -206,7 +208,7 @@ py::tuple volume_to_array(const Data& d) {
     py::array_t<T> arr({nz, ny, nx}, {nx * ny * s, nx * s, s}, const_cast<T*>(v.data()), owner);
     const auto& sp = v.spacing();
     const auto& o = v.origin();
-    return py::make_tuple(arr, py::make_tuple(sp[2], sp[1], sp[0]), py::make_tuple(o[2], o[1], o[0]));
+    return py::make_tuple(arr, py::make_tuple(sp[2], sp[1], sp[0]), py::make_tuple(o[2], o[1], o[0]), v.unit());
   });
 }
 
@@ -683,11 +685,12 @@ PYBIND11_MODULE(_skelflow, m) {
       .def("__repr__", [](const Data& d) { return "<skelflow data " + checked(d).ptr->describe() + ">"; });
 
   m.def("volume_from_array", &volume_from_array, py::arg("array"), py::arg("spacing"), py::arg("origin"),
+        py::arg("unit") = std::string(kDefaultUnit),
         "Wraps a C-contiguous 3-D array [z][y][x] as a volume without copying (the volume keeps the array "
-        "alive). spacing and origin are in (z, y, x) order.");
+        "alive). spacing and origin are in (z, y, x) order, in `unit`.");
   m.def("volume_to_array", &volume_to_array,
-        "(array, spacing, origin) of a volume: the array is the volume's memory (no copy) and keeps the volume "
-        "alive; spacing and origin in (z, y, x) order.");
+        "(array, spacing, origin, unit) of a volume: the array is the volume's memory (no copy) and keeps the "
+        "volume alive; spacing and origin in (z, y, x) order.");
   m.def("wraps_array", [](const Data& d) {
     return visit_volume(*checked(d).ptr, "wraps_array", [](const auto& v) { return v.wraps_external_memory(); });
   });

@@ -105,3 +105,11 @@ def test_tables_are_dicts_of_arrays():
     df = back.to_pandas()
     assert list(df.columns) == ["id", "length", "name"] and df["length"].sum() == pytest.approx(6.75)
     assert df.attrs["units"]["length"] == "µm"
+
+
+def test_the_unit_travels_through_a_module():
+    # The grid of a volume carries its unit: a mask in mm gives a distance map in mm.
+    mask = np.zeros((12, 12, 12), np.uint8)
+    mask[2:10, 2:10, 2:10] = 1
+    dist = skelflow.modules.distance.euclidean(mask=skelflow.Volume(mask, spacing=(0.5, 0.5, 0.5), unit="mm"))
+    assert dist.unit == "mm" and dist.spacing == (0.5, 0.5, 0.5)
