@@ -32,7 +32,7 @@ packages=(
   libopenmpi-dev libhdf5-openmpi-dev
   xvfb xauth
   clang libclang-rt-14-dev
-  python3-scipy python3-skimage python3-h5py python3-numpy
+  python3-scipy python3-skimage python3-h5py python3-numpy python3-vtk9
 )
 missing=()
 for p in "${packages[@]}"; do
