@@ -4,5 +4,6 @@
 namespace skel::geometry::names {
 
 inline constexpr const char* skeleton_to_graph = "geometry.skeleton_to_graph";
+inline constexpr const char* skeleton_to_mesh = "geometry.skeleton_to_mesh";
 
 }  // namespace skel::geometry::names
