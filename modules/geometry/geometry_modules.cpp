@@ -79,7 +79,7 @@ public:
             "`fixed` (1 at 1-x-junctions: keep them in place in geometry.mesh_smooth / mesh_decimate), triangle "
             "`manifold` (1 all-manifold: all voxels of its 2-cell are 2-manifold or 2-boundary, else 0), line "
             "`manifold` (1 when all its voxels are 1-manifold or 1-boundary). Isolated voxels give no "
-            "geometry. Memory: the skeleton (1 B/voxel), ~100 B per skeleton voxel while scanning, then the "
+            "geometry. Memory: the skeleton (1 B/voxel), ~450 B per plate voxel of the skeleton while scanning (less for lines), then the "
             "mesh (~30 B per triangle + 8 B per vertex and 4 B per triangle of attributes). Deterministic for "
             "any thread count.");
   }

@@ -187,13 +187,14 @@ Mesh mesh_decimate(const Mesh& mesh, const MeshDecimateOptions& o) {
     out.add_line(ids);
     append_values(out.line_attributes, mesh.line_attributes, l);
   }
-  // Attributes that had no element to take a value from are still present, with the right size.
-  for (const auto* pair : {&mesh.vertex_attributes, &mesh.triangle_attributes, &mesh.line_attributes}) {
-    MeshAttributes& dst = pair == &mesh.vertex_attributes ? out.vertex_attributes
-                          : pair == &mesh.triangle_attributes ? out.triangle_attributes : out.line_attributes;
-    for (const auto& [name, a] : *pair)
+  // Attributes that had no element to take a value from are still present (empty, the right size).
+  auto keep_names = [](MeshAttributes& dst, const MeshAttributes& src) {
+    for (const auto& [name, a] : src)
       if (!dst.count(name)) dst.emplace(name, std::visit([](const auto& v) { return MeshAttribute(std::decay_t<decltype(v)>{}); }, a));
-  }
+  };
+  keep_names(out.vertex_attributes, mesh.vertex_attributes);
+  keep_names(out.triangle_attributes, mesh.triangle_attributes);
+  keep_names(out.line_attributes, mesh.line_attributes);
   return out;
 }
 
