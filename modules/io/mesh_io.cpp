@@ -639,14 +639,20 @@ void vtp_write(const Mesh& m, const std::filesystem::path& path) {
     auto msg = vtkSmartPointer<VtkMessages>::New();
     w->AddObserver(vtkCommand::ErrorEvent, msg);
     w->AddObserver(vtkCommand::WarningEvent, msg);
+    w->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, msg);
     w->SetInputData(poly);
     w->SetFileName(tmp.string().c_str());
     w->SetDataModeToAppended();
     w->EncodeAppendedDataOff();
     w->SetCompressorTypeToZLib();
     w->SetHeaderTypeToUInt64();
-    if (!w->Write() || msg->failed)
-      throw Error("cannot write " + display_path(tmp).string() + ": " + (msg->first.empty() ? "VTK's writer failed" : trim(msg->first)));
+    if (!w->Write() || msg->failed) {
+      // VTK's message names the temporary; users see the file they asked for.
+      std::string why = msg->first.empty() ? "VTK's writer failed" : trim(msg->first);
+      const std::string t = tmp.string(), shown = display_path(tmp).string();
+      for (auto at = why.find(t); at != std::string::npos; at = why.find(t, at + shown.size())) why.replace(at, t.size(), shown);
+      throw Error("cannot write " + shown + ": " + why);
+    }
   });
 }
 

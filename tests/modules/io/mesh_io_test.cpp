@@ -233,3 +233,20 @@ TEST(MeshIo, RefusesInconsistentMesh) {
   EXPECT_THROW(write_mesh(m, tmp_dir() / "bad.ply", MeshFormat::ply), InputError);
   EXPECT_FALSE(std::filesystem::exists(tmp_dir() / "bad.ply"));
 }
+
+// A write that fails (here: /proc takes no files, not even root's) is an Error naming the file; the
+// .vtp goes through VTK's writer, whose error is caught and reported the same way.
+TEST(MeshIo, FailedWriteNamesTheFile) {
+  for (const char* ext : {".vtp", ".ply"}) {
+    SCOPED_TRACE(ext);
+    const std::filesystem::path p = std::string("/proc/skelflow_mesh_io_test") + ext;
+    try {
+      write_mesh(sample_mesh(), p, mesh_format_from_path(p));
+      ADD_FAILURE() << "no error";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("cannot write " + p.string() + ": ", 0), 0u) << e.what();
+      EXPECT_EQ(std::string(e.what()).find("skelflow-tmp"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(p));
+  }
+}
