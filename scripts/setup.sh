@@ -32,7 +32,7 @@ packages=(
   libopenmpi-dev libhdf5-openmpi-dev
   xvfb xauth
   clang libclang-rt-14-dev
-  python3-scipy python3-skimage python3-h5py python3-numpy
+  python3-scipy python3-skimage python3-h5py python3-numpy python3-vtk9
   python3-dev pybind11-dev python3-pytest python3-networkx python3-pandas
 )
 missing=()

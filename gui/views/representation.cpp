@@ -3,6 +3,7 @@
 #include <vtkProp.h>
 
 #include "graph_representation.hpp"
+#include "mesh_representation.hpp"
 #include "volume_representation.hpp"
 
 namespace skel::gui {
@@ -21,8 +22,9 @@ void Representation::keep_display_of(const Representation& old) {
 std::unique_ptr<Representation> make_representation(const QString& name, const DataPtr& data, const Color& color,
                                                     QString* error) {
   if (auto g = std::dynamic_pointer_cast<const SpatialGraph>(data)) return std::make_unique<GraphRepresentation>(name, g, color);
+  if (auto m = std::dynamic_pointer_cast<const Mesh>(data)) return std::make_unique<MeshRepresentation>(name, m, color);
   if (auto v = VolumeRepresentation::create(name, data, color)) return v;
-  if (error) *error = name + ": the 3D view shows volumes and graphs, not " + QString::fromStdString(data->type_id());
+  if (error) *error = name + ": the 3D view shows volumes, graphs and meshes, not " + QString::fromStdString(data->type_id());
   return nullptr;
 }
 

@@ -1,6 +1,8 @@
-// Modules of the geometry family: skeleton → spatial graph by dual cubes.
+// Modules of the geometry family: skeleton → spatial graph and skeleton → mesh by dual cubes.
+#include "geometry/mesh_filters.hpp"
 #include "geometry/names.hpp"
 #include "geometry/skeleton_to_graph.hpp"
+#include "geometry/skeleton_to_mesh.hpp"
 #include "skel/module.hpp"
 
 namespace skel::geometry {
@@ -51,6 +53,115 @@ public:
   }
 };
 SKEL_REGISTER_MODULE(SkeletonToGraphModule);
+
+class SkeletonToMeshModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec(names::skeleton_to_mesh, "Voxel skeleton to surfaces and lines by dual cubes")
+        .input<VolumeU8>("skeleton", "voxel skeleton (non-zero = skeleton voxel), e.g. a plate or mixed skeleton")
+        .output<Mesh>("mesh", "triangles (plates) and polylines (rods) in physical units, with manifold classes")
+        .param("improved", &SkeletonToMeshOptions::improved,
+               "triangulate the dual cube cases 13, 14 and 18 without their enclosed volume (fig. 3.16)")
+        .details(
+            "Thesis §3.1.3. The cell complex of each dual cube (1-cells of fig. 3.6, 2-cells on the shortest "
+            "cycles, as in geometry.skeleton_to_graph) is triangulated: a 2-cell of 3 voxels is a triangle, a "
+            "longer one a fan around the centroid of its voxels (fig. 3.14); only the 2-cells of the reduced "
+            "dual cube (corner 0, its three edges and faces, the interior) are made, so each triangle is made "
+            "once (fig. 3.15). A lookup table over the 3^8 states of a cube's voxels (background; 2-manifold or "
+            "2-boundary; other) gives the triangles and their class. With `improved`, case 13 (four voxels "
+            "pairwise face-diagonal) becomes a cone from the cube centre over its six diagonals, case 14 (five "
+            "voxels) three triangles around the body diagonal of its two degree-3 voxels, case 18 (six voxels) "
+            "the full face plus a fin from the face centre to the opposite edge; face centres are shared "
+            "between cubes through a 2x2x2 subdivided grid. Case 21 (a 2x2x2 block of voxels) keeps its "
+            "volume. 1-cells that bound no 2-cell become polylines (chains broken where more or fewer than 2 "
+            "meet). Attributes: vertex `manifold` (codes as in skeleton_to_graph: 2 1-manifold, 3 1-boundary, "
+            "4 2-manifold, 5 2-boundary, 6 junction, 7 1-x-junction; face and cell centres 4 or 6), vertex "
+            "`fixed` (1 at 1-x-junctions: keep them in place in geometry.mesh_smooth / mesh_decimate), triangle "
+            "`manifold` (1 all-manifold: all voxels of its 2-cell are 2-manifold or 2-boundary, else 0), line "
+            "`manifold` (1 when all its voxels are 1-manifold or 1-boundary). Isolated voxels give no "
+            "geometry. Memory: the skeleton (1 B/voxel), ~450 B per plate voxel of the skeleton while scanning (less for lines), then the "
+            "mesh (~30 B per triangle + 8 B per vertex and 4 B per triangle of attributes). Deterministic for "
+            "any thread count.");
+  }
+  void run(RunContext& ctx) override {
+    ctx.output("mesh", skeleton_to_mesh(*ctx.input<VolumeU8>("skeleton"), ctx.options<SkeletonToMeshOptions>()));
+  }
+};
+SKEL_REGISTER_MODULE(SkeletonToMeshModule);
+
+class MeshSmoothModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec(names::mesh_smooth, "Smooth a mesh (windowed sinc), marked vertices fixed")
+        .input<Mesh>("mesh", "triangles and lines, e.g. from geometry.skeleton_to_mesh")
+        .output<Mesh>("mesh", "the same triangles, lines and attributes at smoothed positions")
+        .param("iterations", &MeshSmoothOptions::iterations, "windowed sinc iterations (0 = copy)")
+        .min(0)
+        .param("pass_band", &MeshSmoothOptions::pass_band, "pass band of the filter in (0, 2]; smaller smooths more")
+        .min(0)
+        .param("boundary_smoothing", &MeshSmoothOptions::boundary_smoothing, "also smooth surface boundaries")
+        .param("fixed", &MeshSmoothOptions::fixed,
+               "int vertex attribute marking vertices that stay in place (skeleton_to_mesh's 1-x-junctions); "
+               "an absent attribute fixes nothing")
+        .details(
+            "Thesis §3.1.3 post-processing: VTK's vtkWindowedSincPolyDataFilter (Taubin's windowed sinc, "
+            "coordinates normalised, non-manifold and line vertices smoothed too) over triangles and lines; "
+            "the vertices marked in `fixed` get their input positions back, so the lines attached at "
+            "1-x-junctions stay attached where the skeleton has them. Topology and attributes are unchanged. "
+            "Memory: the mesh twice plus VTK's copy (~100 B per triangle).");
+  }
+  void run(RunContext& ctx) override {
+    ctx.output("mesh", mesh_smooth(*ctx.input<Mesh>("mesh"), ctx.options<MeshSmoothOptions>()));
+  }
+};
+SKEL_REGISTER_MODULE(MeshSmoothModule);
+
+class MeshDecimateModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec(names::mesh_decimate, "Decimate a mesh (quadric error), marked vertices fixed")
+        .input<Mesh>("mesh", "triangles and lines, e.g. from geometry.skeleton_to_mesh")
+        .output<Mesh>("mesh", "fewer triangles; the lines as they were")
+        .param("keep", &MeshDecimateOptions::keep, "fraction of the triangles to keep, in (0, 1] (0.02 = 2 %)")
+        .min(0)
+        .max(1)
+        .param("fixed", &MeshDecimateOptions::fixed,
+               "int vertex attribute marking vertices that stay in place (skeleton_to_mesh's 1-x-junctions); "
+               "an absent attribute fixes nothing")
+        .details(
+            "Thesis §3.1.3 and §6.2 (bone meshes decimated to 1-2 % still show the plates): VTK's "
+            "vtkQuadricDecimation (Garland and Heckbert 1997) of the triangles. Afterwards the output vertex "
+            "nearest to each fixed surface vertex is put back at the fixed vertex's exact position and the lines "
+            "ending there are attached to it, so rods stay attached to plates where the skeleton has them. Lines are kept unchanged. Vertex and triangle attributes are taken from the "
+            "nearest input vertex and triangle (by centroid). Memory: the mesh, VTK's copy and its quadrics "
+            "(~300 B per input triangle).");
+  }
+  void run(RunContext& ctx) override {
+    ctx.output("mesh", mesh_decimate(*ctx.input<Mesh>("mesh"), ctx.options<MeshDecimateOptions>()));
+  }
+};
+SKEL_REGISTER_MODULE(MeshDecimateModule);
+
+class IsosurfaceModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec(names::isosurface, "Iso-surface of a volume (flying edges), for comparison")
+        .input<AnyVolume>("volume", "image or mask (e.g. the voxel skeleton, to compare with skeleton_to_mesh)")
+        .output<Mesh>("mesh", "closed triangle surface in physical units")
+        .param("value", &IsosurfaceOptions::value, "iso-value (0.5 for a mask)")
+        .details(
+            "VTK's vtkFlyingEdges3D at `value`. The volume is padded with one voxel of its minimum value, so the "
+            "surface is closed where the object touches the border. The surface bounds the voxels from both "
+            "sides, so for a one-voxel-thick plate it has about twice the triangles of "
+            "geometry.skeleton_to_mesh and encloses a thin volume (thesis §3.1: iso-surfaces are interfaces, "
+            "not the skeleton's surface). Memory: 4 B/voxel (a float copy of the padded volume) plus the "
+            "surface (~30 B per triangle).");
+  }
+  void run(RunContext& ctx) override {
+    ctx.output("mesh", isosurface(*ctx.input_data("volume"), ctx.options<IsosurfaceOptions>()));
+  }
+};
+SKEL_REGISTER_MODULE(IsosurfaceModule);
 
 }  // namespace
 }  // namespace skel::geometry

@@ -4,5 +4,9 @@
 namespace skel::geometry::names {
 
 inline constexpr const char* skeleton_to_graph = "geometry.skeleton_to_graph";
+inline constexpr const char* skeleton_to_mesh = "geometry.skeleton_to_mesh";
+inline constexpr const char* mesh_smooth = "geometry.mesh_smooth";
+inline constexpr const char* mesh_decimate = "geometry.mesh_decimate";
+inline constexpr const char* isosurface = "geometry.isosurface";
 
 }  // namespace skel::geometry::names

@@ -1,5 +1,6 @@
 // Graph file modules: io.read_graph and io.write_graph (with the `skelflow info` inspector).
 #include "io/graph_io.hpp"
+#include "io/mesh_io.hpp"
 #include "io/names.hpp"
 #include "skel/module.hpp"
 
@@ -62,7 +63,17 @@ public:
 SKEL_REGISTER_MODULE(WriteGraphModule);
 
 SKEL_REGISTER_INSPECTOR("spatial graph", {".am", ".vtp", ".swc", ".graphml"}, [](const std::filesystem::path& p) {
-  return read_graph(p, graph_format_from_path(p)).describe();
+  try {
+    return read_graph(p, graph_format_from_path(p)).describe();
+  } catch (const InputError&) {
+    if (graph_format_from_path(p) != GraphFormat::vtp) throw;
+    // A .vtp written by io.write_mesh (binary, triangles) is a mesh, not a graph.
+    try {
+      return "not a spatial graph but a " + read_mesh(p, MeshFormat::vtp).describe() + "\n";
+    } catch (const InputError&) {
+    }
+    throw;
+  }
 });
 
 }  // namespace

@@ -12,5 +12,7 @@ inline constexpr const char* read_landmarks = "io.read_landmarks";
 inline constexpr const char* write_landmarks = "io.write_landmarks";
 inline constexpr const char* read_transform = "io.read_transform";
 inline constexpr const char* write_transform = "io.write_transform";
+inline constexpr const char* read_mesh = "io.read_mesh";
+inline constexpr const char* write_mesh = "io.write_mesh";
 
 }  // namespace skel::io::names

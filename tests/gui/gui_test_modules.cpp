@@ -6,6 +6,7 @@
 #include <cmath>
 #include <thread>
 
+#include "geometry/skeleton_to_mesh.hpp"
 #include "skel/module.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
@@ -125,6 +126,31 @@ public:
   }
 };
 SKEL_REGISTER_MODULE(GraphModule);
+
+}  // namespace
+}  // namespace skel
+
+namespace skel {
+namespace {
+
+// A small skeleton mesh: a bent plate with a rod standing on it (geometry.skeleton_to_mesh), so the
+// triangles have both manifold classes and there is a line.
+class MeshModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("gui_test.mesh", "Test source: the mesh of a bent plate with a rod on it")
+        .output<Mesh>("mesh", "triangles (manifold class per triangle) and one line")
+        .details("Test-only module of the GUI tests. Memory: a few hundred KiB.");
+  }
+  void run(RunContext& ctx) override {
+    VolumeU8 v({32, 32, 32}, 0);
+    for (int64_t y = 2; y < 30; ++y)
+      for (int64_t x = 2; x < 30; ++x) v(x, y, 6 + std::abs(x - 16) / 3) = 1;
+    for (int64_t z = 7; z < 28; ++z) v(16, 16, z) = 1;
+    ctx.output("mesh", geometry::skeleton_to_mesh(v));
+  }
+};
+SKEL_REGISTER_MODULE(MeshModule);
 
 }  // namespace
 }  // namespace skel

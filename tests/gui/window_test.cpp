@@ -209,6 +209,32 @@ TEST(Window, GraphsAsTubesColouredByAttribute) {
   EXPECT_GT(stats(lines).distinct, 2);
 }
 
+TEST(Window, MeshesColouredByManifoldClass) {
+  REQUIRE_DISPLAY();
+  MainWindow w;
+  w.resize(1280, 900);
+  ASSERT_EQ(w.document()->add_node("gui_test.mesh", {0, 0}), "mesh");
+  w.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+  EXPECT_FALSE(w.show_output("mesh", "mesh"));
+  ASSERT_TRUE(wait_run(w, 30000));
+  QTest::qWait(50);
+  ASSERT_TRUE(w.view3d()->has_object("mesh.mesh"));
+  bool bar = false;
+  vtkPropCollection* props = w.view3d()->renderer()->GetViewProps();
+  props->InitTraversal();
+  while (vtkProp* p = props->GetNextProp())
+    if (p->IsA("vtkScalarBarActor")) bar = p->GetVisibility() != 0;
+  EXPECT_TRUE(bar);  // coloured by the triangles' manifold class
+  w.view3d()->reset_camera();
+  QTest::qWait(50);
+  const QImage img = w.view3d()->grab_image();
+  const ImageStats s = stats(img);
+  EXPECT_GT(s.distinct, 30);
+  EXPECT_GT(s.grey_max - s.grey_min, 60);
+  img.save(shot_dir() + "/view3d_mesh.png");
+}
+
 TEST(Window, EditorConnectsRefusesWithReasonAndUndoes) {
   REQUIRE_DISPLAY();
   MainWindow w;

@@ -1,10 +1,14 @@
-// The shipped pipelines run end to end; the vessel pipeline recovers the phantom's ground truth.
+// The shipped pipelines run end to end; the vessel pipeline recovers the phantom's ground truth; the
+// bone pipelines write their meshes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
+#include "io/mesh_io.hpp"
 #include "skel/executor.hpp"
+#include "skel/mesh.hpp"
 #include "skel/pipeline.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
@@ -74,4 +78,40 @@ TEST(Pipelines, VesselPipelineRecoversTheGroundTruth) {
   EXPECT_LE(std::abs(rb - static_cast<double>(branch)), 0.05 * static_cast<double>(branch));
   EXPECT_LE(std::abs(re - static_cast<double>(ends)), std::max(1.0, 0.05 * static_cast<double>(ends)));
   EXPECT_LE(std::abs(rl - length), 0.05 * length);
+}
+
+// The bone pipelines run end to end and write their meshes: the mixed skeleton's plates as
+// triangles, its rods as lines, the 2 % decimation with the rod attachments kept; the curve
+// skeletons as line meshes.
+TEST(Pipelines, BonePipelinesWriteMeshes) {
+  const fs::path out = scratch("bone_meshes");
+  Executor ex;
+  ExecOptions o;
+  o.output_dir = out;
+  o.threads = 2;
+  o.keep_outputs = true;
+  Pipeline plates = Pipeline::load_file(pipeline("bone_plates.yaml"));
+  ASSERT_TRUE(ex.run(plates, o).ok);
+  auto mesh = std::dynamic_pointer_cast<const Mesh>(ex.output(plates, "mesh", "mesh"));
+  auto small = std::dynamic_pointer_cast<const Mesh>(ex.output(plates, "mesh_small", "mesh"));
+  ASSERT_TRUE(mesh && small);
+  EXPECT_GT(mesh->triangle_count(), 10000);
+  EXPECT_GT(mesh->line_count(), 0);
+  EXPECT_LE(small->triangle_count(), mesh->triangle_count() * 3 / 100);
+  EXPECT_GT(small->triangle_count(), 0);
+  EXPECT_EQ(small->line_count(), mesh->line_count());
+  const auto& cls = Mesh::attribute<int32_t>(mesh->triangle_attributes, "manifold");
+  EXPECT_GT(std::count(cls.begin(), cls.end(), 1), mesh->triangle_count() / 2);  // mostly plate interiors
+  const Mesh back = io::read_mesh(out / "bone/skeleton_mesh.ply", io::MeshFormat::ply);
+  EXPECT_TRUE(back == *mesh);
+  EXPECT_EQ(io::read_mesh(out / "bone/skeleton_mesh_2pct.vtp", io::MeshFormat::vtp).triangle_count(), small->triangle_count());
+
+  Pipeline curve = Pipeline::load_file(pipeline("bone_curve.yaml"));
+  ASSERT_TRUE(ex.run(curve, o).ok);
+  auto lines = std::dynamic_pointer_cast<const Mesh>(ex.output(curve, "mesh_geodesic", "mesh"));
+  ASSERT_TRUE(lines);
+  EXPECT_GT(lines->line_count(), 10);
+  EXPECT_LT(lines->triangle_count(), lines->line_count());  // a curve skeleton: lines, at most a few 2-cells
+  for (const char* f : {"bone_curve/geodesic_guided_lines.vtp", "bone_curve/distance_ordered_lines.vtp", "bone_curve/bone_surface.stl"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
 }
