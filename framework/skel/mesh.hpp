@@ -23,6 +23,7 @@
 
 #include "skel/data.hpp"
 #include "skel/error.hpp"
+#include "skel/volume.hpp"
 
 namespace skel {
 
@@ -47,7 +48,7 @@ public:
   MeshAttributes vertex_attributes;    // values[v]
   MeshAttributes triangle_attributes;  // values[t]
   MeshAttributes line_attributes;      // values[l]
-  std::string unit = "µm";
+  std::string unit = kDefaultUnit;
 
   [[nodiscard]] int64_t vertex_count() const { return static_cast<int64_t>(points.size()); }
   [[nodiscard]] int64_t triangle_count() const { return static_cast<int64_t>(triangles.size()); }

@@ -227,6 +227,7 @@ Mesh isosurface(const DataObject& volume, const IsosurfaceOptions& o) {
     fe->ComputeScalarsOff();
     fe->Update();
     Mesh m = io::mesh_from_vtk(*fe->GetOutput(), "isosurface");
+    m.unit = v.unit();
     m.vertex_attributes.clear();
     m.triangle_attributes.clear();
     return m;
