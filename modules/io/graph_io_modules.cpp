@@ -71,7 +71,7 @@ public:
 SKEL_REGISTER_MODULE(WriteGraphModule);
 
 SKEL_REGISTER_INSPECTOR("spatial graph", {".am", ".vtp", ".swc", ".graphml"}, [](const std::filesystem::path& p) {
-  return read_graph(p, graph_format_from_path(p)).describe();
+  return read_graph(p, graph_format_from_path(p)).describe() + "\n";
 });
 
 }  // namespace
