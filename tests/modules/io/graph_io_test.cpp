@@ -562,3 +562,42 @@ TEST(GraphIo, VtpIsWrittenBinaryCompressedByDefaultAndAsciiOnRequest) {
     EXPECT_NE(std::string(e.what()).find("lz4.vtp: unsupported compression 'vtkLZ4DataCompressor'"), std::string::npos) << e.what();
   }
 }
+
+// The other way round: VTK's own reader takes our binary .vtp (points, lines, attributes, the unit).
+TEST(GraphIo, VtkReadsOurBinaryVtp) {
+  if (std::system("/usr/bin/python3 -c 'import vtk' >/dev/null 2>&1") != 0) GTEST_SKIP() << "python3-vtk9 is not installed";
+  auto g = sample_graph(true);
+  g.unit = "mm";
+  const auto d = tmp_dir() / "vtk_reads";
+  std::filesystem::create_directories(d);
+  write_graph(g, d / "ours.vtp", GraphFormat::vtp);
+  {
+    std::ofstream py(d / "read.py");
+    py << R"PY(import sys, vtk
+r = vtk.vtkXMLPolyDataReader()
+r.SetFileName(sys.argv[1])
+r.Update()
+if r.GetErrorCode(): sys.exit(1)
+pd = r.GetOutput()
+w = pd.GetCellData().GetArray("weight")
+print(pd.GetNumberOfPoints(), pd.GetNumberOfVerts(), pd.GetNumberOfLines(),
+      pd.GetFieldData().GetAbstractArray("unit").GetValue(0),
+      "%.9g" % sum(w.GetValue(i) for i in range(w.GetNumberOfTuples())))
+)PY";
+  }
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + (d / "read.py").string() + " " + (d / "ours.vtp").string() + " > " +
+                         (d / "out.txt").string()).c_str()),
+            0);
+  std::ifstream in(d / "out.txt");
+  int64_t points = 0, verts = 0, lines = 0;
+  std::string unit;
+  double weight = 0;
+  in >> points >> verts >> lines >> unit >> weight;
+  EXPECT_EQ(points, g.node_count() + g.point_count());
+  EXPECT_EQ(verts, g.node_count());
+  EXPECT_EQ(lines, g.edge_count());
+  EXPECT_EQ(unit, "mm");
+  double expect = 0;
+  for (float x : g.edge_attributes.at("weight")) expect += x;
+  EXPECT_NEAR(weight, expect, 1e-5 * expect);
+}
