@@ -49,7 +49,8 @@ int main(int argc, char** argv) {
   tree.add_edge(1, 3);
   tree.ensure_point_attribute("radius", 1.5f);
   put(dir / "graph_amira/valid.am", io::graph_to_text(g, io::GraphFormat::amira));
-  put(dir / "graph_vtp/valid.vtp", io::graph_to_text(g, io::GraphFormat::vtp));
+  put(dir / "graph_vtp/valid.vtp", io::graph_to_text(g, io::GraphFormat::vtp, nullptr, {.encoding = io::VtpEncoding::ascii}));
+  put(dir / "graph_vtp/valid_binary.vtp", io::graph_to_text(g, io::GraphFormat::vtp));  // appended raw, zlib
   put(dir / "graph_graphml/valid.graphml", io::graph_to_text(g, io::GraphFormat::graphml));
   put(dir / "graph_swc/valid.swc", io::graph_to_text(tree, io::GraphFormat::swc));
   std::string nodes;

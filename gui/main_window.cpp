@@ -67,6 +67,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   addDockWidget(Qt::LeftDockWidgetArea, palette_dock);
 
   props_ = new PropertiesPanel(doc_, this);
+  props_->set_input_unit_source([this](const QString& id) -> std::string {
+    const PipelineNode* n = doc_->pipeline().find(id.toStdString());
+    if (!n) return {};
+    for (const auto& [port, ref] : n->inputs)
+      if (DataPtr d = run_->output(QString::fromStdString(ref.node), QString::fromStdString(ref.port)))
+        if (auto u = d->physical_unit(); !u.empty()) return u;
+    return {};
+  });
   auto* props_dock = new QDockWidget("Properties", this);
   props_dock->setObjectName("properties");
   props_dock->setWidget(props_);
@@ -143,6 +151,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     status_label_->setText(ok ? "Done: " + message : "Failed: " + message);
     log(ok ? "Run finished: " + message : "Run failed: " + message, !ok);
     update_run_actions();
+    props_->refresh();  // parameter units follow the data's
     // Objects in the 3D view follow their node's new results.
     for (const QString& name : view3d_->object_names()) {
       const int dot = name.lastIndexOf('.');

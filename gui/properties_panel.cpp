@@ -16,6 +16,7 @@
 #include <cmath>
 
 #include "skel/error.hpp"
+#include "skel/units.hpp"
 
 namespace skel::gui {
 
@@ -158,7 +159,14 @@ void PropertiesPanel::rebuild() {
   form->addRow(module);
   if (!spec) return;
   const ParamMap values = effective_params(*node, *spec);
-  for (const ParamSpec& ps : spec->params()) {
+  const std::string input_unit = input_unit_ ? input_unit_(node_) : std::string();
+  for (ParamSpec ps : spec->params()) {
+    // A length in the input's unit shows that unit once it is known.
+    if (!input_unit.empty()) {
+      if (ps.unit == units::length) ps.unit = input_unit;
+      else if (ps.unit == units::area) ps.unit = units::power(input_unit, 2);
+      else if (ps.unit == units::volume) ps.unit = units::power(input_unit, 3);
+    }
     const QString name = qstr(ps.name);
     const bool explicit_value = node->params.count(ps.name) > 0;
     auto it = values.find(ps.name);

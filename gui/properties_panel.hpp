@@ -9,6 +9,9 @@
 #include <QPointer>
 #include <QWidget>
 
+#include <functional>
+#include <string>
+
 #include "pipeline_document.hpp"
 
 class QFormLayout;
@@ -25,6 +28,12 @@ public:
   // The editor widget of a parameter (tests drive it like a user would).
   [[nodiscard]] QWidget* editor(const QString& param) const { return editors_.value(param); }
   [[nodiscard]] QString error_text() const { return error_->text(); }
+  // The physical unit of a node's input data when known (after a run; "" otherwise): parameters in
+  // the input's unit (units::length, area, volume) then show it ("mm") instead of "input unit".
+  void set_input_unit_source(std::function<std::string(const QString& node)> source) {
+    input_unit_ = std::move(source);
+  }
+  void refresh() { rebuild(); }
 
 signals:
   void message(const QString& text);
@@ -45,6 +54,7 @@ private:
   QMap<QString, QLabel*> labels_;
   QMap<QString, QToolButton*> resets_;
   bool applying_ = false;
+  std::function<std::string(const QString& node)> input_unit_;
 };
 
 }  // namespace skel::gui

@@ -33,6 +33,9 @@ public:
   [[nodiscard]] virtual uint64_t bytes() const = 0;
   // One line for `skelflow info`, logs and the GUI, e.g. "volume.u8 128x128x64, spacing 1 1 2 µm".
   [[nodiscard]] virtual std::string describe() const = 0;
+  // Physical unit of the object's coordinates and lengths ("µm", "mm", ...); empty when it has none
+  // (tables carry a unit per column, transforms none). The run report lists it per output.
+  [[nodiscard]] virtual std::string physical_unit() const { return {}; }
 };
 
 using DataPtr = std::shared_ptr<const DataObject>;

@@ -51,6 +51,7 @@ struct NodeReport {
   double peak_rss_mib = 0;      // process peak RSS when the node finished
   double rss_mib = 0;           // process RSS when the node finished (0 for nodes under 10 ms)
   std::map<std::string, uint64_t> output_bytes;
+  std::map<std::string, std::string> output_units;  // physical unit per output port that has one
   std::vector<std::string> outputs_written;  // final file paths
   std::vector<std::string> warnings;
 };

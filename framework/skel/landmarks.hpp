@@ -6,7 +6,7 @@
 //
 // Storage (plain value semantics, public like SpatialGraph):
 //   - names[i]: the name of point i (shared by all sets; "L1", "L2", ... when not given).
-//   - sets[s][i]: position of point i in set s (physical units, µm by default).
+//   - sets[s][i]: position of point i in set s, in the physical unit `unit`.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -25,6 +25,7 @@ public:
 
   std::vector<std::string> names;       // names[i]: name of point i
   std::vector<std::vector<Vec3>> sets;  // sets[s][i]: point i of set s
+  std::string unit{kDefaultUnit};       // physical unit of the coordinates (CSV: from the header "x [mm]")
 
   [[nodiscard]] int64_t set_count() const { return static_cast<int64_t>(sets.size()); }
   // Points per set (the size of names, which equals every set's size in a consistent object).
@@ -41,12 +42,13 @@ public:
   // Problems found (empty = consistent): every set has names.size() points, coordinates finite.
   [[nodiscard]] std::vector<std::string> check_invariants() const;
 
-  bool operator==(const LandmarkSet& o) const { return names == o.names && sets == o.sets; }
+  bool operator==(const LandmarkSet& o) const { return names == o.names && sets == o.sets && unit == o.unit; }
 
   // DataObject
   [[nodiscard]] std::string type_id() const override { return type_ids::landmarks; }
   [[nodiscard]] uint64_t bytes() const override;
   [[nodiscard]] std::string describe() const override;
+  [[nodiscard]] std::string physical_unit() const override { return unit; }
 };
 
 }  // namespace skel

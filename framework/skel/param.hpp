@@ -28,7 +28,7 @@ struct ParamSpec {
   ParamType type = ParamType::Float;
   ParamValue default_value;
   std::string doc;
-  std::string unit;                      // e.g. "µm", "voxels"; empty if unitless
+  std::string unit;                      // e.g. units::length (the input's unit), "voxels"; empty if unitless
   std::optional<double> min, max;        // inclusive range for numbers and list elements
   std::vector<std::string> choices;      // for Choice
   int list_length = -1;                  // for lists: required length, -1 = any

@@ -2,7 +2,7 @@
 // SpatialGraph: nodes with positions, edges with polylines, named attributes (type id "graph").
 //
 // Storage (structure of arrays, plain value semantics like Volume):
-//   - nodes: `positions[n]` (physical units, µm by default).
+//   - nodes: `positions[n]` in the physical unit `unit` (the source volume's, or the file's).
 //   - edges: `edges[e] = {node0, node1, points}`; `points` is the polyline *including* both end node
 //     positions, so points.front() == positions[node0] and points.back() == positions[node1].
 //     A loop edge has node0 == node1 (a closed ring hangs on one node of degree 2).
@@ -54,8 +54,12 @@ public:
   Attributes<float> edge_attributes;    // values[e]
   Attributes<int32_t> edge_labels;      // values[e]
   PointAttributes point_attributes;     // values[e][i]
+  // Physical unit of positions, polylines, lengths and radii: the source volume's grid unit, or what
+  // the graph file says (kDefaultUnit when it says nothing).
+  std::string unit{kDefaultUnit};
   // Grid of the volume the graph came from (dims 0 when unknown): bounding box for densities,
-  // target grid for label propagation.
+  // target grid for label propagation; its origin and direction go to the graph files so that the
+  // graph overlays the image. Its unit equals `unit` when known.
   Grid source_grid;
 
   [[nodiscard]] int64_t node_count() const { return static_cast<int64_t>(positions.size()); }
@@ -101,6 +105,15 @@ public:
   [[nodiscard]] std::string type_id() const override { return type_ids::graph; }
   [[nodiscard]] uint64_t bytes() const override;
   [[nodiscard]] std::string describe() const override;
+  [[nodiscard]] std::string physical_unit() const override { return unit; }
 };
+
+// Whether an attribute named `name` holds lengths (its name contains radius, thickness, diameter or
+// length): those scale with the coordinates.
+bool is_length_attribute(const std::string& name);
+
+// Multiplies every position, polyline point, length attribute (is_length_attribute) and the source
+// grid's spacing and origin by `factor` (> 0): a change of unit (1e-3: µm -> mm numbers).
+void scale_graph(SpatialGraph& graph, double factor);
 
 }  // namespace skel

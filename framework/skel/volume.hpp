@@ -179,6 +179,7 @@ public:
   // DataObject
   [[nodiscard]] std::string type_id() const override { return VoxelTraits<T>::id; }
   [[nodiscard]] uint64_t bytes() const override { return static_cast<uint64_t>(size()) * sizeof(T); }
+  [[nodiscard]] std::string physical_unit() const override { return grid_.unit; }
   [[nodiscard]] std::string describe() const override {
     std::ostringstream s;
     s << type_id() << " " << nx() << "x" << ny() << "x" << nz() << " (x,y,z), spacing "

@@ -103,6 +103,10 @@ std::string RunReport::to_json() const {
     size_t k = 0;
     for (const auto& [port, b] : n.output_bytes)
       o << (k++ ? ", " : "") << "\"" << json_escape(port) << "\": " << b;
+    o << "}, \"units\": {";
+    k = 0;
+    for (const auto& [port, u] : n.output_units)
+      o << (k++ ? ", " : "") << "\"" << json_escape(port) << "\": \"" << json_escape(u) << "\"";
     o << "}, \"files\": [";
     for (size_t j = 0; j < n.outputs_written.size(); ++j)
       o << (j ? ", " : "") << "\"" << json_escape(n.outputs_written[j]) << "\"";
@@ -534,7 +538,10 @@ void Executor::Scheduler::run_node(size_t i) {
 void Executor::Scheduler::node_done(size_t i, NodeReport nr) {
   std::lock_guard lock(m_);
   for (const auto& [port, d] : results_[i])
-    if (d) nr.output_bytes[port] = d->bytes();
+    if (d) {
+      nr.output_bytes[port] = d->bytes();
+      if (auto u = d->physical_unit(); !u.empty()) nr.output_units[port] = std::move(u);
+    }
   state_[i] = plan_.nodes[i].cached ? NodeState::Cached : NodeState::Done;
   progress_[i] = 1.0;
   status(i, state_[i], 1.0, nr.warnings.empty() ? std::string() : nr.warnings.back());

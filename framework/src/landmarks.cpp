@@ -49,6 +49,7 @@ void LandmarkSet::add_set(std::vector<Vec3> points) {
 LandmarkSet LandmarkSet::single_set(int64_t s) const {
   LandmarkSet out;
   out.names = names;
+  out.unit = unit;
   out.sets.push_back(set(s));
   return out;
 }

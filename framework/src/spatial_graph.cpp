@@ -269,7 +269,7 @@ uint64_t SpatialGraph::bytes() const {
 std::string SpatialGraph::describe() const {
   std::ostringstream s;
   s << "graph " << node_count() << " nodes, " << edge_count() << " edges, " << point_count()
-    << " points, length " << total_length();
+    << " points, length " << total_length() << " " << unit;
   auto list = [&](const char* what, const auto& m) {
     if (m.empty()) return;
     s << ", " << what << ":";
@@ -281,6 +281,35 @@ std::string SpatialGraph::describe() const {
   list("edge labels", edge_labels);
   list("point attributes", point_attributes);
   return s.str();
+}
+
+bool is_length_attribute(const std::string& name) {
+  for (const char* w : {"radius", "thickness", "diameter", "length"})
+    if (name.find(w) != std::string::npos) return true;
+  return false;
+}
+
+void scale_graph(SpatialGraph& g, double factor) {
+  if (!(factor > 0.0) || !std::isfinite(factor))
+    throw InputError("scale: expected a finite factor > 0, got " + std::to_string(factor));
+  for (auto& p : g.positions)
+    for (double& c : p) c *= factor;
+  for (auto& e : g.edges)
+    for (auto& p : e.points)
+      for (double& c : p) c *= factor;
+  const auto f = static_cast<float>(factor);
+  for (auto& [name, values] : g.node_attributes)
+    if (is_length_attribute(name)) for (auto& v : values) v *= f;
+  for (auto& [name, values] : g.edge_attributes)
+    if (is_length_attribute(name)) for (auto& v : values) v *= f;
+  for (auto& [name, values] : g.point_attributes)
+    if (is_length_attribute(name))
+      for (auto& per_edge : values)
+        for (auto& v : per_edge) v *= f;
+  for (int a = 0; a < 3; ++a) {
+    g.source_grid.spacing[a] *= factor;
+    g.source_grid.origin[a] *= factor;
+  }
 }
 
 }  // namespace skel

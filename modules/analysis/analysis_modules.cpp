@@ -6,6 +6,7 @@
 #include "graph/editor.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
+#include "skel/units.hpp"
 
 namespace skel::analysis {
 namespace {
@@ -51,6 +52,7 @@ public:
         .output<Table>("segments", "per edge: length, chord, tortuosity, radius stats, volume, surface")
         .output<Table>("nodes", "per node: degree, position")
         .output<Table>("summary", "one row: totals, densities, branch/end points, loops, orientation histogram")
+        .output<SpatialGraph>("graph", "the input with the per-edge statistics as edge attributes (length, chord, tortuosity, orientation, direction_x/y/z, radius stats, volume, surface) and labels (component, branch_type: 0 internal, 1 terminal, 2 isolated, 3 loop), node labels degree and component: written by io.write_graph into .am, .vtp, .graphml")
         .param("radius", &NetworkStatisticsOptions::radius, "point attribute holding radii")
         .param("orientation_bins", &NetworkStatisticsOptions::orientation_bins, "bins of the angle between segments and the axis (0..90°)")
         .min(1)
@@ -59,7 +61,7 @@ public:
         .param("orientation_window", &NetworkStatisticsOptions::orientation_window,
                        "arc length over which segment directions are measured (0 = 10 x the median point step)")
         .min(0)
-        .unit("µm")
+        .unit(units::length)
         .details(
             "Thesis §6.1. Per segment: polyline length, chord (end-to-end distance), tortuosity = length / "
             "chord (NaN for loops), length-weighted mean, min and max radius, volume and lateral surface of "
@@ -71,16 +73,22 @@ public:
             "of the pieces whose direction makes an angle to the axis in bin k. Directions are chords of "
             "consecutive pieces of arc length orientation_window cut along each edge (the last piece of an edge "
             "may be shorter): single voxel steps of a skeleton only take the 13 lattice directions (0°, 45°, "
-            "54.7°, 90° to an axis), so a histogram of steps would show the grid instead of the network. Units: µm (spacing units).");
+            "54.7°, 90° to an axis), so a histogram of steps would show the grid instead of the network. Units: the graph's (its source volume's spacing unit, or its file's), named in every column header. "
+            "The `graph` output is a copy of the input (memory: as the input graph) with the per-edge values as "
+            "edge attributes and labels, so that io.write_graph carries them into .am, .vtp and .graphml.");
   }
   void run(RunContext& ctx) override {
     auto g = ctx.input<SpatialGraph>("graph");
     auto o = ctx.options<NetworkStatisticsOptions>();
-    if (auto m = ctx.optional_input<VolumeU8>("mask")) o.reference_volume = mask_volume(*m);
+    if (auto m = ctx.optional_input<VolumeU8>("mask")) {
+      units::check_same(g->unit, "input 'graph'", m->unit(), "input 'mask'");
+      o.reference_volume = mask_volume(*m);
+    }
     auto st = network_statistics(*g, o);
     ctx.output("segments", std::move(st.segments));
     ctx.output("nodes", std::move(st.nodes));
     ctx.output("summary", std::move(st.summary));
+    ctx.output("graph", std::move(st.graph));
   }
 };
 SKEL_REGISTER_MODULE(NetworkStatisticsModule);
@@ -103,10 +111,10 @@ public:
         .optional_value()
         .param_fn<TreeOptions>("root_points", std::vector<double>{}, set_root_points, "root positions x y z, x y z ... (nearest node)")
         .optional_value()
-        .unit("µm")
+        .unit(units::length)
         .param("min_diameter", &TreeOptions::min_diameter, "edges thinner than this (2 × mean radius) are capillaries")
         .min(0)
-        .unit("µm")
+        .unit(units::length)
         .param("radius", &TreeOptions::radius, "point attribute holding radii")
         .details(
             "Thesis §6.1 (fig. 6.3): main vessel trees are separated from the capillary bed by diameter and "
@@ -132,7 +140,7 @@ public:
       root.push_back(s.root_nodes[r]);
     }
     Table t;
-    t.add("tree", id).add("root_node", root).add("edges", edges).add("length", len, "µm");
+    t.add("tree", id).add("root_node", root).add("edges", edges).add("length", len, g.unit);
     ctx.output("graph", std::move(g));
     ctx.output("trees", std::move(t));
   }
@@ -166,6 +174,7 @@ public:
     auto mask = ctx.input<VolumeU8>("mask");
     const auto o = ctx.options<LabelPropagationOptions>();
     if (auto g = ctx.optional_input<SpatialGraph>("graph")) {
+      units::check_same(g->unit, "input 'graph'", mask->unit(), "input 'mask'");
       ctx.output("labels", propagate_edge_labels(*mask, *g, o));
     } else if (auto s = ctx.optional_input<VolumeU32>("seeds")) {
       ctx.output("labels", propagate_labels(*mask, *s, o));
@@ -183,9 +192,9 @@ public:
         .input<SpatialGraph>("graph", "network graph")
         .output<Table>("table", "one row per end point: position, partner (node or edge point), distance, angle, score")
         .output<SpatialGraph>("graph", "the input with node attribute `gap_score` (0 = no partner) and label `dangling` (1 at end points)")
-        .param("max_distance", &graph::DanglingOptions::max_distance, "largest gap to bridge").min(0).unit("µm")
+        .param("max_distance", &graph::DanglingOptions::max_distance, "largest gap to bridge").min(0).unit(units::length)
         .param("max_angle", &graph::DanglingOptions::max_angle_deg, "largest angle between the segment's direction and the gap").range(0, 180).unit("degrees")
-        .param("direction_length", &graph::DanglingOptions::direction_length, "how far back along the segment its direction is measured").min(0).unit("µm")
+        .param("direction_length", &graph::DanglingOptions::direction_length, "how far back along the segment its direction is measured").min(0).unit(units::length)
         .details(R"(Thesis §6.1: about 4 % of the segments end unconnected because vessels were not filled
 completely; the user is guided to these ends and connects them. For every node of degree 1 the
 direction of its segment is measured over `direction_length`; candidates are the points of all other
@@ -223,17 +232,17 @@ ends without a partner last. A k-d tree (nanoflann) over all polyline points kee
     }
     Table t;
     t.add("node", node);
-    t.add("x", x, "µm");
-    t.add("y", y, "µm");
-    t.add("z", z, "µm");
+    t.add("x", x, g->unit);
+    t.add("y", y, g->unit);
+    t.add("z", z, g->unit);
     t.add("partner", kind);
     t.add("partner_node", partner_node);
     t.add("partner_edge", partner_edge);
     t.add("partner_point", partner_point);
-    t.add("partner_x", px, "µm");
-    t.add("partner_y", py, "µm");
-    t.add("partner_z", pz, "µm");
-    t.add("distance", dist, "µm");
+    t.add("partner_x", px, g->unit);
+    t.add("partner_y", py, g->unit);
+    t.add("partner_z", pz, g->unit);
+    t.add("distance", dist, g->unit);
     t.add("angle", angle, "degrees");
     t.add("score", score);
     ctx.output("table", std::move(t));

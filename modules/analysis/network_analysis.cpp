@@ -10,6 +10,7 @@
 #include "distance/distance.hpp"
 #include "graph/graph_ops.hpp"
 #include "skel/error.hpp"
+#include "skel/units.hpp"
 
 namespace skel::analysis {
 
@@ -111,11 +112,88 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
     total_surf += s;
   }
   NetworkStatistics st;
+  st.graph = g;
+  {
+    SpatialGraph& sg = st.graph;
+    const auto deg = g.degrees();
+    // Connected components (ids from 0, in node order).
+    std::vector<int32_t> comp(static_cast<size_t>(nn), -1);
+    {
+      const auto adj = g.adjacency();
+      int32_t next = 0;
+      std::vector<int64_t> stack;
+      for (int64_t s = 0; s < nn; ++s) {
+        if (comp[s] >= 0) continue;
+        comp[s] = next;
+        stack.assign(1, s);
+        while (!stack.empty()) {
+          const int64_t u = stack.back();
+          stack.pop_back();
+          for (int64_t k = adj.offsets[u]; k < adj.offsets[u + 1]; ++k) {
+            const auto& ed = g.edges[adj.edge_ids[k]];
+            const int64_t v = ed.node0 == u ? ed.node1 : ed.node0;
+            if (comp[v] < 0) {
+              comp[v] = next;
+              stack.push_back(v);
+            }
+          }
+        }
+        ++next;
+      }
+    }
+    auto& nd = sg.ensure_node_label("degree");
+    auto& nc = sg.ensure_node_label("component");
+    for (int64_t n = 0; n < nn; ++n) {
+      nd[n] = static_cast<int32_t>(deg[n]);
+      nc[n] = comp[n];
+    }
+    auto put = [&](const char* name, const std::vector<double>& v) {
+      auto& a = sg.ensure_edge_attribute(name);
+      for (int64_t e = 0; e < ne; ++e) a[e] = static_cast<float>(v[e]);
+    };
+    put("length", len);
+    put("chord", chord);
+    put("tortuosity", tort);
+    if (with_r) {
+      put("mean_radius", mean_r);
+      put("min_radius", min_r);
+      put("max_radius", max_r);
+      put("volume", vol);
+      put("surface", surf);
+    }
+    auto& orientation = sg.ensure_edge_attribute("orientation");
+    auto& dx = sg.ensure_edge_attribute("direction_x");
+    auto& dy = sg.ensure_edge_attribute("direction_y");
+    auto& dz = sg.ensure_edge_attribute("direction_z");
+    auto& ec = sg.ensure_edge_label("component");
+    auto& bt = sg.ensure_edge_label("branch_type");
+    const auto ax = static_cast<size_t>(options.axis);
+    for (int64_t e = 0; e < ne; ++e) {
+      const auto& ed = g.edges[e];
+      const Vec3& a = ed.points.front();
+      const Vec3& b = ed.points.back();
+      const double c = chord[e];
+      const float nan = std::numeric_limits<float>::quiet_NaN();
+      dx[e] = c > 0 ? static_cast<float>((b[0] - a[0]) / c) : nan;
+      dy[e] = c > 0 ? static_cast<float>((b[1] - a[1]) / c) : nan;
+      dz[e] = c > 0 ? static_cast<float>((b[2] - a[2]) / c) : nan;
+      orientation[e] = c > 0 ? static_cast<float>(std::acos(std::min(1.0, std::abs(b[ax] - a[ax]) / c)) * 180.0 / pi) : nan;
+      ec[e] = comp[ed.node0];
+      const bool end0 = deg[ed.node0] == 1, end1 = deg[ed.node1] == 1;
+      const BranchType t = ed.node0 == ed.node1 ? BranchType::loop
+                           : end0 && end1       ? BranchType::isolated
+                           : end0 || end1       ? BranchType::terminal
+                                                : BranchType::internal;
+      bt[e] = static_cast<int32_t>(t);
+    }
+  }
+  const std::string& u = g.unit;
+  const std::string u2 = units::power(u, 2), u3 = units::power(u, 3);
   st.segments.add("edge", eid).add("node0", n0).add("node1", n1);
-  st.segments.add("length", len, "µm").add("chord", chord, "µm").add("tortuosity", tort);
+  st.segments.add("length", len, u).add("chord", chord, u).add("tortuosity", tort);
   if (with_r) {
-    st.segments.add("mean_radius", mean_r, "µm").add("min_radius", min_r, "µm").add("max_radius", max_r, "µm");
-    st.segments.add("volume", vol, "µm³").add("surface", surf, "µm²");
+    st.segments.add("mean_radius", mean_r, u).add("min_radius", min_r, u).add("max_radius", max_r, u);
+    st.segments.add("volume", vol, u3).add("surface", surf, u2);
   }
 
   const auto deg = g.degrees();
@@ -130,9 +208,9 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
     branch += deg[n] >= 3;
     ends += deg[n] == 1;
   }
-  st.nodes.add("node", nid).add("degree", std::vector<int64_t>(deg)).add("x", x, "µm").add("y", y, "µm").add("z", z, "µm");
+  st.nodes.add("node", nid).add("degree", std::vector<int64_t>(deg)).add("x", x, u).add("y", y, u).add("z", z, u);
   if (auto nr = g.node_attributes.find(options.radius); nr != g.node_attributes.end())
-    st.nodes.add("radius", std::vector<double>(nr->second.begin(), nr->second.end()), "µm");
+    st.nodes.add("radius", std::vector<double>(nr->second.begin(), nr->second.end()), u);
 
   double ref = options.reference_volume;
   if (ref <= 0.0) {
@@ -155,18 +233,18 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
   }
   st.summary.add("nodes", std::vector<int64_t>{nn}).add("edges", std::vector<int64_t>{ne});
   st.summary.add("components", std::vector<int64_t>{g.connected_components()});
-  st.summary.add("total_length", std::vector<double>{total_len}, "µm");
-  st.summary.add("reference_volume", std::vector<double>{ref}, "µm³");
+  st.summary.add("total_length", std::vector<double>{total_len}, u);
+  st.summary.add("reference_volume", std::vector<double>{ref}, u3);
   st.summary.add("length_density",
-                 std::vector<double>{ref > 0 ? total_len / ref : std::numeric_limits<double>::quiet_NaN()}, "µm⁻²");
+                 std::vector<double>{ref > 0 ? total_len / ref : std::numeric_limits<double>::quiet_NaN()}, units::power(u, -2));
   st.summary.add("branch_points", std::vector<int64_t>{branch}).add("end_points", std::vector<int64_t>{ends});
   st.summary.add("loops", std::vector<int64_t>{g.cyclomatic_number()});
   if (with_r) {
-    st.summary.add("total_volume", std::vector<double>{total_vol}, "µm³");
-    st.summary.add("total_surface", std::vector<double>{total_surf}, "µm²");
+    st.summary.add("total_volume", std::vector<double>{total_vol}, u3);
+    st.summary.add("total_surface", std::vector<double>{total_surf}, u2);
   }
-  st.summary.add("orientation_window", std::vector<double>{window}, "µm");
-  for (int b = 0; b < bins; ++b) st.summary.add("orientation_" + std::to_string(b), std::vector<double>{orient[b]}, "µm");
+  st.summary.add("orientation_window", std::vector<double>{window}, u);
+  for (int b = 0; b < bins; ++b) st.summary.add("orientation_" + std::to_string(b), std::vector<double>{orient[b]}, u);
   return st;
 }
 

@@ -29,8 +29,21 @@ struct NetworkStatisticsOptions {
   // or of the graph's points when the grid is unknown.
   double reference_volume = 0.0;
 };
+// Branch types of the edge label `branch_type` (a function of the end nodes' degrees).
+enum class BranchType : int32_t {
+  internal = 0,  // both ends at branch points (degree >= 3) or on a chain of degree 2
+  terminal = 1,  // one end is an end point (degree 1), the other is not
+  isolated = 2,  // both ends are end points: a lone segment
+  loop = 3,      // node0 == node1: a closed ring
+};
 struct NetworkStatistics {
   Table segments, nodes, summary;
+  // The input graph with the statistics as attributes, so that they travel into graph files: edge
+  // attributes length, chord, tortuosity, orientation (angle of the chord to the axis, degrees;
+  // NaN for loops), direction_x/y/z (unit chord), with radii mean_radius, min_radius, max_radius,
+  // volume, surface; edge labels component (connected component, the tree id of a network without
+  // analysis.trees), branch_type (BranchType); node labels degree and component.
+  SpatialGraph graph;
 };
 // segments: edge, node0, node1, length, chord, tortuosity (length/chord, NaN for loops), and with
 // radii mean_radius (length-weighted), min_radius, max_radius, volume (frusta), surface (lateral

@@ -2,6 +2,7 @@
 #include "comparison/comparison.hpp"
 #include "comparison/names.hpp"
 #include "skel/module.hpp"
+#include "skel/units.hpp"
 
 namespace skel::comparison {
 namespace {
@@ -35,18 +36,18 @@ public:
                       "Distance of every reference skeleton point to the nearest point of another skeleton")
         .add_input("reference", skeleton_or_graph_types(), "reference skeleton: integer volume (voxel > 0 = skeleton point) or graph", true)
         .add_input("other", skeleton_or_graph_types(), "skeleton compared against: integer volume or graph, same or different grid", true)
-        .output<VolumeF32>("distance", "reference is a volume: distance (µm) at each reference skeleton voxel, 0 or NaN elsewhere (off_skeleton)")
+        .output<VolumeF32>("distance", "reference is a volume: distance (spacing unit) at each reference skeleton voxel, 0 or NaN elsewhere (off_skeleton)")
         .output<VolumeU8>("changed", "reference is a volume: 1 at reference skeleton voxels with distance > threshold")
         .output<SpatialGraph>("graph", "reference is a graph: a copy with point attributes distance and changed (0/1), edge attribute changed_fraction")
         .output<VolumeF32>("other_distance", "symmetric and other is a volume: distance of each other skeleton voxel to the reference")
         .output<VolumeU8>("other_changed", "symmetric and other is a volume: other skeleton voxels further than threshold from the reference")
         .output<SpatialGraph>("other_graph", "symmetric and other is a graph: a copy with point attributes distance and changed")
         .output<Table>("table", "rows reference_to_other [, other_to_reference, symmetric]: points, weight, mean, median, p95, hausdorff, changed_points, changed_weight, changed_fraction, threshold")
-        .param("threshold", &SkeletonDistanceOptions::threshold, "points further than this from the other skeleton are changed").min(0).unit("µm")
+        .param("threshold", &SkeletonDistanceOptions::threshold, "points further than this from the other skeleton are changed").min(0).unit(units::length)
         .param("symmetric", &SkeletonDistanceOptions::symmetric, "also measure other -> reference; the table gets both directions and the symmetric (pooled) row")
         .param("method", &SkeletonDistanceOptions::method,
                 "transform: seeded Euclidean distance transform (volumes on one grid); kdtree: nearest point in physical coordinates (any inputs); automatic: transform when possible")
-        .param("sample_spacing", &SkeletonDistanceOptions::sample_spacing, "a graph compared against is sampled along its polylines at most this far apart; 0 = half the smallest voxel spacing of the inputs").min(0).unit("µm")
+        .param("sample_spacing", &SkeletonDistanceOptions::sample_spacing, "a graph compared against is sampled along its polylines at most this far apart; 0 = half the smallest voxel spacing of the inputs").min(0).unit(units::length)
         .param_fn<SkeletonDistanceOptions>(
             "off_skeleton", OffSkeleton::zero,
             [](SkeletonDistanceOptions& o, OffSkeleton v) { o.nan_off_skeleton = v == OffSkeleton::nan; },
@@ -105,9 +106,9 @@ public:
         .output<SpatialGraph>("other_graph", "other copy with the same labels and attributes (matched 0 = extra)")
         .output<Table>("table", "rows nodes, edges, length: reference, other, tp, fp, fn, precision, recall, f1")
         .output<Table>("errors", "NetMets-style errors: geometric_fnr, geometric_fpr, connectivity_fnr, connectivity_fpr, lengths, sample counts")
-        .param("node_tolerance", &GraphMatchOptions::node_tolerance, "nodes at most this far apart may be matched").min(0).unit("µm")
-        .param("edge_tolerance", &GraphMatchOptions::edge_tolerance, "a polyline sample is covered if a sample of the other geometry is at most this far").min(0).unit("µm")
-        .param("sample_spacing", &GraphMatchOptions::sample_spacing, "polylines are resampled at equal steps of at most this length").min(1e-9).unit("µm")
+        .param("node_tolerance", &GraphMatchOptions::node_tolerance, "nodes at most this far apart may be matched").min(0).unit(units::length)
+        .param("edge_tolerance", &GraphMatchOptions::edge_tolerance, "a polyline sample is covered if a sample of the other geometry is at most this far").min(0).unit(units::length)
+        .param("sample_spacing", &GraphMatchOptions::sample_spacing, "polylines are resampled at equal steps of at most this length").min(1e-9).unit(units::length)
         .param("overlap", &GraphMatchOptions::overlap, "fraction of an edge's samples (both ways) that must be covered by its partner edge").range(1e-6, 1)
         .details(R"(Compares two reconstructions of one network (two methods, two time points, a reconstruction
 against ground truth). 1. Nodes: every pair closer than node_tolerance is a candidate; an optimal

@@ -13,6 +13,7 @@
 #include "comparison/comparison.hpp"
 #include "comparison/point_index.hpp"
 #include "skel/error.hpp"
+#include "skel/units.hpp"
 #include "skel/parallel.hpp"
 #include "skel/union_find.hpp"
 
@@ -255,6 +256,7 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
   if (!(o.overlap > 0 && o.overlap <= 1)) throw InputError("overlap: expected a fraction in (0, 1]");
   check_graph(reference, "reference");
   check_graph(other, "other");
+  units::check_same(reference.unit, "input 'reference'", other.unit, "input 'other'");
   const Interrupter& intr = o.interrupter;
   const int th = o.threads;
   GraphMatchResult res;
@@ -430,8 +432,8 @@ GraphMatchResult graph_match(const SpatialGraph& reference, const SpatialGraph& 
       .add("geometric_fpr", std::vector<double>{res.geometric_fpr})
       .add("connectivity_fnr", std::vector<double>{res.connectivity_fnr})
       .add("connectivity_fpr", std::vector<double>{res.connectivity_fpr})
-      .add("reference_length", std::vector<double>{len_r}, "µm")
-      .add("other_length", std::vector<double>{len_o}, "µm")
+      .add("reference_length", std::vector<double>{len_r}, reference.unit)
+      .add("other_length", std::vector<double>{len_o}, reference.unit)
       .add("reference_samples", std::vector<int64_t>{res.reference_samples})
       .add("other_samples", std::vector<int64_t>{res.other_samples});
   intr.check(1.0);

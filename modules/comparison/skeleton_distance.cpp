@@ -10,6 +10,7 @@
 #include "comparison/point_index.hpp"
 #include "distance/distance.hpp"
 #include "skel/error.hpp"
+#include "skel/units.hpp"
 #include "skel/mask.hpp"
 #include "skel/parallel.hpp"
 
@@ -265,6 +266,11 @@ SkeletonDistanceResult skeleton_distance(const SkeletonInput& reference, const S
                                          const SkeletonDistanceOptions& o) {
   validate_input(reference);
   validate_input(other);
+  const auto unit_of = [](const SkeletonInput& in) {
+    return in.volume ? in.volume->physical_unit() : in.graph ? in.graph->unit : std::string(kDefaultUnit);
+  };
+  const std::string unit = unit_of(reference);
+  units::check_same(unit, "input '" + reference.name + "'", unit_of(other), "input '" + other.name + "'");
   if (!(o.threshold >= 0)) throw InputError("threshold: expected >= 0 (physical units)");
   const bool both_volumes = reference.volume && other.volume;
   const bool same_grid =
@@ -327,14 +333,14 @@ SkeletonDistanceResult skeleton_distance(const SkeletonInput& reference, const S
   res.table.add("direction", dir)
       .add("points", points)
       .add("weight", weight)
-      .add("mean", mean, "µm")
-      .add("median", median, "µm")
-      .add("p95", p95, "µm")
-      .add("hausdorff", hd, "µm")
+      .add("mean", mean, unit)
+      .add("median", median, unit)
+      .add("p95", p95, unit)
+      .add("hausdorff", hd, unit)
       .add("changed_points", changed)
       .add("changed_weight", cw)
       .add("changed_fraction", cf)
-      .add("threshold", thr, "µm");
+      .add("threshold", thr, unit);
   intr.check(1.0);
   return res;
 }

@@ -81,8 +81,8 @@ public:
   static ModuleSpec spec() {
     return ModuleSpec(names::euclidean, "Exact Euclidean distance to the background, in physical units")
         .input<AnyIntegerVolume>("mask", kMaskDoc)
-        .output<VolumeF32>("distance", "Euclidean distance to the nearest background voxel centre (µm, from spacing); 0 on background")
-        .param("squared", &EuclideanOptions::squared, "output squared distances (µm²)")
+        .output<VolumeF32>("distance", "Euclidean distance to the nearest background voxel centre (in the spacing unit); 0 on background")
+        .param("squared", &EuclideanOptions::squared, "output squared distances (spacing unit²)")
         .param("border_is_object", &DistanceOptions::border_is_object, kBorderDoc)
         .details(R"(Exact Euclidean distance transform (thesis §2.3.1 uses it for exact medialness), separable:
 one pass along x (two scans per row), then one pass along y and one along z computing the lower
@@ -151,8 +151,8 @@ public:
     return ModuleSpec(names::seeded, "Euclidean distance from a seed set (e.g. a skeleton) to every voxel")
         .input<AnyIntegerVolume>("seeds", "seed voxels: any integer volume, voxel > 0 is a seed")
         .optional_input<AnyIntegerVolume>("mask", "optional region (voxel > 0): distances are reported only inside it, 0 outside")
-        .output<VolumeF32>("distance", "Euclidean distance to the nearest seed voxel centre (µm, from spacing); 0 on seeds")
-        .param("squared", &SeededOptions::squared, "output squared distances (µm²)")
+        .output<VolumeF32>("distance", "Euclidean distance to the nearest seed voxel centre (in the spacing unit); 0 on seeds")
+        .param("squared", &SeededOptions::squared, "output squared distances (spacing unit²)")
         .details(R"(Used by skeleton comparison (thesis §6.2) and label propagation (fig. 6.14). The exact,
 unrestricted Euclidean distance transform of the seed complement: paths are straight lines, not
 constrained to the mask; the optional mask only zeroes the output outside it (it must have the

@@ -6,6 +6,7 @@
 
 #include "distance/distance.hpp"
 #include "skel/error.hpp"
+#include "skel/units.hpp"
 #include "skel/parallel.hpp"
 #include "thinning/local_topology.hpp"
 
@@ -198,9 +199,9 @@ RodsPlatesResult rods_plates(const VolumeU8& mask, const VolumeU8& skeleton, con
   }
   r.table.add("class", cls);
   r.table.add("voxels", tv);
-  r.table.add("volume", tvol, "µm³");
+  r.table.add("volume", tvol, units::power(mask.unit(), 3));
   r.table.add("volume_fraction", tfrac);
-  r.table.add("surface", tsurf, "µm²");
+  r.table.add("surface", tsurf, units::power(mask.unit(), 2));
   r.table.add("skeleton_voxels", ts);
   r.table.add("pieces", tp);
   r.table.add("mean_thickness", tthick, "distance units");

@@ -438,6 +438,7 @@ GraphBuild make_nodes(const SkeletonVoxels& sv, std::vector<int64_t>& parent, bo
   b.with_radius = with_radius;
   SpatialGraph& g = b.graph;
   g.source_grid = sv.skeleton->grid();
+  g.unit = g.source_grid.unit;
   std::vector<int64_t>& node_of = b.node_of;
   node_of.assign(n, -1);
   std::vector<Vec3> sum;

@@ -6,5 +6,6 @@ namespace skel::graph::names {
 inline constexpr const char* prune = "graph.prune";
 inline constexpr const char* filter = "graph.filter";
 inline constexpr const char* apply_edits = "graph.apply_edits";
+inline constexpr const char* merge_centerlines = "graph.merge_centerlines";
 
 }  // namespace skel::graph::names

@@ -1,6 +1,8 @@
 #include "io/graph_io.hpp"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -19,6 +21,7 @@
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/text.hpp"
+#include "io/vtk_xml_data.hpp"
 
 #include <expat.h>
 
@@ -242,7 +245,19 @@ XmlDoc parse_xml(const std::string& s, const std::string& source) {
   return std::move(st.doc);
 }
 
+// Whether the graph knows where its source volume lies (origin, direction): then the files say so.
+bool has_placement(const Grid& g) {
+  return g.voxel_count() > 0 || g.origin != Vec3{0.0, 0.0, 0.0} || g.direction != kIdentityDirection;
+}
+
 // ---------------------------------------------------------------- Amira
+// A string inside Amira's double quotes (quotes and line breaks would end it).
+std::string amira_string(const std::string& s) {
+  std::string o;
+  for (char c : s) o += (c == '"' || c == '\n' || c == '\r' || c == '\\') ? '_' : c;
+  return o;
+}
+
 std::string amira_write(const SpatialGraph& g) {
   struct Block {
     std::string loc, type, name;
@@ -293,7 +308,17 @@ std::string amira_write(const SpatialGraph& g) {
   s += "define VERTEX " + std::to_string(nn) + "\n";
   s += "define EDGE " + std::to_string(ne) + "\n";
   s += "define POINT " + std::to_string(np) + "\n\n";
-  s += "Parameters {\n    ContentType \"HxSpatialGraph\"\n}\n\n";
+  // Amira's own layout of the coordinate unit (Edit > Units); the source volume's transform as
+  // parameters of ours (Amira ignores unknown parameters).
+  s += "Parameters {\n    Units {\n        Coordinates \"" + amira_string(g.unit) + "\"\n    }\n";
+  if (has_placement(g.source_grid)) {
+    s += "    SkelflowOrigin";
+    for (double v : g.source_grid.origin) { s += ' '; put_d(s, v); }
+    s += "\n    SkelflowDirection";
+    for (double v : g.source_grid.direction) { s += ' '; put_d(s, v); }
+    s += "\n";
+  }
+  s += "    ContentType \"HxSpatialGraph\"\n}\n\n";
   for (size_t k = 0; k < blocks.size(); ++k) {
     const auto& b = blocks[k];
     s += b.loc + " { " + b.type + (b.comps > 1 ? "[" + std::to_string(b.comps) + "]" : "") + " " + b.name +
@@ -301,7 +326,9 @@ std::string amira_write(const SpatialGraph& g) {
   }
   s += "\n# Data section follows\n";
   for (size_t k = 0; k < blocks.size(); ++k) {
-    s += "@" + std::to_string(k + 1) + "\n";
+    s += '@';  // (char, not "@" + std::to_string: GCC 12 warns falsely about that with -Wrestrict)
+    s += std::to_string(k + 1);
+    s += '\n';
     blocks[k].data(s);
     s += "\n";
   }
@@ -331,6 +358,10 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
   static const std::regex def_re(R"(^\s*define\s+(\w+)\s+(\d+)\s*$)");
   static const std::regex decl_re(R"(^\s*(\w+)\s*\{\s*(\w+)\s*(\[\s*(\d+)\s*\])?\s+(\w+)\s*\}\s*@(\d+))");
   static const std::regex at_re(R"(^@(\d+)\s*$)");
+  static const std::regex unit_re(R"re(^\s*Coordinates\s+"([^"]*)")re");
+  static const std::regex vec_re(R"(^\s*Skelflow(Origin|Direction)\s+(.*)$)");
+  std::string unit;
+  std::vector<double> origin, direction;
   // Header: up to the first line that is only "@k".
   size_t pos = 0, data_start = std::string::npos;
   int line_no = 0;
@@ -354,6 +385,13 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
                          "' declares more elements than a file of " + std::to_string(text.size()) + " bytes can hold");
       counts[m[1]] = c;
       count_line[m[1]] = line_no;
+    } else if (std::regex_search(line, m, unit_re)) {
+      unit = m[1];
+    } else if (std::regex_match(line, m, vec_re)) {
+      NumberReader r(line, static_cast<size_t>(m.position(2)), line.size(), "Skelflow" + m[1].str(), src, line_no);
+      auto& v = m[1] == "Origin" ? origin : direction;
+      v.clear();
+      while (!r.at_end() && v.size() < 10) v.push_back(r.next_finite("a transform value"));
     } else if (std::regex_search(line, m, decl_re)) {
       const int64_t comps = m[4].matched ? header_int(m[4], line_no) : 1;
       decls[static_cast<int>(std::min<int64_t>(header_int(m[6], line_no), std::numeric_limits<int>::max()))] =
@@ -411,6 +449,12 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
                      "' and 'define POINT " + std::to_string(np) + "' need more values than a file of " +
                      std::to_string(text.size()) + " bytes can hold");
   SpatialGraph g;
+  if (!unit.empty()) g.unit = unit;
+  if (origin.size() == 3 && direction.size() == 9) {
+    std::copy(origin.begin(), origin.end(), g.source_grid.origin.begin());
+    std::copy(direction.begin(), direction.end(), g.source_grid.direction.begin());
+  }
+  g.source_grid.unit = g.unit;
   g.positions.resize(nn);
   {
     auto r = reader(find_decl("VERTEX", "VertexCoordinates"));
@@ -483,45 +527,87 @@ SpatialGraph amira_read(const std::string& text, const std::string& src) {
 }
 
 // ---------------------------------------------------------------- VTK XML PolyData
-template <class V>
-void vtp_array(std::string& s, const char* type, const std::string& name, int comps, const V& values) {
-  s += "        <DataArray type=\"";
-  s += type;
-  s += "\" Name=\"" + xml_escape(name) + "\"";
-  if (comps > 1) s += " NumberOfComponents=\"" + std::to_string(comps) + "\"";
-  s += " format=\"ascii\">\n";
-  size_t col = 0;
-  for (const auto& x : values) {
-    if constexpr (std::is_same_v<std::decay_t<decltype(x)>, float>) put_f(s, x);
-    else if constexpr (std::is_same_v<std::decay_t<decltype(x)>, double>) put_d(s, x);
-    else put_i(s, static_cast<int64_t>(x));
-    s += (++col % 9 == 0) ? '\n' : ' ';
+// Writes DataArrays as ASCII text, or as appended raw data (zlib-compressed in blocks, UInt64
+// headers: what VTK writes by default) collected in `appended` and written after the XML.
+class VtpWriter {
+public:
+  explicit VtpWriter(bool binary) : binary_(binary) {}
+  template <class T>
+  void array(std::string& s, const char* type, const std::string& name, int comps, const std::vector<T>& values,
+             bool field = false, int64_t tuples = -1) {
+    s += field ? "      <DataArray type=\"" : "        <DataArray type=\"";
+    s += type;
+    s += "\" Name=\"" + xml_escape(name) + "\"";
+    if (comps > 1) s += " NumberOfComponents=\"" + std::to_string(comps) + "\"";
+    if (field)
+      s += " NumberOfTuples=\"" +
+           std::to_string(tuples >= 0 ? static_cast<size_t>(tuples) : values.size() / static_cast<size_t>(comps)) + "\"";
+    if (binary_) {
+      s += " format=\"appended\" offset=\"" + std::to_string(appended_.size()) + "\"/>\n";
+      appended_ += vtk::encode_array(values.data(), values.size() * sizeof(T), true);
+      return;
+    }
+    s += " format=\"ascii\">\n";
+    size_t col = 0;
+    for (const auto& x : values) {
+      if constexpr (std::is_same_v<T, float>) put_f(s, x);
+      else if constexpr (std::is_same_v<T, double>) put_d(s, x);
+      else put_i(s, static_cast<int64_t>(x));
+      s += (++col % 9 == 0) ? '\n' : ' ';
+    }
+    s += field ? "\n      </DataArray>\n" : "\n        </DataArray>\n";
   }
-  s += "\n        </DataArray>\n";
-}
+  // A field-data string array of one string (VTK: the characters, each string ended by 0).
+  void string(std::string& s, const std::string& name, const std::string& value) {
+    std::vector<uint8_t> chars(value.begin(), value.end());
+    chars.push_back(0);
+    // VTK names the type "String"; ASCII stores the character codes.
+    std::string t;
+    array(t, "String", name, 1, chars, true, 1);
+    s += t;
+  }
+  [[nodiscard]] bool binary() const { return binary_; }
+  [[nodiscard]] const std::string& appended() const { return appended_; }
 
-std::string vtp_write(const SpatialGraph& g) {
+private:
+  bool binary_;
+  std::string appended_;
+};
+
+std::string vtp_write(const SpatialGraph& g, bool binary) {
   const int64_t nn = g.node_count(), ne = g.edge_count();
   const int64_t np = nn + g.point_count();
-  std::string s = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" "
-                  "header_type=\"UInt64\">\n  <PolyData>\n";
+  VtpWriter w(binary);
+  std::string s = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"";
+  s += std::endian::native == std::endian::big ? "BigEndian" : "LittleEndian";
+  s += "\" header_type=\"UInt64\"";
+  if (binary) s += " compressor=\"vtkZLibDataCompressor\"";
+  s += ">\n  <PolyData>\n";
+  // Field data: the unit and, when known, the source volume's origin and direction.
+  s += "    <FieldData>\n";
+  w.string(s, "unit", g.unit);
+  if (has_placement(g.source_grid)) {
+    w.array(s, "Float64", "origin", 3, std::vector<double>(g.source_grid.origin.begin(), g.source_grid.origin.end()), true);
+    w.array(s, "Float64", "direction", 9, std::vector<double>(g.source_grid.direction.begin(), g.source_grid.direction.end()), true);
+  }
+  s += "    </FieldData>\n";
   s += "    <Piece NumberOfPoints=\"" + std::to_string(np) + "\" NumberOfVerts=\"" + std::to_string(nn) +
        "\" NumberOfLines=\"" + std::to_string(ne) + "\" NumberOfStrips=\"0\" NumberOfPolys=\"0\">\n";
   s += "      <PointData>\n";
   for (const auto& [name, v] : g.point_attributes) {
     std::vector<float> a(nn, 0.0f);
     for (const auto& e : v) a.insert(a.end(), e.begin(), e.end());
-    vtp_array(s, "Float32", name, 1, a);
+    w.array(s, "Float32", name, 1, a);
   }
   for (const auto& [name, v] : g.node_attributes) {
     std::vector<float> a(v.begin(), v.end());
     a.resize(np, 0.0f);
-    vtp_array(s, "Float32", "node." + name, 1, a);
+    w.array(s, "Float32", "node." + name, 1, a);
   }
   for (const auto& [name, v] : g.node_labels) {
     std::vector<int32_t> a(v.begin(), v.end());
     a.resize(np, 0);
-    vtp_array(s, "Int32", "node." + name, 1, a);
+    w.array(s, "Int32", "node." + name, 1, a);
   }
   s += "      </PointData>\n      <CellData>\n";
   // Cell data covers verts (nodes) then lines (edges).
@@ -531,18 +617,18 @@ std::string vtp_write(const SpatialGraph& g) {
       n0.push_back(e.node0);
       n1.push_back(e.node1);
     }
-    vtp_array(s, "Int64", "node0", 1, n0);
-    vtp_array(s, "Int64", "node1", 1, n1);
+    w.array(s, "Int64", "node0", 1, n0);
+    w.array(s, "Int64", "node1", 1, n1);
   }
   for (const auto& [name, v] : g.edge_attributes) {
     std::vector<float> a(nn, 0.0f);
     a.insert(a.end(), v.begin(), v.end());
-    vtp_array(s, "Float32", name, 1, a);
+    w.array(s, "Float32", name, 1, a);
   }
   for (const auto& [name, v] : g.edge_labels) {
     std::vector<int32_t> a(nn, 0);
     a.insert(a.end(), v.begin(), v.end());
-    vtp_array(s, "Int32", name, 1, a);
+    w.array(s, "Int32", name, 1, a);
   }
   s += "      </CellData>\n      <Points>\n";
   {
@@ -551,7 +637,7 @@ std::string vtp_write(const SpatialGraph& g) {
     for (const auto& p : g.positions) xyz.insert(xyz.end(), p.begin(), p.end());
     for (const auto& e : g.edges)
       for (const auto& p : e.points) xyz.insert(xyz.end(), p.begin(), p.end());
-    vtp_array(s, "Float64", "Points", 3, xyz);
+    w.array(s, "Float64", "Points", 3, xyz);
   }
   s += "      </Points>\n      <Verts>\n";
   {
@@ -560,8 +646,8 @@ std::string vtp_write(const SpatialGraph& g) {
       conn[i] = i;
       offs[i] = i + 1;
     }
-    vtp_array(s, "Int64", "connectivity", 1, conn);
-    vtp_array(s, "Int64", "offsets", 1, offs);
+    w.array(s, "Int64", "connectivity", 1, conn);
+    w.array(s, "Int64", "offsets", 1, offs);
   }
   s += "      </Verts>\n      <Lines>\n";
   {
@@ -571,24 +657,73 @@ std::string vtp_write(const SpatialGraph& g) {
       for (size_t i = 0; i < e.points.size(); ++i) conn.push_back(next++);
       offs.push_back(static_cast<int64_t>(conn.size()));
     }
-    vtp_array(s, "Int64", "connectivity", 1, conn);
-    vtp_array(s, "Int64", "offsets", 1, offs);
+    w.array(s, "Int64", "connectivity", 1, conn);
+    w.array(s, "Int64", "offsets", 1, offs);
   }
-  s += "      </Lines>\n    </Piece>\n  </PolyData>\n</VTKFile>\n";
+  s += "      </Lines>\n    </Piece>\n  </PolyData>\n";
+  if (binary) {
+    s += "  <AppendedData encoding=\"raw\">\n   _";
+    s += w.appended();
+    s += "\n  </AppendedData>\n";
+  }
+  s += "</VTKFile>\n";
   return s;
 }
 
-// The numbers of a DataArray; with `finite_what` set ("a coordinate", "a radius"), non-finite values
-// are refused at their line.
-std::vector<double> xml_numbers(const Xml& a, const std::string& src, const char* finite_what = nullptr) {
-  if (a.attr_or("format", "ascii") != "ascii")
-    throw InputError(src + ": DataArray '" + a.attr_or("Name", "") + "' is " + a.attr_or("format", "") +
-                     "; only ASCII .vtp is supported");
-  std::vector<double> v;
-  NumberReader r(a.text, 0, a.text.size(), "DataArray '" + a.attr_or("Name", "") + "'", src, a.text_line);
-  while (!r.at_end()) v.push_back(finite_what ? r.next_finite(finite_what) : r.next());
-  return v;
-}
+// The DataArrays of one VTK XML file in any of its encodings (skel::io::vtk).
+struct VtpData {
+  vtk::Encoding enc;
+  std::string appended;
+  bool appended_base64 = false;
+  std::vector<uint64_t> offsets;  // sorted offsets of the appended arrays: each ends at the next
+  std::string src;
+
+  // Payload bytes of a binary or appended array.
+  [[nodiscard]] std::string bytes(const Xml& a) const {
+    const std::string what = src + ": DataArray '" + a.attr_or("Name", "") + "'";
+    const std::string format = a.attr_or("format", "ascii");
+    if (format == "binary") return vtk::decode_inline(a.text, enc, what);
+    if (format != "appended") throw InputError(what + ": unknown format '" + format + "'");
+    int64_t off = 0;
+    if (!text::parse_int(text::trim(a.attr_or("offset", "")), off) || off < 0)
+      throw InputError(what + ": appended data needs an offset, got '" + a.attr_or("offset", "").substr(0, 24) + "'");
+    if (appended.empty() && offsets.empty()) throw InputError(what + ": format 'appended' but the file has no <AppendedData>");
+    const auto next = std::upper_bound(offsets.begin(), offsets.end(), static_cast<uint64_t>(off));
+    return vtk::decode_appended(appended, appended_base64, static_cast<uint64_t>(off),
+                                next == offsets.end() ? appended.size() : *next, enc, what);
+  }
+  // The numbers of a DataArray; with `finite_what` set ("a coordinate", "a radius"), non-finite
+  // values are refused (at their line in ASCII files).
+  [[nodiscard]] std::vector<double> numbers(const Xml& a, const char* finite_what = nullptr) const {
+    std::vector<double> v;
+    const std::string name = a.attr_or("Name", "");
+    if (a.attr_or("format", "ascii") == "ascii") {
+      NumberReader r(a.text, 0, a.text.size(), "DataArray '" + name + "'", src, a.text_line);
+      while (!r.at_end()) v.push_back(finite_what ? r.next_finite(finite_what) : r.next());
+      return v;
+    }
+    std::string type = a.attr_or("type", "");
+    if (type == "String") type = "UInt8";
+    v = vtk::to_doubles(bytes(a), type, enc, src + ": DataArray '" + name + "'");
+    if (finite_what)
+      for (size_t i = 0; i < v.size(); ++i)
+        if (!std::isfinite(v[i]))
+          throw InputError(src + ": DataArray '" + name + "': value " + std::to_string(i) + ": " + finite_what +
+                           " is not a finite number");
+    return v;
+  }
+  // The first string of a String array.
+  [[nodiscard]] std::string string(const Xml& a) const {
+    std::string s;
+    for (double ch : numbers(a)) {
+      if (ch == 0) break;
+      if (!(ch > 0 && ch < 256))
+        throw InputError(src + ": DataArray '" + a.attr_or("Name", "") + "' holds a character code " + text::format_double(ch, 6));
+      s += static_cast<char>(static_cast<unsigned char>(ch));
+    }
+    return s;
+  }
+};
 
 // A stored index (offset, point or node id) as an integer; garbage (fractions, huge or negative
 // values) is refused with `what`.
@@ -599,12 +734,44 @@ int64_t vtp_index(double v, const std::string& what) {
 }
 
 SpatialGraph vtp_read(const std::string& text, const std::string& src) {
-  const XmlDoc doc = parse_xml(text, src);
+  vtk::SplitFile split = vtk::split_appended(text, src);
+  const XmlDoc doc = parse_xml(split.xml, src);
   const Xml* vtk = doc.root().child("VTKFile");
   if (!vtk || vtk->attr_or("type", "") != "PolyData") throw InputError(src + ": not a VTK XML PolyData file");
+  VtpData data;
+  data.src = src;
+  data.enc = vtk::parse_encoding(vtk->attr_or("header_type", ""), vtk->attr_or("byte_order", ""),
+                                 vtk->attr_or("compressor", ""), src);
+  if (const Xml* ad = vtk->child("AppendedData")) {
+    const std::string e = ad->attr_or("encoding", "raw");
+    if (e != "raw" && e != "base64") throw InputError(src + ": <AppendedData> encoding '" + e + "' is not raw or base64");
+    data.appended_base64 = e == "base64";
+    data.appended = std::move(split.appended);
+  }
+  for (const auto& el : doc.elements)
+    if (el.name == "DataArray" && el.attr_or("format", "") == "appended") {
+      int64_t off = 0;
+      if (text::parse_int(text::trim(el.attr_or("offset", "")), off) && off >= 0) data.offsets.push_back(static_cast<uint64_t>(off));
+    }
+  std::sort(data.offsets.begin(), data.offsets.end());
   const Xml* pd = vtk->child("PolyData");
   const Xml* piece = pd ? pd->child("Piece") : nullptr;
   if (!piece) throw InputError(src + ": no <Piece>");
+  std::string unit;
+  Vec3 origin{0.0, 0.0, 0.0};
+  Direction direction = kIdentityDirection;
+  if (const Xml* fd = pd->child("FieldData"))
+    for (const auto* c : fd->children) {
+      if (c->name != "DataArray") continue;
+      const std::string name = c->attr_or("Name", "");
+      if (name == "unit" && c->attr_or("type", "") == "String") {
+        unit = data.string(*c);
+      } else if (name == "origin" || name == "direction") {
+        const auto v = data.numbers(*c, "a transform value");
+        if (name == "origin" && v.size() == 3) std::copy(v.begin(), v.end(), origin.begin());
+        if (name == "direction" && v.size() == 9) std::copy(v.begin(), v.end(), direction.begin());
+      }
+    }
   auto section_array = [&](const char* sec, const std::string& name) -> const Xml* {
     const Xml* s = piece->child(sec);
     if (!s) return nullptr;
@@ -614,7 +781,7 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   };
   const Xml* pts_sec = piece->child("Points");
   if (!pts_sec || pts_sec->children.empty()) throw InputError(src + ": no <Points>");
-  const auto xyz = xml_numbers(*pts_sec->children.front(), src, "a coordinate");
+  const auto xyz = data.numbers(*pts_sec->children.front(), "a coordinate");
   const int64_t np = static_cast<int64_t>(xyz.size() / 3);
   // The declared sizes must match what the file holds (nothing is allocated from them).
   for (const char* attr : {"NumberOfPoints", "NumberOfVerts", "NumberOfLines"}) {
@@ -629,7 +796,7 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
     int64_t actual = np;
     if (std::string(attr) != "NumberOfPoints") {
       if (!offs) continue;
-      actual = static_cast<int64_t>(xml_numbers(*offs, src).size());
+      actual = static_cast<int64_t>(data.numbers(*offs).size());
     }
     if (!text::parse_int(*declared, d) || d != actual)
       throw InputError(src + ":" + std::to_string(piece->line) + ": <Piece> declares " + attr + "=\"" +
@@ -637,13 +804,17 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   }
   auto cells = [&](const char* sec) {
     std::pair<std::vector<double>, std::vector<double>> co;
-    if (const Xml* c = section_array(sec, "connectivity")) co.first = xml_numbers(*c, src);
-    if (const Xml* o = section_array(sec, "offsets")) co.second = xml_numbers(*o, src);
+    if (const Xml* c = section_array(sec, "connectivity")) co.first = data.numbers(*c);
+    if (const Xml* o = section_array(sec, "offsets")) co.second = data.numbers(*o);
     return co;
   };
   const auto verts = cells("Verts");
   const auto lines = cells("Lines");
   SpatialGraph g;
+  if (!unit.empty()) g.unit = unit;
+  g.source_grid.unit = g.unit;
+  g.source_grid.origin = origin;
+  g.source_grid.direction = direction;
   const int64_t nn = static_cast<int64_t>(verts.second.size());
   std::vector<int64_t> node_point(nn);
   for (int64_t i = 0; i < nn; ++i) {
@@ -661,8 +832,8 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
   const Xml* n1a = section_array("CellData", "node1");
   std::vector<double> n0, n1;
   if (n0a && n1a) {
-    n0 = xml_numbers(*n0a, src);
-    n1 = xml_numbers(*n1a, src);
+    n0 = data.numbers(*n0a);
+    n1 = data.numbers(*n1a);
   }
   // Without node0/node1 arrays (files from other tools), nodes are matched by point id.
   std::map<int64_t, int64_t> node_of_point;
@@ -689,10 +860,14 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
       a = vtp_index(n0[static_cast<size_t>(nn + e)], cell + ": node0");
       z = vtp_index(n1[static_cast<size_t>(nn + e)], cell + ": node1");
     } else {
-      auto fa = node_of_point.find(vtp_index(lines.first[b], cell + ": point"));
-      auto fz = node_of_point.find(vtp_index(lines.first[en - 1], cell + ": point"));
-      a = fa != node_of_point.end() ? fa->second : g.add_node(pts.front());
-      z = fz != node_of_point.end() ? fz->second : g.add_node(pts.back());
+      // A line end becomes a node; lines that share the end's point id share the node.
+      const auto node_at = [&](int64_t pid, const Vec3& p) {
+        auto [it, fresh] = node_of_point.try_emplace(pid, -1);
+        if (fresh) it->second = g.add_node(p);
+        return it->second;
+      };
+      a = node_at(vtp_index(lines.first[b], cell + ": point"), pts.front());
+      z = node_at(vtp_index(lines.first[en - 1], cell + ": point"), pts.back());
     }
     check_node_id(a, g.node_count(), src + ": node0");
     check_node_id(z, g.node_count(), src + ": node1");
@@ -704,7 +879,7 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
       const Xml& c = *cp;
       if (c.name != "DataArray" || c.attr_or("NumberOfComponents", "1") != "1") continue;
       const std::string name = c.attr_or("Name", "");
-      const auto v = xml_numbers(c, src, name == "radius" || name == "node.radius" ? "a radius" : nullptr);
+      const auto v = data.numbers(c, name == "radius" || name == "node.radius" ? "a radius" : nullptr);
       if (static_cast<int64_t>(v.size()) != np) throw InputError(src + ": point data '" + name + "' has the wrong length");
       const bool is_int = c.attr_or("type", "").find("Int") != std::string::npos;
       if (name.rfind("node.", 0) == 0) {
@@ -730,7 +905,7 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
       const std::string name = c.attr_or("Name", "");
       if (c.name != "DataArray" || name == "node0" || name == "node1" || c.attr_or("NumberOfComponents", "1") != "1")
         continue;
-      const auto v = xml_numbers(c, src);
+      const auto v = data.numbers(c);
       if (static_cast<int64_t>(v.size()) != nn + ne) throw InputError(src + ": cell data '" + name + "' has the wrong length");
       if (c.attr_or("type", "").find("Int") != std::string::npos) {
         auto& a = g.edge_labels[name];
@@ -756,7 +931,9 @@ std::string swc_write(const SpatialGraph& g) {
   const auto* nr = g.node_attributes.count("radius") ? &g.node_attributes.at("radius") : nullptr;
   const auto* nt = g.node_labels.count("swc_type") ? &g.node_labels.at("swc_type") : nullptr;
   const auto* et = g.edge_labels.count("swc_type") ? &g.edge_labels.at("swc_type") : nullptr;
-  std::string s = "# SWC written by skelflow: id type x y z radius parent\n";
+  std::string s = "# SWC written by skelflow: id type x y z radius parent\n# unit: ";
+  for (char c : g.unit) s += (c == '\n' || c == '\r') ? '_' : c;
+  s += '\n';
   std::vector<int64_t> sample(g.positions.size(), -1);
   int64_t next = 1;
   auto line = [&](int64_t id, int64_t type, const Vec3& p, double r, int64_t parent) {
@@ -813,10 +990,16 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
   std::istringstream in(text);
   std::string line;
   int line_no = 0;
+  std::string unit;
   while (std::getline(in, line)) {
     ++line_no;
     const size_t h = line.find('#');
-    if (h != std::string::npos) line.resize(h);
+    if (h != std::string::npos) {
+      // "# unit: mm" (skelflow's header comment) names the coordinate unit.
+      const std::string c = text::trim(std::string_view(line).substr(h + 1));
+      if (text::to_lower(c.substr(0, 5)) == "unit:") unit = text::trim(c.substr(5));
+      line.resize(h);
+    }
     NumberReader r(line, 0, line.size(), src + ":" + std::to_string(line_no));
     if (r.at_end()) continue;
     Sample s{};
@@ -866,6 +1049,8 @@ SpatialGraph swc_read(const std::string& text, const std::string& src) {
     }
   }
   SpatialGraph g;
+  if (!unit.empty()) g.unit = unit;
+  g.source_grid.unit = g.unit;
   std::vector<int64_t> node(n, -1);
   g.ensure_node_attribute("radius");
   for (int64_t i = 0; i < n; ++i)
@@ -915,16 +1100,36 @@ std::string graphml_write(const SpatialGraph& g) {
     m[name] = id;
     s += "  <key id=\"" + id + "\" for=\"" + for_ + "\" attr.name=\"" + xml_escape(name) + "\" attr.type=\"" + type + "\"/>\n";
   };
+  std::map<std::string, std::string> gkey;
+  add_key("graph", "unit", "string", gkey);
   add_key("node", "x", "double", nkey);
   add_key("node", "y", "double", nkey);
   add_key("node", "z", "double", nkey);
-  for (const auto& [n, v] : g.node_attributes) add_key("node", n, "float", nkey);
+  for (const auto& [n, v] : g.node_attributes) add_key("node", n, "double", nkey);
   for (const auto& [n, v] : g.node_labels) add_key("node", n, "int", nkey);
-  add_key("edge", "points", "string", ekey);
-  for (const auto& [n, v] : g.edge_attributes) add_key("edge", n, "float", ekey);
+  // Edge geometry as numbers: p<i>_x, p<i>_y, p<i>_z for point i of the polyline and p<i>_<name>
+  // for its point attributes (keys up to the longest polyline; shorter edges leave the rest out).
+  add_key("edge", "num_points", "int", ekey);
+  for (const auto& [n, v] : g.edge_attributes) add_key("edge", n, "double", ekey);
   for (const auto& [n, v] : g.edge_labels) add_key("edge", n, "int", ekey);
-  for (const auto& [n, v] : g.point_attributes) add_key("edge", "point." + n, "string", ekey);
+  size_t max_points = 0;
+  for (const auto& e : g.edges) max_points = std::max(max_points, e.points.size());
+  std::vector<std::string> pkey;  // key ids: point i, field f at i * fields + f
+  const size_t fields = 3 + g.point_attributes.size();
+  for (size_t i = 0; i < max_points; ++i) {
+    const std::string pre = "p" + std::to_string(i) + "_";
+    std::map<std::string, std::string> m;
+    for (const char* a : {"x", "y", "z"}) {
+      add_key("edge", pre + a, "double", m);
+      pkey.push_back(m[pre + a]);
+    }
+    for (const auto& [n, v] : g.point_attributes) {
+      add_key("edge", pre + n, "double", m);
+      pkey.push_back(m[pre + n]);
+    }
+  }
   s += "  <graph id=\"G\" edgedefault=\"undirected\">\n";
+  s += "    <data key=\"" + gkey["unit"] + "\">" + xml_escape(g.unit) + "</data>\n";
   for (int64_t i = 0; i < g.node_count(); ++i) {
     s += "    <node id=\"n" + std::to_string(i) + "\">";
     for (int a = 0; a < 3; ++a) {
@@ -943,25 +1148,26 @@ std::string graphml_write(const SpatialGraph& g) {
   for (int64_t e = 0; e < g.edge_count(); ++e) {
     const auto& ed = g.edges[e];
     s += "    <edge id=\"e" + std::to_string(e) + "\" source=\"n" + std::to_string(ed.node0) + "\" target=\"n" +
-         std::to_string(ed.node1) + "\"><data key=\"" + ekey["points"] + "\">";
-    for (size_t i = 0; i < ed.points.size(); ++i) {
-      if (i) s += ';';
-      put_d(s, ed.points[i][0]); s += ' '; put_d(s, ed.points[i][1]); s += ' '; put_d(s, ed.points[i][2]);
-    }
-    s += "</data>";
+         std::to_string(ed.node1) + "\"><data key=\"" + ekey["num_points"] + "\">" + std::to_string(ed.points.size()) +
+         "</data>";
     for (const auto& [n, v] : g.edge_attributes) {
       s += "<data key=\"" + ekey[n] + "\">";
       put_f(s, v[e]);
       s += "</data>";
     }
     for (const auto& [n, v] : g.edge_labels) s += "<data key=\"" + ekey[n] + "\">" + std::to_string(v[e]) + "</data>";
-    for (const auto& [n, v] : g.point_attributes) {
-      s += "<data key=\"" + ekey["point." + n] + "\">";
-      for (size_t i = 0; i < v[e].size(); ++i) {
-        if (i) s += ' ';
-        put_f(s, v[e][i]);
+    for (size_t i = 0; i < ed.points.size(); ++i) {
+      for (int a = 0; a < 3; ++a) {
+        s += "<data key=\"" + pkey[i * fields + static_cast<size_t>(a)] + "\">";
+        put_d(s, ed.points[i][a]);
+        s += "</data>";
       }
-      s += "</data>";
+      size_t f = 3;
+      for (const auto& [n, v] : g.point_attributes) {
+        s += "<data key=\"" + pkey[i * fields + f++] + "\">";
+        put_f(s, v[e][i]);
+        s += "</data>";
+      }
     }
     s += "</edge>\n";
   }
@@ -975,14 +1181,33 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
   if (!gm) throw InputError(src + ": no <graphml> element");
   struct Key {
     std::string for_, name, type;
+    int64_t point = -1;  // p<i>_<field>: polyline point i (numeric edge geometry)
+    std::string field;   // x, y, z or a point attribute
   };
   std::map<std::string, Key> keys;
   for (const auto* cp : gm->children)
     if (cp->name == "key")
-      keys[cp->attr_or("id", "")] = {cp->attr_or("for", ""), cp->attr_or("attr.name", ""), cp->attr_or("attr.type", "")};
+      keys[cp->attr_or("id", "")] = {cp->attr_or("for", ""), cp->attr_or("attr.name", ""), cp->attr_or("attr.type", ""), -1, {}};
+  // Point keys: every point needs its own keys, so an index is below the number of keys.
+  for (auto& [id, k] : keys) {
+    if (k.name.size() < 4 || k.name[0] != 'p') continue;
+    const size_t us = k.name.find('_');
+    int64_t i = 0;
+    if (us == std::string::npos || us + 1 == k.name.size() || !text::parse_int(std::string_view(k.name).substr(1, us - 1), i) ||
+        i < 0 || i >= static_cast<int64_t>(keys.size()) || !std::isdigit(static_cast<unsigned char>(k.name[1])))
+      continue;
+    k.point = i;
+    k.field = k.name.substr(us + 1);
+  }
   const Xml* graph = gm->child("graph");
   if (!graph) throw InputError(src + ": no <graph> element");
   SpatialGraph g;
+  for (const auto* cp : graph->children)
+    if (cp->name == "data") {
+      const auto k = keys.find(cp->attr_or("key", ""));
+      if (k != keys.end() && k->second.name == "unit" && !text::trim(cp->text).empty()) g.unit = text::trim(cp->text);
+    }
+  g.source_grid.unit = g.unit;
   std::map<std::string, int64_t> ids;
   std::map<std::string, std::vector<float>> nf;
   std::map<std::string, std::vector<int32_t>> nl;
@@ -1018,6 +1243,8 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
     }
     const std::string edge_name = c.attr("id") ? "'" + c.attr_or("id", "") + "'" : std::string("#") + std::to_string(g.edge_count());
     std::vector<Vec3> pts;
+    std::vector<std::array<bool, 3>> have;  // numeric geometry: which coordinates were given
+    int64_t num_points = -1;
     std::map<std::string, float> ef;
     std::map<std::string, int32_t> el;
     std::map<std::string, std::vector<float>> pa;
@@ -1027,7 +1254,21 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
       const Key& k = keys[d.attr_or("key", "")];
       const std::string where = src + ": edge " + c.attr_or("id", "") + " '" + k.name + "'";
       const std::string what = "edge " + edge_name + " '" + k.name + "'";
-      if (k.name == "points") {
+      if (k.point >= 0) {
+        const auto i = static_cast<size_t>(k.point);
+        const std::string at = src + ":" + std::to_string(d.line) + ": " + what;
+        if (k.field == "x" || k.field == "y" || k.field == "z") {
+          if (pts.size() <= i) pts.resize(i + 1, Vec3{0, 0, 0}), have.resize(i + 1, {false, false, false});
+          pts[i][k.field[0] - 'x'] = finite_num(d.text, at, "a coordinate");
+          have[i][k.field[0] - 'x'] = true;
+        } else {
+          auto& v = pa[k.field];
+          if (v.size() <= i) v.resize(i + 1, std::numeric_limits<float>::quiet_NaN());
+          v[i] = static_cast<float>(k.field == "radius" ? finite_num(d.text, at, "a radius") : to_num(d.text, at));
+        }
+      } else if (k.name == "num_points") {
+        num_points = static_cast<int64_t>(to_num(d.text, where));
+      } else if (k.name == "points") {
         std::string t = d.text;
         std::replace(t.begin(), t.end(), ';', ' ');
         NumberReader rr(t, 0, t.size(), what, src, d.text_line);
@@ -1047,6 +1288,13 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
         ef[k.name] = static_cast<float>(to_num(d.text, where));
       }
     }
+    for (size_t i = 0; i < have.size(); ++i)
+      if (!(have[i][0] && have[i][1] && have[i][2]))
+        throw InputError(src + ":" + std::to_string(c.line) + ": edge " + edge_name + ": point " + std::to_string(i) +
+                         " lacks a coordinate (keys p" + std::to_string(i) + "_x, _y, _z)");
+    if (num_points >= 0 && num_points != static_cast<int64_t>(pts.size()))
+      throw InputError(src + ":" + std::to_string(c.line) + ": edge " + edge_name + ": num_points says " +
+                       std::to_string(num_points) + " but " + std::to_string(pts.size()) + " points are given");
     // No 'points' data: a straight edge between its nodes; otherwise a polyline of >= 2 points.
     if (pts.size() == 1)
       throw InputError(src + ":" + std::to_string(c.line) + ": edge " + edge_name +
@@ -1078,7 +1326,8 @@ std::string csv_name(const std::string& n) {
 }
 
 std::string csv_edges_write(const SpatialGraph& g) {
-  std::string s = "edge,node0,node1,point,x,y,z";
+  const std::string u = " [" + csv_name(g.unit) + "]";
+  std::string s = "edge,node0,node1,point,x" + u + ",y" + u + ",z" + u;
   for (const auto& [n, v] : g.point_attributes) s += ",point:" + csv_name(n);
   for (const auto& [n, v] : g.edge_attributes) s += ",edge:" + csv_name(n);
   for (const auto& [n, v] : g.edge_labels) s += ",edge_label:" + csv_name(n);
@@ -1098,7 +1347,8 @@ std::string csv_edges_write(const SpatialGraph& g) {
 }
 
 std::string csv_nodes_write(const SpatialGraph& g) {
-  std::string s = "node,x,y,z";
+  const std::string u = " [" + csv_name(g.unit) + "]";
+  std::string s = "node,x" + u + ",y" + u + ",z" + u;
   for (const auto& [n, v] : g.node_attributes) s += ",node:" + csv_name(n);
   for (const auto& [n, v] : g.node_labels) s += ",node_label:" + csv_name(n);
   s += '\n';
@@ -1113,7 +1363,8 @@ std::string csv_nodes_write(const SpatialGraph& g) {
 }
 
 struct CsvTable {
-  std::vector<std::string> header;
+  std::vector<std::string> header;  // names without their unit
+  std::string unit;                 // the first unit of a header "x [mm]"
   std::vector<std::vector<double>> rows;
   std::vector<int> lines;  // file line of each row
   std::string src;
@@ -1138,6 +1389,11 @@ CsvTable csv_parse(const std::string& text, const std::string& src) {
     auto f = text::split(line, ',');
     for (auto& field : f) std::erase(field, '\r');  // stray CRs inside a line are dropped
     if (t.header.empty()) {
+      for (auto& h : f)
+        if (const size_t b = h.rfind(" ["); b != std::string::npos && h.size() > b + 2 && h.back() == ']') {
+          if (t.unit.empty()) t.unit = h.substr(b + 2, h.size() - b - 3);
+          h.resize(b);
+        }
       t.header = f;
       continue;
     }
@@ -1161,6 +1417,10 @@ SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, co
     return static_cast<size_t>(it - t.header.begin());
   };
   SpatialGraph g;
+  if (!nodes.unit.empty() && !edges.unit.empty() && nodes.unit != edges.unit)
+    throw InputError(src + ": the edges file says unit '" + edges.unit + "' and the nodes file '" + nodes.unit + "'");
+  if (!nodes.unit.empty() || !edges.unit.empty()) g.unit = nodes.unit.empty() ? edges.unit : nodes.unit;
+  g.source_grid.unit = g.unit;
   const size_t cx = col(nodes, "x", "nodes"), cy = col(nodes, "y", "nodes"), cz = col(nodes, "z", "nodes");
   for (size_t c : {cx, cy, cz}) nodes.check_finite(c, "a coordinate");
   for (size_t k = 0; k < nodes.header.size(); ++k)
@@ -1246,12 +1506,12 @@ GraphFormat graph_format_from_path(const std::filesystem::path& path, const std:
                    "'; expected .am, .vtp, .swc, .graphml or .csv");
 }
 
-std::string graph_to_text(const SpatialGraph& g, GraphFormat f, std::string* nodes_text) {
+std::string graph_to_text(const SpatialGraph& g, GraphFormat f, std::string* nodes_text, const GraphWriteOptions& o) {
   const auto problems = g.check_invariants();
   if (!problems.empty()) throw InputError("input 'graph': inconsistent graph: " + problems.front());
   switch (f) {
     case GraphFormat::amira: return amira_write(g);
-    case GraphFormat::vtp: return vtp_write(g);
+    case GraphFormat::vtp: return vtp_write(g, o.encoding == VtpEncoding::binary);
     case GraphFormat::swc: return swc_write(g);
     case GraphFormat::graphml: return graphml_write(g);
     case GraphFormat::csv:
@@ -1276,14 +1536,22 @@ SpatialGraph graph_from_text(const std::string& text, GraphFormat f, const std::
 }
 
 void write_graph(const SpatialGraph& g, const std::filesystem::path& path, GraphFormat f,
-                 const std::filesystem::path& nodes_path) {
+                 const std::filesystem::path& nodes_path, const GraphWriteOptions& o) {
   if (f == GraphFormat::csv && nodes_path.empty())
     throw InputError("parameter 'nodes_path': required for CSV graphs (the nodes table goes there)");
   std::string nodes;
-  const std::string text = graph_to_text(g, f, &nodes);
+  const std::string text = graph_to_text(g, f, &nodes, o);
   auto put = [](const std::filesystem::path& p, const std::string& t) { write_file_atomically(p, t); };
   put(path, text);
   if (f == GraphFormat::csv) put(nodes_path, nodes);
+}
+
+void apply_read_options(SpatialGraph& g, const ReadGraphOptions& o) {
+  if (!(o.scale > 0.0) || !std::isfinite(o.scale))
+    throw InputError("parameter 'scale': expected a finite number > 0, got " + text::format_double(o.scale, 17));
+  if (o.scale != 1.0) scale_graph(g, o.scale);
+  if (!o.unit.empty()) g.unit = o.unit;
+  g.source_grid.unit = g.unit;
 }
 
 SpatialGraph read_graph(const std::filesystem::path& path, GraphFormat f, const std::filesystem::path& nodes_path) {

@@ -8,10 +8,11 @@ namespace skel::io {
 namespace {
 
 constexpr const char* kGraphFormats =
-    "By extension: .am Amira SpatialGraph (ASCII; radius = thickness), .vtp VTK XML PolyData (ASCII; "
-    "nodes as vertex cells, edges as polylines, attributes as point/cell data), .swc (trees only), "
+    "By extension: .am Amira SpatialGraph (ASCII; radius = thickness), .vtp VTK XML PolyData (read: ASCII, inline "
+    "binary, appended raw or base64, zlib, UInt32/UInt64 headers; written binary appended zlib or ASCII; nodes as vertex cells, edges as polylines, attributes as point/cell data), .swc (trees only), "
     ".graphml, .csv (edge points; the nodes table goes to nodes_path). Attributes and labels are kept in "
-    "every format except SWC (radius and swc_type only).";
+    "every format except SWC (radius and swc_type only). The unit is stored in every format (.am Units, .vtp "
+    "field data, GraphML graph attribute, SWC '# unit:' comment, CSV headers 'x [mm]').";
 
 class ReadGraphModule final : public Module {
 public:
@@ -21,14 +22,21 @@ public:
         .path("path", "", PathRole::Input, "graph file")
         .path("nodes_path", "", PathRole::Input, "CSV only: nodes table (default: <stem>_nodes.csv)")
         .optional_value()
+        .param("scale", &ReadGraphOptions::scale, "multiplies coordinates, radii and every length attribute (e.g. the voxel size of a graph in voxel coordinates)")
+        .min(1e-30)
+        .param("unit", &ReadGraphOptions::unit, "physical unit of the (scaled) coordinates; empty: the file's (Amira Units, .vtp field data, GraphML graph attribute, SWC/CSV header), else " + std::string(kDefaultUnit))
+        .optional_value()
         .details(std::string(kGraphFormats) +
-                 " Polyline end points are set to their nodes' positions. Malformed files are input errors "
-                 "naming the file and what is wrong. Memory: the file text plus the graph.");
+                 " Polyline end points are set to their nodes' positions. Length attributes are those whose name "
+                 "contains radius, thickness, diameter or length. Malformed files are input errors naming the file "
+                 "and what is wrong. Memory: the file text plus the graph.");
   }
   void run(RunContext& ctx) override {
     const auto p = ctx.input_path("path");
     const std::string np = ctx.param<std::string>("nodes_path");
-    ctx.output("graph", read_graph(p, graph_format_from_path(p), np.empty() ? std::filesystem::path() : ctx.input_path("nodes_path")));
+    SpatialGraph g = read_graph(p, graph_format_from_path(p), np.empty() ? std::filesystem::path() : ctx.input_path("nodes_path"));
+    apply_read_options(g, ctx.options<ReadGraphOptions>());
+    ctx.output("graph", std::move(g));
   }
 };
 SKEL_REGISTER_MODULE(ReadGraphModule);
@@ -43,6 +51,7 @@ public:
         .path("nodes_path", "", PathRole::Output, "CSV only (required there): nodes table file")
         .optional_value()
         .extensions({".csv"})
+        .param("encoding", &GraphWriteOptions::encoding, ".vtp only: binary = appended raw data, zlib-compressed (VTK's and ParaView's default, small and exact); ascii = readable text")
         .details(std::string(kGraphFormats) +
                  " Files appear only when the whole run succeeds (temporary file + rename). Coordinates: "
                  "float in .am (Amira's layout), 17 significant digits elsewhere.");
@@ -57,14 +66,14 @@ public:
         throw InputError("parameter 'nodes_path': required when writing a .csv graph");
       np = ctx.output_path("nodes_path");
     }
-    write_graph(*g, ctx.output_path("path"), f, np);
+    write_graph(*g, ctx.output_path("path"), f, np, ctx.options<GraphWriteOptions>());
   }
 };
 SKEL_REGISTER_MODULE(WriteGraphModule);
 
 SKEL_REGISTER_INSPECTOR("spatial graph", {".am", ".vtp", ".swc", ".graphml"}, [](const std::filesystem::path& p) {
   try {
-    return read_graph(p, graph_format_from_path(p)).describe();
+    return read_graph(p, graph_format_from_path(p)).describe() + "\n";
   } catch (const InputError&) {
     if (graph_format_from_path(p) != GraphFormat::vtp) throw;
     // A .vtp written by io.write_mesh (binary, triangles) is a mesh, not a graph.

@@ -275,9 +275,14 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
   while (i < lines.size() && trim(lines[i]).empty()) ++i;
   if (i == lines.size()) throw InputError(name + ": empty file; expected a header 'set,name,x,y,z'");
   auto header = split(trim(lines[i]), ',');
+  std::string unit;  // from "x [mm]"
   for (auto& h : header) {
-    h = text::to_lower(trim(h));
-    if (auto b = h.find(' '); b != std::string::npos) h = h.substr(0, b);  // "x [µm]"
+    h = trim(h);
+    if (auto b = h.find('['); b != std::string::npos && h.back() == ']') {
+      if (unit.empty()) unit = trim(h.substr(b + 1, h.size() - b - 2));
+      h = trim(h.substr(0, b));
+    }
+    h = text::to_lower(h);
   }
   const auto col = [&](const std::string& c) -> size_t {
     const auto it = std::find(header.begin(), header.end(), c);
@@ -346,12 +351,14 @@ LandmarkSet parse_csv(const std::string& text, const std::string& name) {
   }
   for (size_t k = 0; k < names.size(); ++k)
     if (names[k].empty()) names[k] = LandmarkSet::default_name(static_cast<int64_t>(k));
-  return LandmarkSet(std::move(sets), std::move(names));
+  LandmarkSet lm(std::move(sets), std::move(names));
+  if (!unit.empty()) lm.unit = unit;
+  return lm;
 }
 
 std::string format_csv(const LandmarkSet& lm) {
   std::ostringstream o;
-  o << "set,name,x,y,z\n";
+  o << "set,name,x [" << lm.unit << "],y [" << lm.unit << "],z [" << lm.unit << "]\n";
   for (int64_t s = 0; s < lm.set_count(); ++s) {
     const auto& pts = lm.set(s);
     for (size_t i = 0; i < pts.size(); ++i) {

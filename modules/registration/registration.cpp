@@ -115,7 +115,7 @@ LandmarkFit fit_landmarks(const std::vector<Vec3>& fixed, const std::vector<Vec3
 }
 
 Table residual_table(const std::vector<std::string>& names, const std::vector<Vec3>& fixed,
-                     const std::vector<Vec3>& moving, const LandmarkFit& fit) {
+                     const std::vector<Vec3>& moving, const LandmarkFit& fit, const std::string& unit) {
   const size_t n = fit.residual.size();
   std::vector<std::string> name_col(names.begin(), names.end());
   name_col.resize(n);
@@ -142,10 +142,10 @@ Table residual_table(const std::vector<std::string>& names, const std::vector<Ve
   const char* axes = "xyz";
   Table t;
   t.add("landmark", std::move(name_col));
-  for (int k = 0; k < 3; ++k) t.add(std::string("fixed_") + axes[k], std::move(fc[k]), "µm");
-  for (int k = 0; k < 3; ++k) t.add(std::string("moving_") + axes[k], std::move(mc[k]), "µm");
-  for (int k = 0; k < 3; ++k) t.add(std::string("d") + axes[k], std::move(d[k]), "µm");
-  t.add("distance", std::move(dist), "µm");
+  for (int k = 0; k < 3; ++k) t.add(std::string("fixed_") + axes[k], std::move(fc[k]), unit);
+  for (int k = 0; k < 3; ++k) t.add(std::string("moving_") + axes[k], std::move(mc[k]), unit);
+  for (int k = 0; k < 3; ++k) t.add(std::string("d") + axes[k], std::move(d[k]), unit);
+  t.add("distance", std::move(dist), unit);
   return t;
 }
 
@@ -302,7 +302,7 @@ IcpResult refine_icp(const std::vector<Vec3>& fixed, const std::vector<Vec3>& mo
   return result;
 }
 
-Table icp_table(const IcpResult& r) {
+Table icp_table(const IcpResult& r, const std::string& unit) {
   std::vector<int64_t> iteration, pairs;
   std::vector<double> before, after;
   for (size_t i = 0; i < r.history.size(); ++i) {
@@ -314,8 +314,8 @@ Table icp_table(const IcpResult& r) {
   Table t;
   t.add("iteration", std::move(iteration));
   t.add("pairs", std::move(pairs));
-  t.add("rms_before", std::move(before), "µm");
-  t.add("rms_after", std::move(after), "µm");
+  t.add("rms_before", std::move(before), unit);
+  t.add("rms_after", std::move(after), unit);
   return t;
 }
 
@@ -344,6 +344,8 @@ Grid transformed_bounding_grid(const Grid& grid, const Transform& transform) {
   }
   Grid out;
   out.spacing = grid.spacing;
+  out.unit = grid.unit;
+  out.direction = grid.direction;
   for (int k = 0; k < 3; ++k) {
     const double extent = (hi[k] - lo[k]) / grid.spacing[k];
     out.dims[k] = grid.dims[k] == 0 ? 0 : std::max<int64_t>(1, static_cast<int64_t>(std::ceil(extent - 1e-9)));
@@ -450,12 +452,6 @@ template Volume<uint64_t> transform_volume(const Volume<uint64_t>&, const Transf
 template Volume<int32_t> transform_volume(const Volume<int32_t>&, const Transform&, const Grid&, const ResampleOptions&);
 template Volume<float> transform_volume(const Volume<float>&, const Transform&, const Grid&, const ResampleOptions&);
 template Volume<double> transform_volume(const Volume<double>&, const Transform&, const Grid&, const ResampleOptions&);
-
-bool is_length_attribute(const std::string& name) {
-  for (const char* w : {"radius", "thickness", "diameter", "length"})
-    if (name.find(w) != std::string::npos) return true;
-  return false;
-}
 
 SpatialGraph transform_graph(const SpatialGraph& graph, const Transform& transform, const Grid& output_grid) {
   SpatialGraph out = graph;

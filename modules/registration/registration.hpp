@@ -38,9 +38,9 @@ LandmarkFit fit_landmarks(const std::vector<Vec3>& fixed, const std::vector<Vec3
 
 // Residual table: one row per landmark (columns landmark, fixed_x/y/z, moving_x/y/z, dx, dy, dz,
 // distance) and a final row named "RMS" (dx/dy/dz = RMS per axis, distance = overall RMS; the
-// coordinate columns are 0 there).
+// coordinate columns are 0 there). Lengths are in `unit` (the landmarks').
 Table residual_table(const std::vector<std::string>& names, const std::vector<Vec3>& fixed,
-                     const std::vector<Vec3>& moving, const LandmarkFit& fit);
+                     const std::vector<Vec3>& moving, const LandmarkFit& fit, const std::string& unit);
 
 // Kind of a matrix: rigid if AᵀA = I and det > 0, similarity if AᵀA = s²I and det > 0, else
 // affine (tolerance relative to the scale).
@@ -90,8 +90,8 @@ struct IcpResult {
 IcpResult refine_icp(const std::vector<Vec3>& fixed, const std::vector<Vec3>& moving,
                      const Transform& initial, const IcpOptions& options = {});
 
-// Table of an ICP run: iteration, pairs, rms_before, rms_after (one row per iteration).
-Table icp_table(const IcpResult& result);
+// Table of an ICP run: iteration, pairs, rms_before, rms_after (one row per iteration; RMS in `unit`).
+Table icp_table(const IcpResult& result, const std::string& unit);
 
 // ---------------------------------------------------------------- applying transforms
 enum class Interpolation { Auto, Nearest, Linear };
@@ -130,7 +130,7 @@ SpatialGraph transform_graph(const SpatialGraph& graph, const Transform& transfo
 // Every point of every set mapped by `transform` (names kept).
 LandmarkSet transform_landmarks(const LandmarkSet& landmarks, const Transform& transform);
 
-// True if `name` names a length-like attribute scaled by transform_graph.
-bool is_length_attribute(const std::string& name);
+// Length-like attributes (scaled by transform_graph): the one rule of skel/spatial_graph.hpp.
+using skel::is_length_attribute;
 
 }  // namespace skel::registration

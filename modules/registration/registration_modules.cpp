@@ -7,6 +7,7 @@
 #include "registration/names.hpp"
 #include "registration/registration.hpp"
 #include "skel/module.hpp"
+#include "skel/units.hpp"
 
 namespace skel::registration {
 namespace {
@@ -59,7 +60,7 @@ overall RMS (coordinates 0 there). Memory: O(landmarks).)");
     }
     std::vector<Vec3> fixed, moving;
     std::vector<std::string> names;
-    std::string what;
+    std::string what, unit;
     if (has_set) {
       auto lm = ctx.input<LandmarkSet>("landmarks");
       const int64_t fs = ctx.param<int64_t>("fixed_set"), ms = ctx.param<int64_t>("moving_set");
@@ -72,6 +73,7 @@ overall RMS (coordinates 0 there). Memory: O(landmarks).)");
       fixed = lm->set(fs);
       moving = lm->set(ms);
       names = lm->names;
+      unit = lm->unit;
       what = "input 'landmarks'";
     } else {
       auto f = ctx.input<LandmarkSet>("fixed");
@@ -81,11 +83,13 @@ overall RMS (coordinates 0 there). Memory: O(landmarks).)");
       fixed = f->set(0);
       moving = m->set(0);
       names = f->names;
+      units::check_same(f->unit, "input 'fixed'", m->unit, "input 'moving'");
+      unit = f->unit;
       what = "inputs 'fixed'/'moving'";
     }
     const LandmarkFit fit = fit_landmarks(fixed, moving, model, what);
     ctx.output("transform", fit.transform);
-    ctx.output("table", residual_table(names, fixed, moving, fit));
+    ctx.output("table", residual_table(names, fixed, moving, fit, unit));
   }
 };
 SKEL_REGISTER_MODULE(RegisterLandmarks);
@@ -103,9 +107,9 @@ public:
         .param("iterations", &IcpOptions::iterations, "maximum number of ICP iterations").range(1, 10000)
         .param("trim_fraction", &IcpOptions::trim_fraction, "fraction of the closest correspondences kept in each iteration (1 = all)").range(0.01, 1.0)
         .param_fn<IcpOptions>("max_distance", 0.0, [](IcpOptions& o, double d) { if (d > 0.0) o.max_distance = d; },
-                              "drop correspondences farther apart than this (0 = no limit)").min(0.0).unit("µm")
+                              "drop correspondences farther apart than this (0 = no limit)").min(0.0).unit(units::length)
         .param("tolerance", &IcpOptions::tolerance, "stop when an iteration lowers the RMS of its pairs by less than this")
-        .default_value(1e-6).min(0.0).unit("µm")
+        .default_value(1e-6).min(0.0).unit(units::length)
         .param("max_points", &IcpOptions::max_points, "use at most this many moving points (regular subsample; 0 = all)").min(0)
         .details(R"(Point-to-point ICP (Besl & McKay) refining the landmark fit of thesis §6.2 on the
 skeletons (or graphs) themselves — Amira stops at the landmark fit. Point sets: for a volume, the
@@ -129,6 +133,8 @@ of that again); a full 1280³ mask would give 2·10⁹ points, so feed skeletons
     const auto o = ctx.options<IcpOptions>();
     const auto fixed = points_of(*ctx.input_data("fixed"), "input 'fixed'");
     const auto moving = points_of(*ctx.input_data("moving"), "input 'moving'");
+    const std::string unit = ctx.input_data("fixed")->physical_unit();
+    units::check_same(unit, "input 'fixed'", ctx.input_data("moving")->physical_unit(), "input 'moving'");
     auto initial = ctx.optional_input<Transform>("initial");
     const IcpResult r = refine_icp(fixed, moving, initial ? *initial : Transform{}, o);
     if (!r.converged) {
@@ -136,7 +142,7 @@ of that again); a full 1280³ mask would give 2·10⁹ points, so feed skeletons
                std::to_string(o.tolerance) + ")");
     }
     ctx.output("transform", r.transform);
-    ctx.output("table", icp_table(r));
+    ctx.output("table", icp_table(r, unit));
   }
 };
 SKEL_REGISTER_MODULE(RefineRegistration);
@@ -186,6 +192,10 @@ produced. `inverse` applies T⁻¹ instead (a singular affine transform is an er
       throw InputError("connect exactly one of 'volume', 'graph', 'landmarks' (" + std::to_string(connected) + " connected)");
     }
     DataPtr ref = ctx.input_data("reference");
+    const char* connected_name = ctx.has_input("volume") ? "volume" : ctx.has_input("graph") ? "graph" : "landmarks";
+    if (ref)
+      units::check_same(ctx.input_data(connected_name)->physical_unit(), std::string("input '") + connected_name + "'",
+                        ref->physical_unit(), "input 'reference'");
     if (ctx.has_input("volume")) {
       const auto o = ctx.options<ResampleOptions>();
       DataPtr in = ctx.input_data("volume");

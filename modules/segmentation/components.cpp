@@ -9,6 +9,7 @@
 
 #include "segmentation/segmentation.hpp"
 #include "skel/error.hpp"
+#include "skel/units.hpp"
 #include "skel/parallel.hpp"
 #include "skel/union_find.hpp"
 
@@ -235,10 +236,10 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
       cen[a].push_back(org[a] + sp[a] * static_cast<double>(c.sum[a]) / static_cast<double>(c.voxels));
     }
   }
-  res.table.add("label", lab).add("voxels", vox).add("volume", vol, "µm³");
+  res.table.add("label", lab).add("voxels", vox).add("volume", vol, units::power(mask.unit(), 3));
   const char* names[6] = {"bbox_min_x", "bbox_min_y", "bbox_min_z", "bbox_max_x", "bbox_max_y", "bbox_max_z"};
   for (int a = 0; a < 6; ++a) res.table.add(names[a], bb[a], "voxels");
-  res.table.add("centroid_x", cen[0], "µm").add("centroid_y", cen[1], "µm").add("centroid_z", cen[2], "µm");
+  res.table.add("centroid_x", cen[0], mask.unit()).add("centroid_y", cen[1], mask.unit()).add("centroid_z", cen[2], mask.unit());
   o.interrupter.check(1.0);
   return res;
 }

@@ -7,6 +7,7 @@
 #include "segmentation/segmentation.hpp"
 #include "skel/mask.hpp"
 #include "skel/module.hpp"
+#include "skel/units.hpp"
 
 namespace skel::segmentation {
 namespace {
@@ -56,7 +57,7 @@ public:
         .add_input("image", all_volume_types(), "scalar image", true)
         .output<VolumeF32>("image", "smoothed image (float32)")
         .param("sigma", &GaussianOptions::sigma, "standard deviation per axis [x, y, z]; 0 skips an axis")
-        .min(0).unit("µm")
+        .min(0).unit(units::length)
         .param("truncate", &GaussianOptions::truncate, "kernel radius in standard deviations").range(1, 10)
         .details(R"(Thesis §6.1 pre-processing. Three 1D convolutions (x, y, z), each with a normalised
 sampled Gaussian of radius max(1, ceil(truncate·sigma/spacing)) voxels; the border value is replicated

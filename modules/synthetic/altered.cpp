@@ -218,7 +218,7 @@ NetworkElements network_elements(const NetworkOptions& o, const Vec3& lo, const 
 
 VolumeF32 draw_network_elements(const NetworkOptions& o, const NetworkElements& el, const Dims& off, const Dims& dims,
                                 const Alteration* alt) {
-  VolumeF32 img(Grid(dims, o.spacing), 0.0f);
+  VolumeF32 img(Grid(dims, o.spacing, {0.0, 0.0, 0.0}, o.unit), 0.0f);
   std::vector<Capsule> local = el.capsules;
   for (Capsule& c : local)
     for (int k = 0; k < 3; ++k) {
@@ -285,6 +285,7 @@ AlteredNetworkResult make_altered_network(const AlteredNetworkOptions& o) {
   }
   Grid ag;
   ag.spacing = s;
+  ag.unit = bg.unit;
   for (int k = 0; k < 3; ++k) {
     const size_t K = static_cast<size_t>(k);
     ag.origin[K] = amin[K] - 0.5 * s[K];  // one voxel margin below (voxel centre at amin - s/2 + ...)
@@ -445,12 +446,13 @@ AlteredNetworkResult make_altered_network(const AlteredNetworkOptions& o) {
     moving.push_back(pm);
   }
   res.landmarks = LandmarkSet({fixed, moving});
+  res.landmarks.unit = bg.unit;
   res.summary.add("capsules", std::vector<int64_t>{caps_inside})
       .add("removed_capsules", std::vector<int64_t>{caps_removed})
       .add("object_voxels", std::vector<int64_t>{object_voxels})
       .add("removed_voxels", std::vector<int64_t>{removed_voxels})
       .add("landmarks", std::vector<int64_t>{o.landmarks})
-      .add("landmark_rms_noise", std::vector<double>{std::sqrt(noise2 / (6.0 * static_cast<double>(o.landmarks)))}, "µm");
+      .add("landmark_rms_noise", std::vector<double>{std::sqrt(noise2 / (6.0 * static_cast<double>(o.landmarks)))}, o.network.unit);
   intr.check(1.0);
   return res;
 }

@@ -170,7 +170,7 @@ void add_two_frequency_noise(VolumeF32& image, uint64_t seed, double amplitude, 
 }
 
 NetworkResult make_network(const NetworkOptions& o) {
-  const Grid grid(o.size, o.spacing);
+  const Grid grid(o.size, o.spacing, {0.0, 0.0, 0.0}, o.unit);
   grid.validate();
   if (static_cast<unsigned>(o.shape) > static_cast<unsigned>(Shape::mixed))
     throw InputError("shape: not one of rods, plates, spheres, mixed");

@@ -23,6 +23,7 @@ struct NetworkOptions {
   uint64_t seed = 1;
   double noise = 0.0;            // amplitude of the two-frequency noise, 0..1
   Vec3 spacing{1, 1, 1};         // physical voxel size (only stored in the output grids)
+  std::string unit = kDefaultUnit;  // physical unit of spacing (stored in the output grids)
   double period = 24;            // lattice cell size: distance between neighbouring elements, voxels
   double radius = 2.0;           // rod radius (each rod varies ±20 %); balls are 1.5..(0.35·period − 1.5)
   double plate_thickness = 3.0;  // plate thickness, voxels

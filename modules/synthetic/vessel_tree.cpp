@@ -85,7 +85,7 @@ struct Seg {
 }  // namespace
 
 VesselTreeResult make_vessel_tree(const VesselTreeOptions& o) {
-  const Grid grid(o.size, o.spacing);
+  const Grid grid(o.size, o.spacing, {0.0, 0.0, 0.0}, o.unit);
   grid.validate();
   if (o.roots < 2) throw InputError("roots must be >= 2 (at least one arterial and one venous tree)");
   if (o.min_radius < 1.0) throw InputError("min_radius must be >= 1 voxel");
@@ -321,6 +321,7 @@ VesselTreeResult make_vessel_tree(const VesselTreeOptions& o) {
     tree[e] = segs[e].tree;
   }
   res.truth.source_grid = grid;
+  res.truth.unit = grid.unit;
   {
     std::vector<int64_t> id, deg;
     std::vector<std::string> k;
@@ -335,7 +336,7 @@ VesselTreeResult make_vessel_tree(const VesselTreeOptions& o) {
       k.push_back(kind_names[kind[n]]);
       deg.push_back(degree[n]);
     }
-    res.nodes.add("id", id).add("x", x, "µm").add("y", y, "µm").add("z", z, "µm").add("kind", k).add("degree", deg);
+    res.nodes.add("id", id).add("x", x, grid.unit).add("y", y, grid.unit).add("z", z, grid.unit).add("kind", k).add("degree", deg);
     std::vector<int64_t> eid, n0, n1;
     std::vector<std::string> tr;
     std::vector<double> len, r;
@@ -353,7 +354,7 @@ VesselTreeResult make_vessel_tree(const VesselTreeOptions& o) {
       res.end_points += degree[n] == 1;
     }
     for (double l : len) res.total_length += l;
-    res.edges.add("id", eid).add("node0", n0).add("node1", n1).add("length", len, "µm").add("radius", r, "µm").add("tree", tr);
+    res.edges.add("id", eid).add("node0", n0).add("node1", n1).add("length", len, grid.unit).add("radius", r, grid.unit).add("tree", tr);
   }
 
   // Rasterise: signed distance to the union of the capsules (and of a ball at every node with the

@@ -17,6 +17,7 @@ struct VesselTreeOptions {
   uint64_t seed = 1;
   double noise = 0.0;             // 0..1, two-frequency noise added to the image
   Vec3 spacing{1, 1, 1};
+  std::string unit = kDefaultUnit;  // physical unit of spacing, of the truth graph and of its tables
   int roots = 4;                  // number of trees: half arterial, half venous (at least one each)
   double root_radius = 5.0;       // voxels
   double min_radius = 2.0;        // voxels; branching stops below; capillary radius

@@ -256,6 +256,29 @@ TEST(Cli, ModulesDocsAndInfo) {
   EXPECT_NE(u.out.find("unknown file type '.unknownext'"), std::string::npos) << u.out;
 }
 
+// `info` on a graph file names its unit and ends its line (the description used to run into the
+// shell prompt).
+TEST(Cli, InfoOfAGraphFileNamesItsUnit) {
+  fs::path d = scratch("info_graph");
+  const std::string graphml = R"(<?xml version="1.0" encoding="UTF-8"?>
+<graphml xmlns="http://graphml.graphdrawing.org/xmlns">
+  <key id="u" for="graph" attr.name="unit" attr.type="string"/>
+  <key id="x" for="node" attr.name="x" attr.type="double"/>
+  <graph id="G" edgedefault="undirected">
+    <data key="u">mm</data>
+    <node id="a"><data key="x">0</data></node>
+    <node id="b"><data key="x">2.5</data></node>
+    <edge source="a" target="b"/>
+  </graph>
+</graphml>
+)";
+  Result i = run(SKELFLOW_BIN, {"info", write(d / "g.graphml", graphml).string()});
+  EXPECT_EQ(i.code, 0) << i.out;
+  EXPECT_NE(i.out.find("length 2.5 mm"), std::string::npos) << i.out;
+  ASSERT_FALSE(i.out.empty());
+  EXPECT_EQ(i.out.back(), '\n');
+}
+
 // A closed terminal (SIGHUP) and Ctrl+\ (SIGQUIT) cancel as SIGTERM and Ctrl+C do: exit code 130,
 // no output and no temporary left (before: killed by the signal, the temporary stayed).
 TEST(Cli, HangupAndQuitCancelLikeTerm) {

@@ -33,6 +33,7 @@
 #include "node_editor.hpp"
 #include "palette.hpp"
 #include "properties_panel.hpp"
+#include "skel/units.hpp"
 #include "skel/volume.hpp"
 #include "views/view3d.hpp"
 
@@ -370,6 +371,34 @@ TEST(Window, PaletteDropAndPropertiesPanel) {
   level = qobject_cast<QDoubleSpinBox*>(w.properties()->editor("level"));
   ASSERT_NE(level, nullptr);
   EXPECT_EQ(level->value(), 1.0);
+}
+
+// A parameter in the input's unit (units::length) shows the unit of the data once a run has made
+// it: a phantom in mm gives the Gaussian's sigma the label "mm".
+TEST(Window, LengthParametersShowTheUnitOfTheData) {
+  REQUIRE_DISPLAY();
+  MainWindow w;
+  w.runner()->set_threads(2);
+  w.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+  PipelineDocument* doc = w.document();
+  const QString phantom = doc->add_node("synthetic.network", {0, 0});
+  const QString smooth = doc->add_node("segmentation.gaussian", {300, 0});
+  ASSERT_EQ(doc->connect_ports(phantom, "image", smooth, "image"), "");
+  ASSERT_EQ(doc->set_param(phantom, "size", ParamValue(std::vector<int64_t>{24, 24, 24})), "");
+  ASSERT_EQ(doc->set_param(phantom, "unit", ParamValue(std::string("mm"))), "");
+  const auto labels = [&] {
+    QStringList l;
+    for (const QLabel* q : w.properties()->editor("sigma")->findChildren<QLabel*>()) l << q->text();
+    return l;
+  };
+  w.scene()->select_nodes({smooth});
+  ASSERT_EQ(w.properties()->node(), smooth);
+  EXPECT_TRUE(labels().contains(QString::fromUtf8(skel::units::length))) << labels().join("|").toStdString();
+  w.run_all();
+  ASSERT_TRUE(wait_run(w, 60000));
+  QTest::qWait(20);
+  EXPECT_TRUE(labels().contains("mm")) << labels().join("|").toStdString();
 }
 
 TEST(Window, ProgressIsDrawnWhileTheUiStaysResponsiveAndCancelStops) {

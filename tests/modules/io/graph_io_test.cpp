@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
 #include <filesystem>
 #include <functional>
 
@@ -47,6 +50,7 @@ void expect_near(const Vec3& a, const Vec3& b, double tol) {
 void expect_same(const SpatialGraph& a, const SpatialGraph& b, double tol, bool node_radius_too = true) {
   ASSERT_EQ(a.node_count(), b.node_count());
   ASSERT_EQ(a.edge_count(), b.edge_count());
+  EXPECT_EQ(a.unit, b.unit);
   for (int64_t n = 0; n < a.node_count(); ++n) expect_near(a.positions[n], b.positions[n], tol);
   for (int64_t e = 0; e < a.edge_count(); ++e) {
     EXPECT_EQ(a.edges[e].node0, b.edges[e].node0);
@@ -392,4 +396,208 @@ TEST(GraphIo, NonFiniteCoordinatesAndRadiiAreRefused) {
                               "node,x,y,z\n0,0,0,0\n1,1,0,0\n", "i.csv");
             }),
             "i.csv:2: node1: node id 1.0000000000000001e+300 out of range (2 nodes)");
+}
+
+TEST(GraphIo, UnitAndPlacementTravelThroughEveryFormat) {
+  auto g = sample_graph(false);
+  g.unit = "mm";
+  g.source_grid.unit = "mm";
+  g.source_grid.direction = {0, -1, 0, 1, 0, 0, 0, 0, 1};
+  const auto d = tmp_dir();
+  for (const char* name : {"unit.am", "unit.vtp", "unit.graphml", "unit.swc", "unit.csv"}) {
+    SCOPED_TRACE(name);
+    const auto p = d / name;
+    const auto f = graph_format_from_path(p);
+    write_graph(g, p, f, d / "unit_nodes.csv");
+    const auto r = read_graph(p, f, d / "unit_nodes.csv");
+    EXPECT_EQ(r.unit, "mm");
+    EXPECT_EQ(r.source_grid.unit, "mm");
+    EXPECT_NEAR(r.total_length(), g.total_length(), 1e-5 * g.total_length());
+    if (f == GraphFormat::amira || f == GraphFormat::vtp) {
+      EXPECT_EQ(r.source_grid.origin, g.source_grid.origin);
+      EXPECT_EQ(r.source_grid.direction, g.source_grid.direction);
+    }
+  }
+  // Amira's own layout of the unit, which Amira reads.
+  EXPECT_NE(graph_to_text(g, GraphFormat::amira).find("    Units {\n        Coordinates \"mm\"\n    }\n"), std::string::npos);
+  // A file that names no unit gives the default one.
+  SpatialGraph plain;
+  plain.add_node({0, 0, 0});
+  plain.add_node({1, 0, 0});
+  plain.add_edge(0, 1);
+  std::string swc = graph_to_text(plain, GraphFormat::swc);
+  swc.erase(swc.find("# unit:"), swc.find('\n', swc.find("# unit:")) + 1 - swc.find("# unit:"));
+  EXPECT_EQ(graph_from_text(swc, GraphFormat::swc).unit, kDefaultUnit);
+}
+
+TEST(GraphIo, ReadOptionsScaleCoordinatesAndRadiiAndOverrideTheUnit) {
+  auto g = sample_graph(false);
+  g.unit = "voxel";
+  SpatialGraph r = g;
+  apply_read_options(r, {.scale = 0.5, .unit = "um"});
+  EXPECT_EQ(r.unit, "um");
+  EXPECT_NEAR(r.total_length(), 0.5 * g.total_length(), 1e-9 * g.total_length());
+  EXPECT_EQ(r.positions[1][0], 0.5 * g.positions[1][0]);
+  const auto& ra = r.point_attributes.at("radius");
+  const auto& ga = g.point_attributes.at("radius");
+  EXPECT_FLOAT_EQ(ra[0][0], 0.5f * ga[0][0]);
+  EXPECT_EQ(r.edge_attributes.at("weight"), g.edge_attributes.at("weight"));  // not a length
+  EXPECT_EQ(r.node_attributes.at("score"), g.node_attributes.at("score"));
+  EXPECT_TRUE(r.check_invariants().empty());
+  SpatialGraph keep = g;
+  apply_read_options(keep, {});
+  EXPECT_EQ(keep.unit, "voxel");  // no override: the file's unit stays
+  EXPECT_THROW(apply_read_options(keep, {.scale = 0.0, .unit = {}}), InputError);
+}
+
+// A Y of three polylines written by VTK's own vtkXMLPolyDataWriter (Debian's python3-vtk9) in every
+// encoding it offers — appended raw and base64, inline binary, ASCII; zlib or none; UInt32 and UInt64
+// headers — reads with the right points, lines and attributes. Lines share the junction's point id,
+// so the three edges meet at one node.
+TEST(GraphIo, ReadsVtpWrittenByVtk) {
+  if (std::system("/usr/bin/python3 -c 'import vtk' >/dev/null 2>&1") != 0) GTEST_SKIP() << "python3-vtk9 is not installed";
+  const auto d = tmp_dir() / "vtk_made";
+  std::filesystem::remove_all(d);
+  std::filesystem::create_directories(d);
+  const auto script = d / "write.py";
+  {
+    std::ofstream py(script);
+    py << R"PY(import sys, vtk
+out = sys.argv[1]
+pts = vtk.vtkPoints()
+pts.SetDataTypeToDouble()
+xyz = [(0, 0, 0), (5, 0, 0), (10, 0, 0),              # trunk: 0 -> 2
+       (12, 1.5, 0), (14, 4, 0.5),                     # branch a: 2 -> 4
+       (12, -1.5, 0), (14, -4, -0.5)]                  # branch b: 2 -> 6
+for p in xyz: pts.InsertNextPoint(*p)
+lines = vtk.vtkCellArray()
+for ids in ([0, 1, 2], [2, 3, 4], [2, 5, 6]):
+    lines.InsertNextCell(len(ids))
+    for i in ids: lines.InsertCellPoint(i)
+pd = vtk.vtkPolyData()
+pd.SetPoints(pts)
+pd.SetLines(lines)
+r = vtk.vtkDoubleArray(); r.SetName("MaximumInscribedSphereRadius")
+for i in range(len(xyz)): r.InsertNextValue(1.0 + 0.25 * i)
+pd.GetPointData().AddArray(r)
+t = vtk.vtkIntArray(); t.SetName("tree")
+for v in (7, 8, 9): t.InsertNextValue(v)
+pd.GetCellData().AddArray(t)
+w = vtk.vtkFloatArray(); w.SetName("weight")
+for v in (0.5, 1.5, 2.5): w.InsertNextValue(v)
+pd.GetCellData().AddArray(w)
+for name, mode, encode, zlib, h64 in [
+        ("appended_raw_zlib", "appended", False, True, True),
+        ("appended_raw_zlib_h32", "appended", False, True, False),
+        ("appended_raw_plain", "appended", False, False, True),
+        ("appended_base64_zlib", "appended", True, True, False),
+        ("inline_binary_zlib", "binary", False, True, True),
+        ("inline_binary_plain_h32", "binary", False, False, False),
+        ("ascii", "ascii", False, False, True)]:
+    wr = vtk.vtkXMLPolyDataWriter()
+    wr.SetInputData(pd)
+    wr.SetFileName(out + "/" + name + ".vtp")
+    {"appended": wr.SetDataModeToAppended, "binary": wr.SetDataModeToBinary, "ascii": wr.SetDataModeToAscii}[mode]()
+    wr.SetEncodeAppendedData(encode)
+    if zlib: wr.SetCompressorTypeToZLib()
+    else: wr.SetCompressorTypeToNone()
+    if h64: wr.SetHeaderTypeToUInt64()
+    else: wr.SetHeaderTypeToUInt32()
+    if not wr.Write(): sys.exit(1)
+)PY";
+  }
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + script.string() + " " + d.string()).c_str()), 0);
+  const std::string files[] = {"appended_raw_zlib", "appended_raw_zlib_h32", "appended_raw_plain", "appended_base64_zlib",
+                               "inline_binary_zlib", "inline_binary_plain_h32", "ascii"};
+  for (const auto& f : files) {
+    SCOPED_TRACE(f);
+    const auto p = d / (f + ".vtp");
+    ASSERT_TRUE(std::filesystem::exists(p));
+    const SpatialGraph g = read_graph(p, GraphFormat::vtp);
+    ASSERT_EQ(g.node_count(), 4);  // the trunk's start, the junction, two ends
+    ASSERT_EQ(g.edge_count(), 3);
+    const auto deg = g.degrees();
+    EXPECT_EQ(std::count(deg.begin(), deg.end(), 3), 1);
+    EXPECT_EQ(std::count(deg.begin(), deg.end(), 1), 3);
+    for (const auto& e : g.edges) EXPECT_EQ(e.points.size(), 3u);
+    EXPECT_EQ(g.edges[1].points[1], (Vec3{12, 1.5, 0}));
+    EXPECT_EQ(g.edges[2].points[2], (Vec3{14, -4, -0.5}));
+    EXPECT_NEAR(g.total_length(), 10.0 + 2.0 * (2.5 + std::sqrt(4.0 + 6.25 + 0.25)), 1e-12);
+    const auto& r = g.point_attributes.at("MaximumInscribedSphereRadius");
+    EXPECT_FLOAT_EQ(r[0][1], 1.25f);
+    EXPECT_FLOAT_EQ(r[2][2], 2.5f);
+    EXPECT_EQ(g.edge_labels.at("tree"), (std::vector<int32_t>{7, 8, 9}));
+    EXPECT_EQ(g.edge_attributes.at("weight"), (std::vector<float>{0.5f, 1.5f, 2.5f}));
+    EXPECT_EQ(g.unit, kDefaultUnit);  // VTK stores no unit
+  }
+}
+
+TEST(GraphIo, VtpIsWrittenBinaryCompressedByDefaultAndAsciiOnRequest) {
+  auto g = sample_graph(true);
+  g.unit = "nm";
+  const std::string bin = graph_to_text(g, GraphFormat::vtp);
+  EXPECT_NE(bin.find("compressor=\"vtkZLibDataCompressor\""), std::string::npos);
+  EXPECT_NE(bin.find("<AppendedData encoding=\"raw\">"), std::string::npos);
+  EXPECT_EQ(bin.find("format=\"ascii\""), std::string::npos);
+  expect_same(g, graph_from_text(bin, GraphFormat::vtp), 0.0);
+  const std::string ascii = graph_to_text(g, GraphFormat::vtp, nullptr, {.encoding = VtpEncoding::ascii});
+  EXPECT_EQ(ascii.find("AppendedData"), std::string::npos);
+  EXPECT_NE(ascii.find("format=\"ascii\""), std::string::npos);
+  expect_same(g, graph_from_text(ascii, GraphFormat::vtp), 0.0);
+  // Corrupt compressed data and an unsupported compressor are input errors naming the array.
+  std::string bad = bin;
+  bad[bad.find('_', bad.find("<AppendedData")) + 40] ^= 0x5A;
+  try {
+    graph_from_text(bad, GraphFormat::vtp, {}, "bad.vtp");
+    ADD_FAILURE() << "corrupt data was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.vtp: DataArray"), std::string::npos) << e.what();
+  }
+  std::string lz4 = bin;
+  lz4.replace(lz4.find("vtkZLibDataCompressor"), 21, "vtkLZ4DataCompressor");
+  try {
+    graph_from_text(lz4, GraphFormat::vtp, {}, "lz4.vtp");
+    ADD_FAILURE() << "LZ4 was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("lz4.vtp: unsupported compression 'vtkLZ4DataCompressor'"), std::string::npos) << e.what();
+  }
+}
+
+// The other way round: VTK's own reader takes our binary .vtp (points, lines, attributes, the unit).
+TEST(GraphIo, VtkReadsOurBinaryVtp) {
+  if (std::system("/usr/bin/python3 -c 'import vtk' >/dev/null 2>&1") != 0) GTEST_SKIP() << "python3-vtk9 is not installed";
+  auto g = sample_graph(true);
+  g.unit = "mm";
+  const auto d = tmp_dir() / "vtk_reads";
+  std::filesystem::create_directories(d);
+  write_graph(g, d / "ours.vtp", GraphFormat::vtp);
+  {
+    std::ofstream py(d / "read.py");
+    py << R"PY(import sys, vtk
+r = vtk.vtkXMLPolyDataReader()
+r.SetFileName(sys.argv[1])
+r.Update()
+if r.GetErrorCode(): sys.exit(1)
+pd = r.GetOutput()
+w = pd.GetCellData().GetArray("weight")
+print(pd.GetNumberOfPoints(), pd.GetNumberOfVerts(), pd.GetNumberOfLines(),
+      pd.GetFieldData().GetAbstractArray("unit").GetValue(0),
+      "%.9g" % sum(w.GetValue(i) for i in range(w.GetNumberOfTuples())))
+)PY";
+  }
+  ASSERT_EQ(std::system(("/usr/bin/python3 " + (d / "read.py").string() + " " + (d / "ours.vtp").string() + " > " +
+                         (d / "out.txt").string()).c_str()),
+            0);
+  std::ifstream in(d / "out.txt");
+  int64_t points = 0, verts = 0, lines = 0;
+  std::string unit;
+  double weight = 0;
+  in >> points >> verts >> lines >> unit >> weight;
+  EXPECT_EQ(points, g.node_count() + g.point_count());
+  EXPECT_EQ(verts, g.node_count());
+  EXPECT_EQ(lines, g.edge_count());
+  EXPECT_EQ(unit, "mm");
+  double expect = 0;
+  for (float x : g.edge_attributes.at("weight")) expect += x;
+  EXPECT_NEAR(weight, expect, 1e-5 * expect);
 }

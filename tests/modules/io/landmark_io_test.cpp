@@ -138,6 +138,19 @@ TEST(LandmarkFiles, SlicerCoordinateSystems) {
   EXPECT_THROW((void)format_landmarks(LandmarkSet({{{0, 0, 0}}}, {"a,b"}), LandmarkFormat::Fcsv), InputError);
 }
 
+// The CSV header carries the unit ("x [mm]") and reading takes it back; a header without one
+// gives the default unit.
+TEST(LandmarkFiles, CsvKeepsTheUnit) {
+  LandmarkSet lm = sample_landmarks(2);
+  lm.unit = "mm";
+  const std::string text = format_landmarks(lm, LandmarkFormat::Csv);
+  EXPECT_EQ(text.rfind("set,name,x [mm],y [mm],z [mm]\n", 0), 0u) << text.substr(0, 80);
+  const LandmarkSet r = parse_landmarks(text, LandmarkFormat::Csv, "mm.csv");
+  EXPECT_EQ(r.unit, "mm");
+  EXPECT_TRUE(r == lm);
+  EXPECT_EQ(parse_landmarks("set,name,x,y,z\n0,a,1,2,3\n", LandmarkFormat::Csv, "t.csv").unit, kDefaultUnit);
+}
+
 TEST(LandmarkFiles, CsvMatchesSetsByName) {
   const std::string text = "set,name,x,y,z\n1,b,7,8,9\n0,a,1,2,3\n0,b,4,5,6\n1,a,10,11,12\n";
   const LandmarkSet lm = parse_landmarks(text, LandmarkFormat::Csv, "t.csv");

@@ -153,9 +153,10 @@ TEST(LandmarkFit, ResidualTableAndClassification) {
   auto fixed = apply_all(known_rigid(), moving);
   fixed[2][0] += 3.0;  // one bad landmark
   const LandmarkFit fit = fit_landmarks(fixed, moving, TransformKind::Rigid);
-  const Table t = residual_table({"a", "b", "c", "d", "e"}, fixed, moving, fit);
+  const Table t = residual_table({"a", "b", "c", "d", "e"}, fixed, moving, fit, "mm");
   ASSERT_EQ(t.rows(), 6);
   EXPECT_EQ(t.strings("landmark").back(), "RMS");
+  EXPECT_EQ(t.column("distance").unit, "mm");  // the landmarks' unit, never a fixed one
   EXPECT_EQ(t.strings("landmark")[2], "c");
   double s = 0.0;
   for (int i = 0; i < 5; ++i) s += t.reals("distance")[i] * t.reals("distance")[i];

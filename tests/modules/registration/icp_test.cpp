@@ -47,9 +47,10 @@ TEST(Icp, ConvergesFromPerturbedStart) {
   EXPECT_LT(r.transform.max_difference(truth), 1e-6);
   EXPECT_EQ(r.transform.kind(), TransformKind::Rigid);
   for (const auto& it : r.history) EXPECT_LE(it.rms_after, it.rms_before + 1e-12);
-  const Table t = icp_table(r);
+  const Table t = icp_table(r, "mm");
   EXPECT_EQ(t.rows(), static_cast<int64_t>(r.history.size()));
   EXPECT_EQ(t.reals("rms_before").front(), r.history.front().rms_before);
+  EXPECT_EQ(t.column("rms_after").unit, "mm");
 }
 
 TEST(Icp, TrimmingIgnoresStructuresMissingFromTheFixedSet) {

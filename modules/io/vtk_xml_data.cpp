@@ -1,0 +1,223 @@
+#include "io/vtk_xml_data.hpp"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
+#include <limits>
+
+#include "skel/error.hpp"
+
+namespace skel::io::vtk {
+
+namespace {
+
+constexpr uint64_t kBlock = 32768;  // VTK's default compression block size
+
+// Base64 of concatenated streams: VTK encodes a compression header and the blocks as separate
+// streams (each padded with '='), an uncompressed header and its data as one; padding anywhere ends
+// a quantum, so both decode to the concatenated bytes. White space is skipped.
+std::string base64_decode(const char* p, const char* end, uint64_t max_bytes, const std::string& what) {
+  static const std::array<int8_t, 256> table = [] {
+    std::array<int8_t, 256> t{};
+    t.fill(-1);
+    const char* a = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(a[i])] = static_cast<int8_t>(i);
+    return t;
+  }();
+  std::string out;
+  uint32_t acc = 0;
+  int bits = 0;
+  for (; p < end && out.size() < max_bytes; ++p) {
+    const auto c = static_cast<unsigned char>(*p);
+    if (c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
+    if (c == '=') {  // end of one stream: drop the partial quantum
+      acc = 0;
+      bits = 0;
+      continue;
+    }
+    const int v = table[c];
+    if (v < 0) throw InputError(what + ": invalid base64 character '" + std::string(1, static_cast<char>(c)) + "'");
+    acc = (acc << 6) | static_cast<uint32_t>(v);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((acc >> bits) & 0xFF);
+    }
+  }
+  return out;
+}
+
+uint64_t read_uint(const std::string& b, size_t pos, const Encoding& enc) {
+  const size_t n = enc.header64 ? 8 : 4;
+  uint64_t v = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const auto byte = static_cast<uint64_t>(static_cast<unsigned char>(b[pos + i]));
+    v |= enc.big_endian ? byte << (8 * (n - 1 - i)) : byte << (8 * i);
+  }
+  return v;
+}
+
+// Payload from header + data bytes.
+std::string payload(const std::string& b, const Encoding& enc, const std::string& what) {
+  const uint64_t h = enc.header64 ? 8 : 4;
+  if (b.size() < h) throw InputError(what + ": the data ends inside its size header");
+  if (!enc.zlib) {
+    const uint64_t n = read_uint(b, 0, enc);
+    if (n > b.size() - h)
+      throw InputError(what + ": the header declares " + std::to_string(n) + " bytes but the file holds " +
+                       std::to_string(b.size() - h));
+    return b.substr(h, n);
+  }
+  const uint64_t nblocks = read_uint(b, 0, enc);
+  if (nblocks > (b.size() - h) / h)
+    throw InputError(what + ": the compression header declares " + std::to_string(nblocks) +
+                     " blocks, more than the file can hold");
+  if (b.size() < h * (3 + nblocks)) throw InputError(what + ": the data ends inside its compression header");
+  const uint64_t bs = read_uint(b, h, enc), last = read_uint(b, 2 * h, enc);
+  uint64_t pos = h * (3 + nblocks), compressed = 0;
+  for (uint64_t k = 0; k < nblocks; ++k) compressed += read_uint(b, h * (3 + k), enc);
+  if (compressed > b.size() - pos)
+    throw InputError(what + ": the compression header declares " + std::to_string(compressed) +
+                     " compressed bytes but the file holds " + std::to_string(b.size() - pos));
+  if (last > bs) throw InputError(what + ": the last block (" + std::to_string(last) + " bytes) is larger than a block (" + std::to_string(bs) + ")");
+  const uint64_t total = nblocks == 0 ? 0 : (nblocks - 1) * bs + (last ? last : bs);
+  // zlib expands at most ~1032:1; a header promising more is corrupt (and must not allocate).
+  if (total > 1100 * compressed + 64)
+    throw InputError(what + ": the compression header declares " + std::to_string(total) + " bytes from " +
+                     std::to_string(compressed) + " compressed bytes");
+  std::string out(total, '\0');
+  uint64_t at = 0;
+  for (uint64_t k = 0; k < nblocks; ++k) {
+    const uint64_t cs = read_uint(b, h * (3 + k), enc);
+    uLongf n = static_cast<uLongf>(k + 1 == nblocks && last ? last : bs);
+    const uLongf expect = n;
+    const int rc = uncompress(reinterpret_cast<Bytef*>(out.data() + at), &n,
+                              reinterpret_cast<const Bytef*>(b.data() + pos), static_cast<uLong>(cs));
+    if (rc != Z_OK || n != expect)
+      throw InputError(what + ": zlib block " + std::to_string(k) + " does not decompress to " + std::to_string(expect) +
+                       " bytes (" + (rc == Z_OK ? std::to_string(n) + " bytes" : std::string(zError(rc))) + ")");
+    at += n;
+    pos += cs;
+  }
+  return out;
+}
+
+template <class T>
+void convert(const std::string& b, bool swap, std::vector<double>& out) {
+  const size_t n = b.size() / sizeof(T);
+  out.resize(n);
+  std::array<char, sizeof(T)> buf{};
+  for (size_t i = 0; i < n; ++i) {
+    std::memcpy(buf.data(), b.data() + i * sizeof(T), sizeof(T));
+    if (swap) std::reverse(buf.begin(), buf.end());
+    T v;
+    std::memcpy(&v, buf.data(), sizeof(T));
+    out[i] = static_cast<double>(v);
+  }
+}
+
+}  // namespace
+
+Encoding parse_encoding(const std::string& header_type, const std::string& byte_order, const std::string& compressor,
+                        const std::string& src) {
+  Encoding e;
+  if (header_type == "UInt64") e.header64 = true;
+  else if (!header_type.empty() && header_type != "UInt32")
+    throw InputError(src + ": <VTKFile> header_type '" + header_type + "' is not UInt32 or UInt64");
+  if (byte_order == "BigEndian") e.big_endian = true;
+  else if (!byte_order.empty() && byte_order != "LittleEndian")
+    throw InputError(src + ": <VTKFile> byte_order '" + byte_order + "' is not LittleEndian or BigEndian");
+  if (compressor == "vtkZLibDataCompressor") e.zlib = true;
+  else if (!compressor.empty())
+    throw InputError(src + ": unsupported compression '" + compressor +
+                     "' (only vtkZLibDataCompressor; save with zlib or without compression)");
+  return e;
+}
+
+SplitFile split_appended(const std::string& text, const std::string& src) {
+  SplitFile f;
+  const size_t tag = text.find("<AppendedData");
+  if (tag == std::string::npos) {
+    f.xml = text;
+    return f;
+  }
+  const size_t gt = text.find('>', tag);
+  const size_t us = gt == std::string::npos ? gt : text.find('_', gt);
+  if (us == std::string::npos) throw InputError(src + ": <AppendedData> has no '_' before its data");
+  size_t end = text.rfind("</AppendedData>");
+  if (end == std::string::npos || end < us) end = text.size();  // a truncated file: the offsets will tell
+  f.xml = text.substr(0, gt + 1) + "</AppendedData></VTKFile>\n";
+  f.appended = text.substr(us + 1, end - us - 1);
+  f.has_appended = true;
+  return f;
+}
+
+std::string decode_inline(const std::string& t, const Encoding& enc, const std::string& what) {
+  return payload(base64_decode(t.data(), t.data() + t.size(), std::numeric_limits<uint64_t>::max(), what), enc, what);
+}
+
+std::string decode_appended(const std::string& a, bool base64, uint64_t offset, uint64_t end, const Encoding& enc,
+                            const std::string& what) {
+  if (offset >= a.size())
+    throw InputError(what + ": offset " + std::to_string(offset) + " is past the end of the appended data (" +
+                     std::to_string(a.size()) + (base64 ? " characters)" : " bytes)"));
+  end = std::min<uint64_t>(std::max(end, offset), a.size());
+  if (base64) return payload(base64_decode(a.data() + offset, a.data() + end, std::numeric_limits<uint64_t>::max(), what), enc, what);
+  return payload(a.substr(offset, end - offset), enc, what);
+}
+
+std::vector<double> to_doubles(const std::string& b, const std::string& type, const Encoding& enc, const std::string& what) {
+  const bool swap = enc.big_endian != (std::endian::native == std::endian::big);
+  std::vector<double> v;
+  auto go = [&]<class T>(T) {
+    if (b.size() % sizeof(T) != 0)
+      throw InputError(what + ": " + std::to_string(b.size()) + " bytes is not a whole number of " + type + " values");
+    convert<T>(b, swap, v);
+  };
+  if (type == "Int8" || type == "Char") go(int8_t{});
+  else if (type == "UInt8" || type == "UnsignedChar") go(uint8_t{});
+  else if (type == "Int16") go(int16_t{});
+  else if (type == "UInt16") go(uint16_t{});
+  else if (type == "Int32") go(int32_t{});
+  else if (type == "UInt32") go(uint32_t{});
+  else if (type == "Int64" || type == "IdType") go(int64_t{});
+  else if (type == "UInt64") go(uint64_t{});
+  else if (type == "Float32") go(float{});
+  else if (type == "Float64") go(double{});
+  else throw InputError(what + ": unsupported data type '" + type + "'");
+  return v;
+}
+
+std::string encode_array(const void* data, uint64_t bytes, bool compress) {
+  auto put64 = [](std::string& s, uint64_t v) {
+    for (int i = 0; i < 8; ++i) s += static_cast<char>((v >> (8 * i)) & 0xFF);
+  };
+  std::string out;
+  const auto* p = static_cast<const Bytef*>(data);
+  if (!compress) {
+    put64(out, bytes);
+    out.append(reinterpret_cast<const char*>(p), bytes);
+    return out;
+  }
+  const uint64_t nblocks = (bytes + kBlock - 1) / kBlock;
+  std::string blocks;
+  std::vector<uint64_t> sizes;
+  std::vector<Bytef> buf(compressBound(kBlock));
+  for (uint64_t k = 0; k < nblocks; ++k) {
+    const uint64_t n = std::min(kBlock, bytes - k * kBlock);
+    uLongf cs = static_cast<uLongf>(buf.size());
+    if (compress2(buf.data(), &cs, p + k * kBlock, static_cast<uLong>(n), 6) != Z_OK) throw Error("zlib: compression failed");
+    blocks.append(reinterpret_cast<const char*>(buf.data()), cs);
+    sizes.push_back(cs);
+  }
+  put64(out, nblocks);
+  put64(out, kBlock);
+  put64(out, bytes % kBlock);
+  for (uint64_t s : sizes) put64(out, s);
+  return out + blocks;
+}
+
+}  // namespace skel::io::vtk
