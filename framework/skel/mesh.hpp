@@ -82,6 +82,7 @@ public:
   [[nodiscard]] std::string type_id() const override { return type_ids::mesh; }
   [[nodiscard]] uint64_t bytes() const override;
   [[nodiscard]] std::string describe() const override;
+  [[nodiscard]] std::string physical_unit() const override { return unit; }
 };
 
 bool operator==(const Mesh& a, const Mesh& b);
