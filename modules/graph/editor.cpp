@@ -210,7 +210,9 @@ Journal parse_journal(const std::string& text, const std::string& name) {
     }
   }
   const YAML::Node ops = root["ops"];
-  if (!ops) return j;
+  // `ops:` with nothing after it is a journal whose session ended (or was killed) before its first
+  // operation: an empty list, not an error.
+  if (!ops || ops.IsNull()) return j;
   if (!ops.IsSequence()) throw InputError(where(ops) + ": 'ops' must be a list");
   auto vec = [&](const YAML::Node& n, const std::string& key) {
     if (!n.IsSequence() || n.size() != 3) throw InputError(where(n) + ": '" + key + "' must be [x, y, z]");

@@ -317,6 +317,15 @@ TEST(GraphEditor, MalformedJournalNamesLine) {
   EXPECT_THROW(parse_journal("hello: 1\n"), InputError);
 }
 
+// A journal whose session was killed after the header and before its first operation replays as no
+// operations (before: "j.yaml:6:1: 'ops' must be a list"; found by the SIGKILL crash-safety test).
+TEST(GraphEditor, JournalWithNoOperationsYetIsEmpty) {
+  const std::string header = "# Skelflow edit journal\nskelflow_edits: 1\ntolerance: 1\nops:\n";
+  EXPECT_TRUE(parse_journal(header, "j.yaml").ops.empty());
+  EXPECT_EQ(parse_journal(header, "j.yaml").tolerance, 1.0);
+  EXPECT_THROW(parse_journal("skelflow_edits: 1\nops: 3\n", "j.yaml"), InputError);
+}
+
 TEST(DanglingEnds, FindsFacingEndsAndEdgePoints) {
   SpatialGraph g;
   // Segment A ends at (10,0,0) pointing +x; segment B starts at (13,0,0) continuing +x: a gap of 3.
