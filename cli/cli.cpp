@@ -240,16 +240,25 @@ int cmd_info(const std::vector<std::string>& args) {
     for (const auto& d : ds) std::cout << "  problem: " << d.format() << "\n";
     return ds.empty() ? kOk : kInvalid;
   }
-  for (const auto& ins : Registry::instance().inspectors()) {
-    if (std::find(ins.extensions.begin(), ins.extensions.end(), ext) != ins.extensions.end()) {
-      std::cout << f.string() << ": " << ins.name << "\n" << ins.describe(f);
-      return kOk;
-    }
+  // The inspector whose extension is the longest suffix of the name (".nii.gz" before ".gz").
+  const std::string name = text::to_lower(f.filename().string());
+  const FileInspector* best = nullptr;
+  size_t best_len = 0;
+  for (const auto& ins : Registry::instance().inspectors())
+    for (const auto& e : ins.extensions)
+      if (e.size() > best_len && name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) {
+        best = &ins;
+        best_len = e.size();
+      }
+  if (best) {
+    std::cout << f.string() << ": " << best->name << "\n" << best->describe(f);
+    return kOk;
   }
   std::string known;
   for (const auto& ins : Registry::instance().inspectors())
     for (const auto& e : ins.extensions) known += " " + e;
-  throw InputError(f.string() + ": unknown file type '" + ext + "' (known: .yaml" + known + ")");
+  throw InputError(f.string() + ": unknown file type " + (ext.empty() ? std::string("(no extension)") : "'" + ext + "'") +
+                   " (known: .yaml" + known + ")");
 }
 
 // ---------------------------------------------------------------- validate / run
