@@ -251,7 +251,8 @@ int cmd_info(const std::vector<std::string>& args) {
         best_len = e.size();
       }
   if (best) {
-    std::cout << f.string() << ": " << best->name << "\n" << best->describe(f);
+    const std::string description = best->describe(f);  // first: a file it cannot read prints only the error
+    std::cout << f.string() << ": " << best->name << "\n" << description;
     return kOk;
   }
   std::string known;

@@ -252,7 +252,7 @@ public:
   ModuleSpec& unit(std::string unit);
   ModuleSpec& length(int n);          // lists: exact length
   ModuleSpec& optional_value();       // empty string / empty list means "not given"
-  ModuleSpec& accepts_folder();       // input paths: a folder is accepted too (a folder of slices)
+  ModuleSpec& accepts_folder();       // input paths: a folder or a file-name pattern ("z*.tif") too
   // A Path parameter's accepted file extensions (".h5", any case in the path), checked at
   // validation for outputs; with `unless_param`, only while that choice parameter is "auto".
   ModuleSpec& extensions(std::vector<std::string> exts, std::string unless_param = {});

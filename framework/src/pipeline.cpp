@@ -776,6 +776,9 @@ std::string join_or(const std::vector<std::string>& xs) {
   return s;
 }
 
+// "slices/z*.tif": a file-name pattern (input paths that accept folders accept those too).
+bool is_file_pattern(const fs::path& f) { return f.filename().string().find_first_of("*?[") != std::string::npos; }
+
 // Output types narrowed by ModuleSpec::output_type_from (a reader looking at its file's header), and
 // the nodes whose files could not tell (reported at their first input file parameter).
 struct Deductions {
@@ -813,7 +816,8 @@ Deductions deduce_output_types(const Pipeline& p, const Registry& registry) {
       const fs::path f = resolve_against(p.base_dir(), *value);
       std::error_code ec;
       const fs::file_status st = fs::status(f, ec);
-      if (!fs::exists(st) || (fs::is_directory(st) && !ps.folder_ok)) { valid = false; break; }
+      const bool pattern_ok = ps.folder_ok && is_file_pattern(f) && fs::is_directory(f.parent_path(), ec);
+      if (!pattern_ok && (!fs::exists(st) || (fs::is_directory(st) && !ps.folder_ok))) { valid = false; break; }
       files[ps.name] = f;
       if (first_file.empty()) first_file = ps.name;
     }
@@ -947,7 +951,12 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
         const fs::path f = resolve_against(p.base_dir(), *value);
         std::error_code ec;
         const fs::file_status st = fs::status(f, ec);
-        if (!fs::exists(st)) add_param(n, ps.name, pos, param + "input file '" + f.string() + "' not found");
+        if (ps.folder_ok && is_file_pattern(f)) {
+          if (!fs::is_directory(f.parent_path(), ec))
+            add_param(n, ps.name, pos, param + "folder '" + f.parent_path().string() + "' of the pattern not found");
+          else if (auto e = deduced.errors.find(n.id); e != deduced.errors.end() && e->second.param == ps.name)
+            add_param(n, ps.name, pos, param + e->second.message);
+        } else if (!fs::exists(st)) add_param(n, ps.name, pos, param + "input file '" + f.string() + "' not found");
         else if (fs::is_directory(st) && !ps.folder_ok) add_param(n, ps.name, pos, param + "'" + f.string() + "' is a folder, not a file");
         else if (auto e = deduced.errors.find(n.id); e != deduced.errors.end() && e->second.param == ps.name)
           add_param(n, ps.name, pos, param + e->second.message);

@@ -28,6 +28,7 @@ VolumeReadOptions read_options(const ParamMap& params) {
   o.level = static_cast<int>(std::get<int64_t>(params.at("level")));
   o.spacing = std::get<std::vector<double>>(params.at("spacing"));
   o.unit = std::get<std::string>(params.at("unit"));
+  o.channel = static_cast<int>(std::get<int64_t>(params.at("channel")));
   return o;
 }
 
@@ -36,8 +37,10 @@ public:
   static ModuleSpec spec() {
     return ModuleSpec(names::read_volume, "Read a volume from an image file (format chosen by extension)")
         .add_output("volume", all_volume_types(), "the volume with spacing, origin and unit from the file (or the parameters)")
-        .path("path", "", PathRole::Input, "volume file; relative to the pipeline's folder")
+        .path("path", "", PathRole::Input,
+              "volume file, or a folder or file-name pattern (slices/z*.tif) of TIFF slices; relative to the pipeline's folder")
         .extensions(readable_volume_extensions())
+        .accepts_folder()
         .param("dataset", &VolumeReadOptions::dataset,
                "HDF5 dataset / Zarr array inside the file; empty: the format's default (/volume for HDF5)")
         .optional_value()
@@ -48,6 +51,9 @@ public:
         .param("unit", &VolumeReadOptions::unit,
                "physical unit of spacing and origin (\"mm\", \"nm\", ...) replacing the file's; empty: the file's")
         .optional_value()
+        .param("channel", &VolumeReadOptions::channel,
+               "multi-channel or RGB files: the channel to read (0-based); -1: the file must have one channel")
+        .min(-1)
         .choice("dtype", {"keep", "uint8", "uint16", "uint32", "int32", "float32", "float64"}, "keep",
                 "convert the voxels to this type (clamped), or keep the file's type")
         .output_type_from("volume", [](const OutputTypeQuery& q) {
@@ -65,8 +71,16 @@ for an unknown extension, by its first bytes). Formats:
 
 )" + format_list() + R"(
 `skelflow info FILE` shows what a file holds (voxel type, dims, spacing, unit, compression).
+TIFF: a multi-page stack, or a folder of single-slice files (or a pattern such as `slices/z*.tif`)
+sorted naturally (z2 before z10); 8/16/32/64-bit unsigned, signed and float samples, BigTIFF,
+strips or tiles, any compression libtiff decodes (none, LZW, deflate, PackBits); only the pages and
+strips a box touches are decoded. RGB and multi-channel files (samples per pixel, ImageJ or OME
+channels) need `channel`.
+
 Spacing, origin and unit come from the file's own metadata (HDF5: attributes `spacing`, `origin`
-(x, y, z) and `unit`, or Fiji/BigDataViewer/ilastik's `element_size_um`); a file that states none
+(x, y, z) and `unit`, or Fiji/BigDataViewer/ilastik's `element_size_um`; TIFF: ImageJ calibration
+(XResolution/YResolution, `spacing=` and `unit=` in the description) or OME-XML
+(PhysicalSizeX/Y/Z and their units)); a file that states none
 gets spacing 1, origin 0 and the unit )" + std::string(kDefaultUnit) + R"(. The parameters `spacing` and `unit` replace what the file
 says (the origin keeps its position in voxels). uint8/16/32/64, float32 and float64 are kept as
 they are, int8/int16/int32 become int32, int64 becomes float64. `skelflow validate` reads the file's

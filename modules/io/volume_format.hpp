@@ -32,6 +32,7 @@ struct VolumeReadOptions {
   std::string dataset;  // HDF5 dataset / Zarr array path inside the file; "" = the format's default
   int level = 0;        // multiscale level (OME-Zarr), 0 = full resolution
   int threads = 0;      // decompression threads; <= 0: all hardware threads
+  int channel = -1;     // multi-channel / RGB files: the channel to read (0-based); -1: the file must have one
   // Overrides of what the file says, applied by read_volume_header / read_any_volume /
   // read_any_volume_box after the format's reader (formats ignore them): 3 values (x, y, z) > 0, or
   // empty; a unit, or empty.
@@ -48,6 +49,9 @@ struct VolumeWriteOptions {
 struct VolumeFormat {
   std::string name;                     // "TIFF", "NRRD", ... as shown to users
   std::vector<std::string> extensions;  // lower case, with the dot; compound ones allowed (".nii.gz")
+  // Reads a folder of single-slice files with these extensions (sorted naturally: z2 before z10), or
+  // a file-name pattern ("slices/z*.tif"), as one volume.
+  bool slice_folders = false;
   // True when the file's first bytes (up to 512) are this format's; null: known by extension only.
   std::function<bool(std::string_view head)> sniff;
   // Required. Throws InputError naming the file and what is wrong.
@@ -70,7 +74,8 @@ struct VolumeFormat {
 const std::vector<VolumeFormat>& volume_formats();
 
 // The format of `path` for reading: by its extension (the longest matching one, any case); when no
-// extension matches, by the file's first bytes. Throws InputError naming the file and listing the
+// extension matches, by the file's first bytes; a folder or a file-name pattern (*, ?) by the
+// extensions of the files in it, for formats with slice_folders. Throws InputError naming the file and listing the
 // known extensions.
 const VolumeFormat& volume_format_for_read(const std::filesystem::path& path);
 // The format that writes `path` (or, for the engine's temporary, its final path), by extension only. Throws InputError naming the file and listing

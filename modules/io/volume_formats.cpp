@@ -13,11 +13,13 @@ namespace skel::io {
 
 // Each format file defines one of these.
 VolumeFormat hdf5_volume_format();
+VolumeFormat tiff_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
     std::vector<VolumeFormat> f;
     f.push_back(hdf5_volume_format());
+    f.push_back(tiff_volume_format());
     return f;
   }();
   return formats;
@@ -50,6 +52,11 @@ const VolumeFormat* by_extension(const std::filesystem::path& path, bool writabl
   return best;
 }
 
+bool fs_is_directory(const std::filesystem::path& p) {
+  std::error_code ec;
+  return std::filesystem::is_directory(p, ec);
+}
+
 std::string join(const std::vector<std::string>& v) {
   std::string s;
   for (size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + v[i];
@@ -72,7 +79,22 @@ std::vector<std::string> writable_volume_extensions() {
 }
 
 const VolumeFormat& volume_format_for_read(const std::filesystem::path& path) {
-  if (const auto* f = by_extension(path, false)) return *f;
+  if (const auto* f = by_extension(path, false)) {
+    // "slices/z*.tif": a pattern of a slice-folder format.
+    if (path.filename().string().find_first_of("*?[") == std::string::npos || f->slice_folders) return *f;
+  }
+  std::error_code ec;
+  if (fs_is_directory(path) || path.filename().string().find_first_of("*?[") != std::string::npos) {
+    // A folder of slices: the format of its files.
+    if (fs_is_directory(path))
+      for (const auto& e : std::filesystem::directory_iterator(path, ec))
+        if (const auto* f = by_extension(e.path(), false); f && f->slice_folders) return *f;
+    std::vector<std::string> exts;
+    for (const auto& f : volume_formats())
+      if (f.slice_folders) exts.insert(exts.end(), f.extensions.begin(), f.extensions.end());
+    throw InputError(path.string() + ": " + (fs_is_directory(path) ? "folder holds no slice files" : "pattern names no slice files") +
+                     " Skelflow reads (extensions: " + join(exts) + ")");
+  }
   std::string head;
   if (std::ifstream in(path, std::ios::binary); in) {
     head.resize(512);
@@ -196,7 +218,9 @@ std::string describe_volume_file(const std::filesystem::path& path) {
   const VolumeFormat& f = volume_format_for_read(path);
   std::string s = "  format: " + f.name + "\n";
   if (f.describe) return s + f.describe(path);
-  const VolumeHeader h = f.read_header(path, {});
+  VolumeReadOptions first_channel;  // a multi-channel file is described by its first channel (details name the count)
+  first_channel.channel = 0;
+  const VolumeHeader h = f.read_header(path, first_channel);
   const Grid& g = h.grid;
   s += "  voxels: " + h.dtype + " " + std::to_string(g.dims[0]) + "x" + std::to_string(g.dims[1]) + "x" +
        std::to_string(g.dims[2]) + " (x,y,z)\n";
