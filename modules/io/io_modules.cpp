@@ -29,6 +29,11 @@ VolumeReadOptions read_options(const ParamMap& params) {
   o.spacing = std::get<std::vector<double>>(params.at("spacing"));
   o.unit = std::get<std::string>(params.at("unit"));
   o.channel = static_cast<int>(std::get<int64_t>(params.at("channel")));
+  o.raw.dims = std::get<std::vector<int64_t>>(params.at("raw_dims"));
+  o.raw.type = std::get<std::string>(params.at("raw_type"));
+  if (o.raw.type == "none") o.raw.type.clear();
+  o.raw.big_endian = std::get<std::string>(params.at("raw_byte_order")) == "big";
+  o.raw.header_bytes = std::get<int64_t>(params.at("raw_header_bytes"));
   return o;
 }
 
@@ -54,6 +59,12 @@ public:
         .param("channel", &VolumeReadOptions::channel,
                "multi-channel or RGB files: the channel to read (0-based); -1: the file must have one channel")
         .min(-1)
+        .param<std::vector<int64_t>>("raw_dims", {}, "raw files: dims (x, y, z) in voxels")
+        .length(3).optional_value()
+        .choice("raw_type", {"none", "uint8", "int8", "uint16", "int16", "uint32", "int32", "uint64", "int64", "float32", "float64"},
+                "none", "raw files: the stored voxel type")
+        .choice("raw_byte_order", {"little", "big"}, "little", "raw files: byte order of multi-byte voxels")
+        .param<int64_t>("raw_header_bytes", 0, "raw files: bytes to skip before the first voxel").min(0)
         .choice("dtype", {"keep", "uint8", "uint16", "uint32", "int32", "float32", "float64"}, "keep",
                 "convert the voxels to this type (clamped), or keep the file's type")
         .output_type_from("volume", [](const OutputTypeQuery& q) {
@@ -77,6 +88,10 @@ strips or tiles, any compression libtiff decodes (none, LZW, deflate, PackBits);
 strips a box touches are decoded. RGB and multi-channel files (samples per pixel, ImageJ or OME
 channels) need `channel`.
 
+raw (`.raw`): voxels x fastest, without a header or after `raw_header_bytes`; `raw_dims`,
+`raw_type` and `spacing` are required (`unit` and `raw_byte_order` optional); the file's size must
+equal the header plus the voxels, checked before anything is allocated.
+
 Spacing, origin and unit come from the file's own metadata (HDF5: attributes `spacing`, `origin`
 (x, y, z) and `unit`, or Fiji/BigDataViewer/ilastik's `element_size_um`; TIFF: ImageJ calibration
 (XResolution/YResolution, `spacing=` and `unit=` in the description) or OME-XML
@@ -90,7 +105,11 @@ reported before anything runs. Memory: the volume itself (its voxel size in byte
   }
   void run(RunContext& ctx) override {
     const auto path = ctx.input_path("path");
-    DataPtr v = read_any_volume(path, ctx.options<VolumeReadOptions>());
+    ParamMap params;
+    for (const auto& p : ctx.spec().params()) params[p.name] = ctx.param_value(p.name);
+    VolumeReadOptions o = read_options(params);
+    o.threads = ctx.threads();
+    DataPtr v = read_any_volume(path, o);
     const std::string dt = ctx.param<std::string>("dtype");
     if (dt != "keep") {
       volume::ConvertOptions o;

@@ -33,6 +33,14 @@ struct VolumeReadOptions {
   int level = 0;        // multiscale level (OME-Zarr), 0 = full resolution
   int threads = 0;      // decompression threads; <= 0: all hardware threads
   int channel = -1;     // multi-channel / RGB files: the channel to read (0-based); -1: the file must have one
+  // Raw files (.raw) state nothing: their layout is given here. dims (x, y, z) and the stored type
+  // (uint8, int8, uint16, int16, uint32, int32, uint64, int64, float32, float64) are required.
+  struct Raw {
+    std::vector<int64_t> dims;
+    std::string type;
+    bool big_endian = false;
+    int64_t header_bytes = 0;  // bytes before the first voxel
+  } raw;
   // Overrides of what the file says, applied by read_volume_header / read_any_volume /
   // read_any_volume_box after the format's reader (formats ignore them): 3 values (x, y, z) > 0, or
   // empty; a unit, or empty.

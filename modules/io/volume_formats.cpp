@@ -14,12 +14,14 @@ namespace skel::io {
 // Each format file defines one of these.
 VolumeFormat hdf5_volume_format();
 VolumeFormat tiff_volume_format();
+VolumeFormat raw_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
     std::vector<VolumeFormat> f;
     f.push_back(hdf5_volume_format());
     f.push_back(tiff_volume_format());
+    f.push_back(raw_volume_format());
     return f;
   }();
   return formats;

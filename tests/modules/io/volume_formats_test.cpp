@@ -263,3 +263,61 @@ TEST(VolumeFormats, DamagedVoxelsPassValidationAndFailAtRunNamingTheFile) {
   });
   EXPECT_EQ(e.rfind((dir / "damaged.h5").string() + ": cannot read dataset '/volume': the file is truncated or corrupt", 0), 0u) << e;
 }
+
+// Raw volumes: the layout comes from the parameters; the file's size is checked against it before
+// anything is allocated.
+TEST(VolumeFormats, RawVolumesTakeTheirLayoutFromParameters) {
+  const fs::path dir = scratch();
+  const Dims d{7, 5, 3};
+  std::vector<int16_t> voxels(7 * 5 * 3);
+  for (size_t i = 0; i < voxels.size(); ++i) voxels[i] = static_cast<int16_t>(static_cast<int>(i) * 37 - 1000);
+  {
+    std::ofstream little(dir / "v.raw", std::ios::binary);
+    little.write("HDR!", 4);  // a 4-byte header to skip
+    little.write(reinterpret_cast<const char*>(voxels.data()), static_cast<std::streamsize>(voxels.size() * 2));
+    std::ofstream big(dir / "big.raw", std::ios::binary);
+    for (int16_t v : voxels) {
+      const auto u = static_cast<uint16_t>(v);
+      const char b[2] = {static_cast<char>(u >> 8), static_cast<char>(u & 0xFF)};
+      big.write(b, 2);
+    }
+  }
+  const ParamMap base{{"raw_dims", std::vector<int64_t>{7, 5, 3}},
+                      {"raw_type", std::string("int16")},
+                      {"spacing", std::vector<double>{0.3, 0.3, 1.2}},
+                      {"unit", std::string("mm")}};
+  ParamMap little = base;
+  little["path"] = std::string("v.raw");
+  little["raw_header_bytes"] = int64_t{4};
+  auto v = run_module("io.read_volume", {}, little, {.threads = 1, .base_dir = dir}).get<VolumeI32>("volume");
+  EXPECT_EQ(v->dims(), d);
+  EXPECT_EQ(v->spacing(), (Vec3{0.3, 0.3, 1.2}));
+  EXPECT_EQ(v->unit(), "mm");
+  for (size_t i = 0; i < voxels.size(); ++i) ASSERT_EQ((*v)[static_cast<int64_t>(i)], voxels[i]) << i;
+  ParamMap big = base;
+  big["path"] = std::string("big.raw");
+  big["raw_byte_order"] = std::string("big");
+  auto b = run_module("io.read_volume", {}, big, {.threads = 1, .base_dir = dir}).get<VolumeI32>("volume");
+  EXPECT_TRUE(std::equal(b->begin(), b->end(), v->begin()));
+  // A box reads only its rows.
+  io::VolumeReadOptions o;
+  o.raw = {{7, 5, 3}, "int16", true, 0};
+  o.spacing = {1, 1, 1};
+  auto box = std::dynamic_pointer_cast<const VolumeI32>(io::read_any_volume_box(dir / "big.raw", o, Dims{2, 1, 1}, Dims{3, 2, 2}));
+  ASSERT_TRUE(box);
+  EXPECT_EQ((*box)(2, 1, 1), (*v)(4, 2, 2));
+  // Wrong dims, a missing type or spacing: errors naming the file, at validate, before any allocation.
+  const std::string yaml = "skelflow: 1\nnodes:\n"
+                           "  a: {module: io.read_volume, params: {path: v.raw, raw_dims: [7, 5, 4], raw_type: int16, spacing: [1, 1, 1]}}\n"
+                           "  b: {module: io.read_volume, params: {path: v.raw, raw_dims: [7, 5, 3], spacing: [1, 1, 1]}}\n"
+                           "  c: {module: io.read_volume, params: {path: v.raw, raw_dims: [100000000000, 100000000000, 3], raw_type: float64, spacing: [1, 1, 1]}}\n"
+                           "  d: {module: io.read_volume, params: {path: v.raw, raw_dims: [7, 5, 3], raw_type: int16}}\n";
+  const auto ds = validate_text(yaml, dir);
+  ASSERT_EQ(ds.size(), 4u);
+  EXPECT_NE(ds[0].find((dir / "v.raw").string() + ": holds 214 bytes, but 7x5x4 voxels of int16 need 280: check `raw_dims`"),
+            std::string::npos)
+      << ds[0];
+  EXPECT_NE(ds[1].find("a raw file states no voxel type: set `raw_type`"), std::string::npos) << ds[1];
+  EXPECT_NE(ds[2].find("need more than 2^63"), std::string::npos) << ds[2];
+  EXPECT_NE(ds[3].find("a raw file states no spacing: set `spacing`"), std::string::npos) << ds[3];
+}
