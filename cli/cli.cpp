@@ -226,7 +226,10 @@ int cmd_info(const std::vector<std::string>& args) {
   if (args.size() != 1) throw InputError("info: expected one FILE");
   fs::path f = args[0];
   std::error_code ec;
-  if (!fs::exists(f, ec)) throw InputError(f.string() + ": file not found");
+  const FileInspector* claimed = nullptr;  // by content or as a folder/pattern, when no extension matches
+  for (const auto& ins : Registry::instance().inspectors())
+    if (!claimed && ins.claims && ins.claims(f)) claimed = &ins;
+  if (!fs::exists(f, ec) && !claimed) throw InputError(f.string() + ": file not found");
   const std::string ext = text::to_lower(f.extension().string());
   if (ext == ".yaml" || ext == ".yml") {
     Pipeline p = Pipeline::load_file(f);
@@ -250,6 +253,7 @@ int cmd_info(const std::vector<std::string>& args) {
         best = &ins;
         best_len = e.size();
       }
+  if (!best) best = claimed;
   if (best) {
     const std::string description = best->describe(f);  // first: a file it cannot read prints only the error
     std::cout << f.string() << ": " << best->name << "\n" << description;

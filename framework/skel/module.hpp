@@ -379,6 +379,9 @@ struct FileInspector {
   std::string name;                     // e.g. "HDF5 volume"
   std::vector<std::string> extensions;  // lower case, with dot: ".h5", ".hdf5"
   std::function<std::string(const std::filesystem::path&)> describe;
+  // Optional: claims a path no extension matches (a folder of slices, a file-name pattern, a known
+  // file under another name by its magic bytes).
+  std::function<bool(const std::filesystem::path&)> claims{};
 };
 
 class Registry {

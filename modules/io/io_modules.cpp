@@ -166,7 +166,15 @@ public:
 SKEL_REGISTER_MODULE(WriteTable);
 
 SKEL_REGISTER_INSPECTOR("volume file", readable_volume_extensions(),
-                        [](const std::filesystem::path& p) { return describe_volume_file(p); });
+                        [](const std::filesystem::path& p) { return describe_volume_file(p); },
+                        [](const std::filesystem::path& p) {  // folders and patterns of slices, magic bytes
+                          try {
+                            (void)volume_format_for_read(p);
+                            return true;
+                          } catch (const Error&) {
+                            return false;
+                          }
+                        });
 
 }  // namespace
 }  // namespace skel::io

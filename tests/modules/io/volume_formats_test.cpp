@@ -185,6 +185,16 @@ TEST(VolumeFormats, InfoDescribesVolumeFilesAndListsTheKnownExtensions) {
   EXPECT_EQ(code, 2) << bad;
   EXPECT_NE(bad.find("x.qqq: unknown file type '.qqq'"), std::string::npos) << bad;
   for (const auto& ext : io::readable_volume_extensions()) EXPECT_NE(bad.find(ext), std::string::npos) << ext << ": " << bad;
+  // A folder of TIFF slices and a pattern are described too (before: "unknown file type").
+  fs::create_directories(scratch() / "slices");
+  for (const char* z : {"s1.tif", "s2.tif", "s10.tif"}) io::write_any_volume(scratch() / "slices" / z, VolumeU8(Dims{5, 4, 1}));
+  const std::string folder = skelflow("info " + (scratch() / "slices").string(), code);
+  EXPECT_EQ(code, 0) << folder;
+  EXPECT_NE(folder.find("voxels: uint8 5x4x3 (x,y,z)"), std::string::npos) << folder;
+  EXPECT_NE(folder.find("files: 3"), std::string::npos) << folder;
+  const std::string pattern = skelflow("info '" + (scratch() / "slices" / "s1*.tif").string() + "'", code);
+  EXPECT_EQ(code, 0) << pattern;
+  EXPECT_NE(pattern.find("voxels: uint8 5x4x2 (x,y,z)"), std::string::npos) << pattern;
 }
 
 namespace {
