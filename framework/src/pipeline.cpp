@@ -1005,6 +1005,10 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
       }
     }
   }
+  // A module that tells its output types from its parameters alone (no input file) and failed.
+  for (const auto& [id, failure] : deduced.errors)
+    if (failure.param.empty())
+      if (const PipelineNode* n = p.find(id)) add(*n, n->pos, failure.message);
   // A cycle is reported at the first of its nodes in the file.
   std::vector<size_t> left;
   (void)kahn_order(p.nodes(), left);
