@@ -139,8 +139,12 @@ and unit. HDF5: a dataset of shape [z][y][x] in the volume's own voxel type with
 and `origin` (x, y, z) and `unit`; chunks hold about 1 MiB and are as cube-like as the dims allow
 (128x128x64 for uint8, 64x64x64 for float32): whole-volume reads stay fast and an aligned 64³ block
 touches one chunk; compression adds the shuffle filter for multi-byte types and runs on the node's
-threads. The file is written under a temporary name and renamed only when the whole pipeline run
-succeeds. Memory: no copy of the volume (0 bytes per voxel) for HDF5.)");
+threads. TIFF: one page per z slice with ImageJ calibration (pixel width/height as resolution,
+`spacing=` and `unit=` in the description; OME-XML instead for names ending in .ome.tif), BigTIFF
+when the voxels exceed 4 GiB, deflate at `compression` > 0 (0: uncompressed, for readers without
+deflate); a volume with direction cosines is refused (TIFF cannot store them). The file is written
+under a temporary name and renamed only when the whole pipeline run succeeds. Memory: no copy of the
+volume (0 bytes per voxel).)");
   }
   void run(RunContext& ctx) override {
     write_any_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.options<VolumeWriteOptions>());

@@ -361,9 +361,9 @@ TEST_F(DocTest, RunControllerReportsRunTimeErrorsAtTheNodesLine) {
   // while running.
   const std::string broken = (std::filesystem::path(dir.path().toStdString()) / "broken.h5").string();
   {
-    Volume<uint8_t> v(Dims{64, 64, 64});
+    VolumeF32 v(Dims{64, 64, 64});  // float32: what gui_test.threshold takes (validate reads the header)
     std::mt19937 rng(7);
-    for (auto& x : v) x = static_cast<uint8_t>(rng());
+    for (auto& x : v) x = static_cast<float>(rng() % 1000) / 1000.0f;
     io::VolumeWriteOptions wo;
     wo.compression = 1;
     io::write_any_volume(broken, v, wo);
