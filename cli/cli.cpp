@@ -226,7 +226,10 @@ int cmd_info(const std::vector<std::string>& args) {
   if (args.size() != 1) throw InputError("info: expected one FILE");
   fs::path f = args[0];
   std::error_code ec;
-  if (!fs::exists(f, ec)) throw InputError(f.string() + ": file not found");
+  const FileInspector* claimed = nullptr;  // by content or as a folder/pattern, when no extension matches
+  for (const auto& ins : Registry::instance().inspectors())
+    if (!claimed && ins.claims && ins.claims(f)) claimed = &ins;
+  if (!fs::exists(f, ec) && !claimed) throw InputError(f.string() + ": file not found");
   const std::string ext = text::to_lower(f.extension().string());
   if (ext == ".yaml" || ext == ".yml") {
     Pipeline p = Pipeline::load_file(f);
@@ -240,16 +243,27 @@ int cmd_info(const std::vector<std::string>& args) {
     for (const auto& d : ds) std::cout << "  problem: " << d.format() << "\n";
     return ds.empty() ? kOk : kInvalid;
   }
-  for (const auto& ins : Registry::instance().inspectors()) {
-    if (std::find(ins.extensions.begin(), ins.extensions.end(), ext) != ins.extensions.end()) {
-      std::cout << f.string() << ": " << ins.name << "\n" << ins.describe(f);
-      return kOk;
-    }
+  // The inspector whose extension is the longest suffix of the name (".nii.gz" before ".gz").
+  const std::string name = text::to_lower(f.filename().string());
+  const FileInspector* best = nullptr;
+  size_t best_len = 0;
+  for (const auto& ins : Registry::instance().inspectors())
+    for (const auto& e : ins.extensions)
+      if (e.size() > best_len && name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) {
+        best = &ins;
+        best_len = e.size();
+      }
+  if (!best) best = claimed;
+  if (best) {
+    const std::string description = best->describe(f);  // first: a file it cannot read prints only the error
+    std::cout << f.string() << ": " << best->name << "\n" << description;
+    return kOk;
   }
   std::string known;
   for (const auto& ins : Registry::instance().inspectors())
     for (const auto& e : ins.extensions) known += " " + e;
-  throw InputError(f.string() + ": unknown file type '" + ext + "' (known: .yaml" + known + ")");
+  throw InputError(f.string() + ": unknown file type " + (ext.empty() ? std::string("(no extension)") : "'" + ext + "'") +
+                   " (known: .yaml" + known + ")");
 }
 
 // ---------------------------------------------------------------- validate / run

@@ -28,11 +28,11 @@ packages=(
   build-essential cmake ninja-build pkg-config git ccache
   qtbase5-dev libqt5opengl5-dev libvtk9-dev libvtk9-qt-dev
   libhdf5-dev zlib1g-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
-  libeigen3-dev libtbb-dev libnanoflann-dev libexpat1-dev
+  libeigen3-dev libtbb-dev libnanoflann-dev libexpat1-dev libtiff-dev
   libopenmpi-dev libhdf5-openmpi-dev
   xvfb xauth
   clang libclang-rt-14-dev
-  python3-scipy python3-skimage python3-h5py python3-numpy python3-vtk9
+  python3-scipy python3-skimage python3-h5py python3-numpy python3-vtk9 python3-tifffile
   python3-dev pybind11-dev python3-pytest python3-networkx python3-pandas
 )
 missing=()

@@ -35,11 +35,31 @@ template <> struct PortTypes<AnyIntegerVolume> {
   static std::vector<std::string> ids() { return integer_volume_types(); }
 };
 
+using ParamMap = std::map<std::string, ParamValue>;
+
+// What the function of ModuleSpec::output_type_from sees at validation: the node's parameters
+// (defaults applied, every value already checked against its spec) and its input file paths
+// resolved against the pipeline's folder (each one exists).
+struct OutputTypeQuery {
+  const ParamMap& params;
+  std::function<std::filesystem::path(const std::string& param)> input_path;
+};
+// The types an output will have for these parameters and files (a subset of the port's declared
+// types) and why, for messages ("'ve.tif' holds uint16 voxels"; may be empty).
+struct DeducedOutput {
+  std::vector<std::string> types;
+  std::string reason;
+};
+using OutputTypeFn = std::function<DeducedOutput(const OutputTypeQuery&)>;
+
 struct PortSpec {
   std::string name;
   std::vector<std::string> types;  // accepted (inputs) or possible (outputs) type ids
   std::string doc;
   bool required = true;            // inputs only
+  // Outputs only, optional: narrows `types` from the parameters and input files before anything
+  // runs (ModuleSpec::output_type_from). Throws InputError naming the file when it cannot tell.
+  OutputTypeFn deduce_types;
 };
 
 template <class T> struct ParamTypeOf;
@@ -163,6 +183,13 @@ public:
   }
   ModuleSpec& add_input(std::string name, std::vector<std::string> types, std::string doc, bool required);
   ModuleSpec& add_output(std::string name, std::vector<std::string> types, std::string doc);
+  // Lets validate() know the type of output `port` from the parameters and the input files (e.g. a
+  // reader looks at a file's header): `fn` returns the types it will have, and validate() checks the
+  // connections from that port against them, naming the reason. An InputError `fn` throws (missing
+  // or unreadable header) is reported at the node's input file parameter. validate() calls `fn` only
+  // when the node's parameters are valid and its input files exist; it must be cheap (a header, not
+  // the data) and must not write anything.
+  ModuleSpec& output_type_from(const std::string& port, OutputTypeFn fn);
 
   // --- parameters (modifiers below apply to the last one added) ---
   // A parameter the module reads itself with ctx.param<T>(name) (choices: an enum with enum_names).
@@ -225,6 +252,7 @@ public:
   ModuleSpec& unit(std::string unit);
   ModuleSpec& length(int n);          // lists: exact length
   ModuleSpec& optional_value();       // empty string / empty list means "not given"
+  ModuleSpec& accepts_folder();       // input paths: a folder or a file-name pattern ("z*.tif") too
   // A Path parameter's accepted file extensions (".h5", any case in the path), checked at
   // validation for outputs; with `unless_param`, only while that choice parameter is "auto".
   ModuleSpec& extensions(std::vector<std::string> exts, std::string unless_param = {});
@@ -254,8 +282,6 @@ private:
   std::vector<PortSpec> inputs_, outputs_;
   std::vector<ParamSpec> params_;
 };
-
-using ParamMap = std::map<std::string, ParamValue>;
 
 // Everything run() may use: inputs, parameters, outputs, progress, cancellation, threads, paths.
 class RunContext {
@@ -353,6 +379,9 @@ struct FileInspector {
   std::string name;                     // e.g. "HDF5 volume"
   std::vector<std::string> extensions;  // lower case, with dot: ".h5", ".hdf5"
   std::function<std::string(const std::filesystem::path&)> describe;
+  // Optional: claims a path no extension matches (a folder of slices, a file-name pattern, a known
+  // file under another name by its magic bytes).
+  std::function<bool(const std::filesystem::path&)> claims{};
 };
 
 class Registry {

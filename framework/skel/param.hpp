@@ -34,6 +34,7 @@ struct ParamSpec {
   int list_length = -1;                  // for lists: required length, -1 = any
   PathRole path_role = PathRole::None;   // for Path
   bool optional_value = false;           // an empty string / list means "not given"
+  bool folder_ok = false;                // Input paths: a folder or a file-name pattern (*, ?, [) is accepted
   // Output paths: the file extensions the writer accepts (lower case, with dot), checked by
   // validate(); empty = any. While the choice parameter `extensions_unless` is not "auto" (a format
   // given explicitly), any extension is accepted.

@@ -117,11 +117,11 @@ std::string ParamSpec::check(const ParamValue& v) const {
 // ---------------------------------------------------------------- ModuleSpec
 ModuleSpec& ModuleSpec::add_input(std::string name, std::vector<std::string> types, std::string doc,
                                   bool required) {
-  inputs_.push_back({std::move(name), std::move(types), std::move(doc), required});
+  inputs_.push_back({std::move(name), std::move(types), std::move(doc), required, {}});
   return *this;
 }
 ModuleSpec& ModuleSpec::add_output(std::string name, std::vector<std::string> types, std::string doc) {
-  outputs_.push_back({std::move(name), std::move(types), std::move(doc), true});
+  outputs_.push_back({std::move(name), std::move(types), std::move(doc), true, {}});
   return *this;
 }
 ModuleSpec& ModuleSpec::add_param(ParamSpec p) {
@@ -162,6 +162,7 @@ ModuleSpec& ModuleSpec::max(double hi) { last(params_, "max").max = hi; return *
 ModuleSpec& ModuleSpec::unit(std::string u) { last(params_, "unit").unit = std::move(u); return *this; }
 ModuleSpec& ModuleSpec::length(int n) { last(params_, "length").list_length = n; return *this; }
 ModuleSpec& ModuleSpec::optional_value() { last(params_, "optional_value").optional_value = true; return *this; }
+ModuleSpec& ModuleSpec::accepts_folder() { last(params_, "accepts_folder").folder_ok = true; return *this; }
 ModuleSpec& ModuleSpec::extensions(std::vector<std::string> exts, std::string unless_param) {
   auto& p = last(params_, "extensions");
   if (p.type != ParamType::Path) throw Error("ModuleSpec::extensions: parameter '" + p.name + "' is not a path");
@@ -190,6 +191,15 @@ const PortSpec* ModuleSpec::find_input(const std::string& n) const {
     if (p.name == n) return &p;
   return nullptr;
 }
+ModuleSpec& ModuleSpec::output_type_from(const std::string& port, OutputTypeFn fn) {
+  for (auto& o : outputs_)
+    if (o.name == port) {
+      o.deduce_types = std::move(fn);
+      return *this;
+    }
+  throw Error("module " + name_ + ": output_type_from: no output port '" + port + "'");
+}
+
 const PortSpec* ModuleSpec::find_output(const std::string& n) const {
   for (const auto& p : outputs_)
     if (p.name == n) return &p;

@@ -775,6 +775,72 @@ std::string join_or(const std::vector<std::string>& xs) {
   for (size_t i = 0; i < xs.size(); ++i) s += (i == 0 ? "" : i + 1 == xs.size() ? " or " : ", ") + xs[i];
   return s;
 }
+
+// "slices/z*.tif": a file-name pattern (input paths that accept folders accept those too).
+bool is_file_pattern(const fs::path& f) { return f.filename().string().find_first_of("*?[") != std::string::npos; }
+
+// Output types narrowed by ModuleSpec::output_type_from (a reader looking at its file's header), and
+// the nodes whose files could not tell (reported at their first input file parameter).
+struct Deductions {
+  std::map<PortRef, DeducedOutput> types;
+  struct Failure {
+    std::string param, message;
+  };
+  std::map<std::string, Failure> errors;
+};
+
+Deductions deduce_output_types(const Pipeline& p, const Registry& registry) {
+  Deductions r;
+  for (const auto& n : p.nodes()) {
+    const ModuleSpec* spec = registry.find(n.module);
+    if (!spec) continue;
+    bool any = false;
+    for (const auto& o : spec->outputs()) any = any || static_cast<bool>(o.deduce_types);
+    if (!any) continue;
+    // Only for valid parameters and existing input files (other problems are reported as such).
+    bool valid = true;
+    for (const auto& [name, value] : n.params) {
+      const ParamSpec* ps = spec->find_param(name);
+      if (!ps) { valid = false; break; }
+      auto c = coerce_param(*ps, value);
+      if (!c || !ps->check(*c).empty()) { valid = false; break; }
+    }
+    if (!valid) continue;
+    const ParamMap eff = effective_params(n, *spec);
+    std::map<std::string, fs::path> files;
+    std::string first_file;
+    for (const auto& ps : spec->params()) {
+      if (ps.type != ParamType::Path || ps.path_role != PathRole::Input) continue;
+      const auto* value = std::get_if<std::string>(&eff.at(ps.name));
+      if (!value || value->empty()) continue;
+      const fs::path f = resolve_against(p.base_dir(), *value);
+      std::error_code ec;
+      const fs::file_status st = fs::status(f, ec);
+      const bool pattern_ok = ps.folder_ok && is_file_pattern(f) && fs::is_directory(f.parent_path(), ec);
+      if (!pattern_ok && (!fs::exists(st) || (fs::is_directory(st) && !ps.folder_ok))) { valid = false; break; }
+      files[ps.name] = f;
+      if (first_file.empty()) first_file = ps.name;
+    }
+    if (!valid) continue;
+    const OutputTypeQuery q{eff, [&files](const std::string& name) {
+                              auto it = files.find(name);
+                              if (it == files.end()) throw InputError("parameter '" + name + "' names no input file");
+                              return it->second;
+                            }};
+    for (const auto& o : spec->outputs()) {
+      if (!o.deduce_types) continue;
+      try {
+        DeducedOutput d = o.deduce_types(q);
+        r.types[PortRef{n.id, o.name}] = std::move(d);
+      } catch (const Error& e) {
+        r.errors[n.id] = {first_file, e.what()};
+        break;
+      }
+    }
+  }
+  return r;
+}
+
 }  // namespace
 
 std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, const PathPolicy& paths) {
@@ -790,6 +856,7 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
   };
   std::vector<std::string> module_names;
   for (const auto* s : registry.specs()) module_names.push_back(s->name());
+  const Deductions deduced = deduce_output_types(p, registry);
   for (const auto& n : p.nodes()) {
     const ModuleSpec* spec = registry.find(n.module);
     if (!spec) {
@@ -845,11 +912,17 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
                         ref.port + "'" + did_you_mean(ref.port, onames));
         continue;
       }
+      const std::vector<std::string>* gives = &op->types;
+      std::string why;
+      if (auto d = deduced.types.find(ref); d != deduced.types.end()) {
+        gives = &d->second.types;
+        if (!d->second.reason.empty()) why = " (" + d->second.reason + ")";
+      }
       bool ok = false;
-      for (const auto& t : op->types)
+      for (const auto& t : *gives)
         if (std::find(ip->types.begin(), ip->types.end(), t) != ip->types.end()) ok = true;
       if (!ok)
-        add(n, pos, "input '" + port + "': type mismatch: " + ref.str() + " gives " + join_types(op->types) +
+        add(n, pos, "input '" + port + "': type mismatch: " + ref.str() + " gives " + join_types(*gives) + why +
                         ", but '" + port + "' takes " + join_types(ip->types));
     }
     for (const auto& ip : spec->inputs())
@@ -878,8 +951,15 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
         const fs::path f = resolve_against(p.base_dir(), *value);
         std::error_code ec;
         const fs::file_status st = fs::status(f, ec);
-        if (!fs::exists(st)) add_param(n, ps.name, pos, param + "input file '" + f.string() + "' not found");
-        else if (fs::is_directory(st)) add_param(n, ps.name, pos, param + "'" + f.string() + "' is a folder, not a file");
+        if (ps.folder_ok && is_file_pattern(f)) {
+          if (!fs::is_directory(f.parent_path(), ec))
+            add_param(n, ps.name, pos, param + "folder '" + f.parent_path().string() + "' of the pattern not found");
+          else if (auto e = deduced.errors.find(n.id); e != deduced.errors.end() && e->second.param == ps.name)
+            add_param(n, ps.name, pos, param + e->second.message);
+        } else if (!fs::exists(st)) add_param(n, ps.name, pos, param + "input file '" + f.string() + "' not found");
+        else if (fs::is_directory(st) && !ps.folder_ok) add_param(n, ps.name, pos, param + "'" + f.string() + "' is a folder, not a file");
+        else if (auto e = deduced.errors.find(n.id); e != deduced.errors.end() && e->second.param == ps.name)
+          add_param(n, ps.name, pos, param + e->second.message);
         continue;
       }
       const fs::path f = resolve_against(out_base, *value);
@@ -889,7 +969,12 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
           if (auto it = eff.find(ps.extensions_unless); it != eff.end())
             if (auto* c = std::get_if<std::string>(&it->second); c && *c != "auto") check = false;
         const std::string ext = text::to_lower(f.extension().string());
-        if (check && std::find(ps.extensions.begin(), ps.extensions.end(), ext) == ps.extensions.end())
+        // Compound extensions (".nii.gz") match as a suffix of the file name.
+        const std::string fname = text::to_lower(f.filename().string());
+        const bool known = std::any_of(ps.extensions.begin(), ps.extensions.end(), [&](const std::string& e) {
+          return fname.size() > e.size() && fname.compare(fname.size() - e.size(), e.size(), e) == 0;
+        });
+        if (check && !known)
           add_param(n, ps.name, pos,
                     param + "'" + *value + "': " + (ext.empty() ? "no file extension" : "unknown extension '" + ext + "'") +
                         "; " + n.module + " writes " + join_or(ps.extensions) +
@@ -920,6 +1005,10 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
       }
     }
   }
+  // A module that tells its output types from its parameters alone (no input file) and failed.
+  for (const auto& [id, failure] : deduced.errors)
+    if (failure.param.empty())
+      if (const PipelineNode* n = p.find(id)) add(*n, n->pos, failure.message);
   // A cycle is reported at the first of its nodes in the file.
   std::vector<size_t> left;
   (void)kahn_order(p.nodes(), left);

@@ -196,6 +196,76 @@ bool read_vec3_attr(hid_t obj, const char* name, Vec3& out, const fs::path& file
   return true;
 }
 
+// A string attribute (fixed or variable length); false when absent.
+bool read_string_attr(hid_t obj, const char* name, std::string& out, const fs::path& file) {
+  if (H5Aexists(obj, name) <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    return false;
+  }
+  Handle a(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose);
+  Handle t(H5Aget_type(a.id), H5Tclose);
+  if (H5Tget_class(t.id) != H5T_STRING) throw InputError(file.string() + ": attribute '" + name + "' must be a string");
+  Handle mem(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_cset(mem.id, H5Tget_cset(t.id));  // HDF5 converts no character sets: read as stored (ASCII or UTF-8)
+  if (H5Tis_variable_str(t.id) > 0) {
+    H5Tset_size(mem.id, H5T_VARIABLE);
+    char* value = nullptr;
+    if (H5Aread(a.id, mem.id, &value) < 0) fail(file, std::string("cannot read attribute '") + name + "'");
+    out = value ? value : "";
+    H5free_memory(value);
+  } else {
+    const size_t n = H5Tget_size(t.id);
+    std::string buf(n + 1, '\0');
+    H5Tset_size(mem.id, n + 1);
+    if (H5Aread(a.id, mem.id, buf.data()) < 0) fail(file, std::string("cannot read attribute '") + name + "'");
+    out = buf.c_str();
+  }
+  return true;
+}
+
+// The unit of files written by Fiji, BigDataViewer and ilastik: `element_size_um` is in micrometres
+// by its name.
+constexpr const char* kElementSizeUnit = "\u00b5m";
+
+// Spacing, origin and unit of a dataset: attributes `spacing`, `origin` (x, y, z) and `unit` on the
+// dataset; without `spacing`, `element_size_um` ([z][y][x], µm; Fiji, BigDataViewer, ilastik) on the
+// dataset or its group.
+struct Geometry {
+  Vec3 spacing{1, 1, 1}, origin{0, 0, 0};
+  std::string unit = kDefaultUnit;
+  bool has_spacing = false, has_origin = false, has_unit = false;
+};
+
+Geometry read_geometry(hid_t file_id, hid_t dset, const std::string& dataset, const fs::path& file) {
+  Geometry g;
+  g.has_spacing = read_vec3_attr(dset, "spacing", g.spacing, file);
+  g.has_origin = read_vec3_attr(dset, "origin", g.origin, file);
+  g.has_unit = read_string_attr(dset, "unit", g.unit, file);
+  if (!g.has_spacing) {
+    Vec3 zyx{1, 1, 1};
+    bool found = read_vec3_attr(dset, "element_size_um", zyx, file);
+    if (!found) {
+      const std::string group = dataset.substr(0, dataset.rfind('/'));
+      Handle grp(H5Oopen(file_id, group.empty() ? "/" : group.c_str(), H5P_DEFAULT), H5Oclose);
+      H5Eclear2(H5E_DEFAULT);
+      if (grp) found = read_vec3_attr(grp.id, "element_size_um", zyx, file);
+    }
+    if (found) {
+      g.spacing = {zyx[2], zyx[1], zyx[0]};
+      g.has_spacing = true;
+      if (!g.has_unit) {
+        g.unit = kElementSizeUnit;
+        g.has_unit = true;
+      }
+    }
+  }
+  for (int k = 0; k < 3; ++k)
+    if (!(g.spacing[k] > 0) || !std::isfinite(g.spacing[k]))
+      throw InputError(file.string() + ": dataset '" + dataset + "': the spacing must be > 0 on every axis");
+  if (g.unit.empty()) throw InputError(file.string() + ": dataset '" + dataset + "': attribute 'unit' is empty");
+  return g;
+}
+
 template <class T> hid_t native();
 template <> hid_t native<uint8_t>() { return H5T_NATIVE_UINT8; }
 template <> hid_t native<uint16_t>() { return H5T_NATIVE_UINT16; }
@@ -208,12 +278,11 @@ template <> hid_t native<double>() { return H5T_NATIVE_DOUBLE; }
 template <class T>
 Volume<T> read_into(Opened& o, const fs::path& file, const std::string& dataset, Dims begin, Dims size) {
   Grid g(size);
-  Vec3 sp{1, 1, 1}, org{0, 0, 0};
-  read_vec3_attr(o.dset.id, "spacing", sp, file);
-  read_vec3_attr(o.dset.id, "origin", org, file);
-  for (int k = 0; k < 3; ++k)
-    if (!(sp[k] > 0)) throw InputError(file.string() + ": attribute 'spacing' must be > 0 on every axis");
+  const Geometry geo = read_geometry(o.file.id, o.dset.id, dataset, file);
+  const Vec3& sp = geo.spacing;
+  const Vec3& org = geo.origin;
   g.spacing = sp;
+  g.unit = geo.unit;
   g.origin = {org[0] + static_cast<double>(begin[0]) * sp[0], org[1] + static_cast<double>(begin[1]) * sp[1],
               org[2] + static_cast<double>(begin[2]) * sp[2]};
   Volume<T> v = Volume<T>::uninitialized(g);
@@ -237,8 +306,13 @@ VolumeInfo read_volume_info(const fs::path& file, const std::string& dataset) {
   VolumeInfo info;
   info.dims = o.dims;
   info.dtype = o.dtype;
-  info.has_spacing = read_vec3_attr(o.dset.id, "spacing", info.spacing, file);
-  info.has_origin = read_vec3_attr(o.dset.id, "origin", info.origin, file);
+  const Geometry geo = read_geometry(o.file.id, o.dset.id, dataset, file);
+  info.spacing = geo.spacing;
+  info.origin = geo.origin;
+  info.unit = geo.unit;
+  info.has_spacing = geo.has_spacing;
+  info.has_origin = geo.has_origin;
+  info.has_unit = geo.has_unit;
   Handle plist(H5Dget_create_plist(o.dset.id), H5Pclose);
   if (H5Pget_layout(plist.id) == H5D_CHUNKED) {
     hsize_t c[3];
@@ -406,6 +480,16 @@ std::pair<Handle, Handle> create_dataset(const fs::path& file, const std::string
     Handle a(H5Acreate2(d.id, name, H5T_IEEE_F64LE, as.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
     if (!a || H5Awrite(a.id, H5T_NATIVE_DOUBLE, val.data()) < 0) fail_write(file, std::string("cannot write attribute ") + name);
   }
+  {
+    Handle st(H5Tcopy(H5T_C_S1), H5Tclose);
+    H5Tset_size(st.id, std::max<size_t>(g.unit.size(), 1));
+    H5Tset_cset(st.id, H5T_CSET_UTF8);
+    Handle as(H5Screate(H5S_SCALAR), H5Sclose);
+    Handle a(H5Acreate2(d.id, "unit", st.id, as.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    std::string u = g.unit;
+    u.resize(std::max<size_t>(u.size(), 1));
+    if (!a || H5Awrite(a.id, st.id, u.data()) < 0) fail_write(file, "cannot write attribute unit");
+  }
   return {std::move(f), std::move(d)};
 }
 
@@ -557,8 +641,10 @@ std::string describe_file(const fs::path& file) {
       s << "  " << n << ": " << i.dtype << " " << i.dims[0] << "x" << i.dims[1] << "x" << i.dims[2] << " (x,y,z)";
       if (i.chunks[0]) s << ", chunks " << i.chunks[0] << "x" << i.chunks[1] << "x" << i.chunks[2];
       for (const auto& fl : i.filters) s << ", " << fl;
-      s << ", spacing " << i.spacing[0] << " " << i.spacing[1] << " " << i.spacing[2] << (i.has_spacing ? "" : " (default)");
-      s << ", origin " << i.origin[0] << " " << i.origin[1] << " " << i.origin[2] << "\n";
+      s << ", spacing " << i.spacing[0] << " " << i.spacing[1] << " " << i.spacing[2] << " " << i.unit
+        << (i.has_spacing ? "" : " (default)");
+      s << ", origin " << i.origin[0] << " " << i.origin[1] << " " << i.origin[2] << " " << i.unit
+        << (i.has_unit ? "" : " (unit: default)") << "\n";
     } catch (const InputError& e) {
       s << "  " << n << ": " << e.what() << "\n";
     }

@@ -1,5 +1,7 @@
 #pragma once
-// HDF5 volumes: datasets of shape [z][y][x] with attributes `spacing` and `origin` as (x, y, z),
+// HDF5 volumes: datasets of shape [z][y][x] with attributes `spacing` and `origin` as (x, y, z) and
+// `unit` (a string; Fiji/BigDataViewer/ilastik's `element_size_um` [z][y][x] on the dataset or its
+// group is read as the spacing in µm when `spacing` is absent),
 // chunked and compressed on write, any integer or float type on read, sub-boxes by hyperslab for
 // block-wise algorithms. Every HDF5 problem becomes an InputError naming the file and dataset.
 // Debian's HDF5 is not thread-safe: all calls are serialised by one process-wide mutex.
@@ -20,7 +22,8 @@ struct VolumeInfo {
   std::array<int64_t, 3> chunks{0, 0, 0};  // (x, y, z), 0 when contiguous
   std::vector<std::string> filters;        // e.g. "deflate", "shuffle"
   Vec3 spacing{1, 1, 1}, origin{0, 0, 0};
-  bool has_spacing = false, has_origin = false;
+  std::string unit{kDefaultUnit};  // attribute `unit`; µm with `element_size_um`; else kDefaultUnit
+  bool has_spacing = false, has_origin = false, has_unit = false;
 };
 
 // Chunking: automatic chunks hold about 1 MiB, as cube-like as the dims allow (128x128x64 for

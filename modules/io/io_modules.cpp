@@ -1,6 +1,7 @@
-// Volume and table file modules (HDF5 volumes, CSV tables) and the HDF5 inspector for `skelflow info`.
+// Volume and table file modules (io.read_volume / io.write_volume through the volume format registry,
+// CSV tables) and the volume inspector of `skelflow info`.
 
-#include "io/hdf5_volume.hpp"
+#include "io/volume_format.hpp"
 #include "io/names.hpp"
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
@@ -10,26 +11,105 @@
 namespace skel::io {
 namespace {
 
+std::string format_list() {
+  std::string s;
+  for (const auto& f : volume_formats()) {
+    s += "- **" + f.name + "** (";
+    for (size_t i = 0; i < f.extensions.size(); ++i) s += (i ? ", " : "") + f.extensions[i];
+    s += std::string(")") + (f.write ? ": read and write" : ": read") + "\n";
+  }
+  return s;
+}
+
+// The reader's options from the node's checked parameters (as validate() sees them).
+VolumeReadOptions read_options(const ParamMap& params) {
+  VolumeReadOptions o;
+  o.dataset = std::get<std::string>(params.at("dataset"));
+  o.level = static_cast<int>(std::get<int64_t>(params.at("level")));
+  o.spacing = std::get<std::vector<double>>(params.at("spacing"));
+  o.unit = std::get<std::string>(params.at("unit"));
+  o.channel = static_cast<int>(std::get<int64_t>(params.at("channel")));
+  o.raw.dims = std::get<std::vector<int64_t>>(params.at("raw_dims"));
+  o.raw.type = std::get<std::string>(params.at("raw_type"));
+  if (o.raw.type == "none") o.raw.type.clear();
+  o.raw.big_endian = std::get<std::string>(params.at("raw_byte_order")) == "big";
+  o.raw.header_bytes = std::get<int64_t>(params.at("raw_header_bytes"));
+  return o;
+}
+
 class ReadVolume final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec(names::read_volume, "Read a volume from an HDF5 file")
-        .add_output("volume", all_volume_types(), "the volume, spacing and origin from the file's attributes")
-        .path("path", "", PathRole::Input, "HDF5 file (.h5, .hdf5); relative to the pipeline's folder")
-        .param<std::string>("dataset", "/volume", "dataset holding the volume, shape [z][y][x]")
+    return ModuleSpec(names::read_volume, "Read a volume from an image file (format chosen by extension)")
+        .add_output("volume", all_volume_types(), "the volume with spacing, origin and unit from the file (or the parameters)")
+        .path("path", "", PathRole::Input,
+              "volume file, or a folder or file-name pattern (slices/z*.tif) of TIFF slices; relative to the pipeline's folder")
+        .extensions(readable_volume_extensions())
+        .accepts_folder()
+        .param("dataset", &VolumeReadOptions::dataset,
+               "HDF5 dataset / Zarr array inside the file; empty: the format's default (/volume for HDF5)")
+        .optional_value()
+        .param("level", &VolumeReadOptions::level, "multiscale level (OME-Zarr); 0 = full resolution").min(0)
+        .param("spacing", &VolumeReadOptions::spacing,
+               "voxel spacing (x, y, z) replacing the file's; empty: the file's (1 if it states none)")
+        .length(3).optional_value()
+        .param("unit", &VolumeReadOptions::unit,
+               "physical unit of spacing and origin (\"mm\", \"nm\", ...) replacing the file's; empty: the file's")
+        .optional_value()
+        .param("channel", &VolumeReadOptions::channel,
+               "multi-channel or RGB files: the channel to read (0-based); -1: the file must have one channel")
+        .min(-1)
+        .param<std::vector<int64_t>>("raw_dims", {}, "raw files: dims (x, y, z) in voxels")
+        .length(3).optional_value()
+        .choice("raw_type", {"none", "uint8", "int8", "uint16", "int16", "uint32", "int32", "uint64", "int64", "float32", "float64"},
+                "none", "raw files: the stored voxel type")
+        .choice("raw_byte_order", {"little", "big"}, "little", "raw files: byte order of multi-byte voxels")
+        .param<int64_t>("raw_header_bytes", 0, "raw files: bytes to skip before the first voxel").min(0)
         .choice("dtype", {"keep", "uint8", "uint16", "uint32", "int32", "float32", "float64"}, "keep",
                 "convert the voxels to this type (clamped), or keep the file's type")
-        .details(R"(Reads a three-dimensional integer or float dataset stored C-order as [z][y][x] (x
-fastest). Attributes `spacing` and `origin` (3 numbers each, as (x, y, z), physical units) give the
-grid; missing attributes mean spacing 1 and origin 0. uint8/16/32/64, float32 and float64 are kept as
-they are, int8/int16/int32 become int32, int64 becomes float64. A missing file, a file that is not HDF5
-or is truncated, a missing dataset (the message lists those present), a dataset that is not 3D and an
-unsupported type are errors naming the file. Memory: the volume itself; chunked datasets are read
-with a 256 MiB chunk cache.)");
+        .output_type_from("volume", [](const OutputTypeQuery& q) {
+          const std::string dt = std::get<std::string>(q.params.at("dtype"));
+          const std::filesystem::path path = q.input_path("path");
+          const VolumeHeader h = read_volume_header(path, read_options(q.params));
+          if (dt != "keep") return DeducedOutput{{volume_type_for_dtype(dt)}, "converted to " + dt};
+          std::string why = path.string();  // built by appending: GCC 12 warns falsely (-Wrestrict) on "'" + s
+          why.insert(why.begin(), '\'');
+          why += "' holds " + h.dtype + " voxels";
+          return DeducedOutput{{volume_type_for_dtype(h.dtype)}, why};
+        })
+        .details(R"(Reads a three-dimensional image; the format is chosen by the file's extension (or,
+for an unknown extension, by its first bytes). Formats:
+
+)" + format_list() + R"(
+`skelflow info FILE` shows what a file holds (voxel type, dims, spacing, unit, compression).
+TIFF: a multi-page stack, or a folder of single-slice files (or a pattern such as `slices/z*.tif`)
+sorted naturally (z2 before z10); 8/16/32/64-bit unsigned, signed and float samples, BigTIFF,
+strips or tiles, any compression libtiff decodes (none, LZW, deflate, PackBits); only the pages and
+strips a box touches are decoded. RGB and multi-channel files (samples per pixel, ImageJ or OME
+channels) need `channel`.
+
+raw (`.raw`): voxels x fastest, without a header or after `raw_header_bytes`; `raw_dims`,
+`raw_type` and `spacing` are required (`unit` and `raw_byte_order` optional); the file's size must
+equal the header plus the voxels, checked before anything is allocated.
+
+Spacing, origin and unit come from the file's own metadata (HDF5: attributes `spacing`, `origin`
+(x, y, z) and `unit`, or Fiji/BigDataViewer/ilastik's `element_size_um`; TIFF: ImageJ calibration
+(XResolution/YResolution, `spacing=` and `unit=` in the description) or OME-XML
+(PhysicalSizeX/Y/Z and their units)); a file that states none
+gets spacing 1, origin 0 and the unit )" + std::string(kDefaultUnit) + R"(. The parameters `spacing` and `unit` replace what the file
+says (the origin keeps its position in voxels). uint8/16/32/64, float32 and float64 are kept as
+they are, int8/int16/int32 become int32, int64 becomes float64. `skelflow validate` reads the file's
+header, so a missing, truncated or foreign file and a voxel type the next node does not take are
+reported before anything runs. Memory: the volume itself (its voxel size in bytes per voxel; with
+`dtype`, the converted copy too).)");
   }
   void run(RunContext& ctx) override {
     const auto path = ctx.input_path("path");
-    DataPtr v = io::read_volume(path, ctx.param<std::string>("dataset"));
+    ParamMap params;
+    for (const auto& p : ctx.spec().params()) params[p.name] = ctx.param_value(p.name);
+    VolumeReadOptions o = read_options(params);
+    o.threads = ctx.threads();
+    DataPtr v = read_any_volume(path, o);
     const std::string dt = ctx.param<std::string>("dtype");
     if (dt != "keep") {
       volume::ConvertOptions o;
@@ -45,23 +125,29 @@ SKEL_REGISTER_MODULE(ReadVolume);
 class WriteVolume final : public Module {
 public:
   static ModuleSpec spec() {
-    return ModuleSpec(names::write_volume, "Write a volume to an HDF5 file")
+    return ModuleSpec(names::write_volume, "Write a volume to an image file (format chosen by extension)")
         .add_input("volume", all_volume_types(), "volume to write", true)
-        .path("path", "", PathRole::Output, "HDF5 file to create (.h5); written to a temporary file and renamed when the run succeeds")
-        .extensions({".h5", ".hdf5"})
-        .param<std::string>("dataset", "/volume", "dataset name (groups are created)")
-        .param("compression", &io::WriteOptions::compression, "deflate level (0 = none; 1 is fast and compresses masks ~20x)").range(0, 9)
-        .details(R"(Writes the volume as a dataset of shape [z][y][x] in its own voxel type, with attributes
-`spacing` and `origin` as (x, y, z). Chunks hold about 1 MiB and are as cube-like as the dims allow
-(128x128x64 for uint8, 64x64x64 for float32): whole-volume reads stay fast (HDF5's small automatic
-chunks read at only ~300 MB/s) and an aligned 64³ block touches one chunk; compression adds the shuffle filter for multi-byte types and runs on
-the node's threads (chunks compressed in parallel, stored as HDF5's own filters would). The file is
-written under a temporary name and renamed only when the whole pipeline run succeeds. Memory: no copy
-of the volume.)");
+        .path("path", "", PathRole::Output,
+              "volume file to create; written to a temporary file and renamed when the run succeeds")
+        .extensions(writable_volume_extensions())
+        .param("dataset", &VolumeWriteOptions::dataset, "HDF5 dataset / Zarr array name (groups are created); empty: /volume")
+        .optional_value()
+        .param("compression", &VolumeWriteOptions::compression,
+               "compression level (0 = none); HDF5: deflate level, 1 is fast and compresses masks ~20x").range(0, 9)
+        .details(R"(Writes the volume in the format its path's extension names, with its spacing, origin
+and unit. HDF5: a dataset of shape [z][y][x] in the volume's own voxel type with attributes `spacing`
+and `origin` (x, y, z) and `unit`; chunks hold about 1 MiB and are as cube-like as the dims allow
+(128x128x64 for uint8, 64x64x64 for float32): whole-volume reads stay fast and an aligned 64³ block
+touches one chunk; compression adds the shuffle filter for multi-byte types and runs on the node's
+threads. TIFF: one page per z slice with ImageJ calibration (pixel width/height as resolution,
+`spacing=` and `unit=` in the description; OME-XML instead for names ending in .ome.tif), BigTIFF
+when the voxels exceed 4 GiB, deflate at `compression` > 0 (0: uncompressed, for readers without
+deflate); a volume with direction cosines is refused (TIFF cannot store them). The file is written
+under a temporary name and renamed only when the whole pipeline run succeeds. Memory: no copy of the
+volume (0 bytes per voxel).)");
   }
   void run(RunContext& ctx) override {
-    io::write_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.param<std::string>("dataset"),
-                     ctx.options<io::WriteOptions>());
+    write_any_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.options<VolumeWriteOptions>());
   }
 };
 SKEL_REGISTER_MODULE(WriteVolume);
@@ -83,8 +169,16 @@ public:
 };
 SKEL_REGISTER_MODULE(WriteTable);
 
-SKEL_REGISTER_INSPECTOR("HDF5 file", {".h5", ".hdf5", ".he5"},
-                        [](const std::filesystem::path& p) { return io::describe_file(p); });
+SKEL_REGISTER_INSPECTOR("volume file", readable_volume_extensions(),
+                        [](const std::filesystem::path& p) { return describe_volume_file(p); },
+                        [](const std::filesystem::path& p) {  // folders and patterns of slices, magic bytes
+                          try {
+                            (void)volume_format_for_read(p);
+                            return true;
+                          } catch (const Error&) {
+                            return false;
+                          }
+                        });
 
 }  // namespace
 }  // namespace skel::io

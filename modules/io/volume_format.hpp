@@ -32,6 +32,20 @@ struct VolumeReadOptions {
   std::string dataset;  // HDF5 dataset / Zarr array path inside the file; "" = the format's default
   int level = 0;        // multiscale level (OME-Zarr), 0 = full resolution
   int threads = 0;      // decompression threads; <= 0: all hardware threads
+  int channel = -1;     // multi-channel / RGB files: the channel to read (0-based); -1: the file must have one
+  // Raw files (.raw) state nothing: their layout is given here. dims (x, y, z) and the stored type
+  // (uint8, int8, uint16, int16, uint32, int32, uint64, int64, float32, float64) are required.
+  struct Raw {
+    std::vector<int64_t> dims;
+    std::string type;
+    bool big_endian = false;
+    int64_t header_bytes = 0;  // bytes before the first voxel
+  } raw;
+  // Overrides of what the file says, applied by read_volume_header / read_any_volume /
+  // read_any_volume_box after the format's reader (formats ignore them): 3 values (x, y, z) > 0, or
+  // empty; a unit, or empty.
+  std::vector<double> spacing;
+  std::string unit;
 };
 
 struct VolumeWriteOptions {
@@ -43,6 +57,9 @@ struct VolumeWriteOptions {
 struct VolumeFormat {
   std::string name;                     // "TIFF", "NRRD", ... as shown to users
   std::vector<std::string> extensions;  // lower case, with the dot; compound ones allowed (".nii.gz")
+  // Reads a folder of single-slice files with these extensions (sorted naturally: z2 before z10), or
+  // a file-name pattern ("slices/z*.tif"), as one volume.
+  bool slice_folders = false;
   // True when the file's first bytes (up to 512) are this format's; null: known by extension only.
   std::function<bool(std::string_view head)> sniff;
   // Required. Throws InputError naming the file and what is wrong.
@@ -65,10 +82,11 @@ struct VolumeFormat {
 const std::vector<VolumeFormat>& volume_formats();
 
 // The format of `path` for reading: by its extension (the longest matching one, any case); when no
-// extension matches, by the file's first bytes. Throws InputError naming the file and listing the
+// extension matches, by the file's first bytes; a folder or a file-name pattern (*, ?) by the
+// extensions of the files in it, for formats with slice_folders. Throws InputError naming the file and listing the
 // known extensions.
 const VolumeFormat& volume_format_for_read(const std::filesystem::path& path);
-// The format that writes `path`, by extension only. Throws InputError naming the file and listing
+// The format that writes `path` (or, for the engine's temporary, its final path), by extension only. Throws InputError naming the file and listing
 // the extensions that can be written.
 const VolumeFormat& volume_format_for_write(const std::filesystem::path& path);
 // Extensions that can be read / written, for ModuleSpec::extensions and file dialogs.
@@ -78,6 +96,12 @@ std::vector<std::string> writable_volume_extensions();
 // Convenience: header / volume of any supported file.
 VolumeHeader read_volume_header(const std::filesystem::path& path, const VolumeReadOptions& options = {});
 DataPtr read_any_volume(const std::filesystem::path& path, const VolumeReadOptions& options = {});
+// A box [begin, begin + size) (x, y, z) of any supported file: the format's read_box, or (for formats
+// without one) the whole volume read and cut. Throws InputError when the box is outside the volume.
+DataPtr read_any_volume_box(const std::filesystem::path& path, const VolumeReadOptions& options, Dims begin, Dims size);
+// The port type id ("volume.u16", ...) a reader gives for a stored dtype (int8/int16 -> volume.i32,
+// int64 -> volume.f64). Throws InputError for an unknown dtype.
+std::string volume_type_for_dtype(const std::string& dtype);
 void write_any_volume(const std::filesystem::path& path, const DataObject& volume, const VolumeWriteOptions& options = {});
 // `skelflow info` text of a volume file (the format's describe, or one made from its header).
 std::string describe_volume_file(const std::filesystem::path& path);

@@ -1,21 +1,27 @@
 // The volume format registry: the list of formats and the lookups by extension and magic bytes.
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
 #include "io/volume_format.hpp"
 #include "skel/error.hpp"
+#include "skel/fs.hpp"
 
 namespace skel::io {
 
 // Each format file defines one of these.
 VolumeFormat hdf5_volume_format();
+VolumeFormat tiff_volume_format();
+VolumeFormat raw_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
     std::vector<VolumeFormat> f;
     f.push_back(hdf5_volume_format());
+    f.push_back(tiff_volume_format());
+    f.push_back(raw_volume_format());
     return f;
   }();
   return formats;
@@ -48,6 +54,11 @@ const VolumeFormat* by_extension(const std::filesystem::path& path, bool writabl
   return best;
 }
 
+bool fs_is_directory(const std::filesystem::path& p) {
+  std::error_code ec;
+  return std::filesystem::is_directory(p, ec);
+}
+
 std::string join(const std::vector<std::string>& v) {
   std::string s;
   for (size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + v[i];
@@ -70,7 +81,22 @@ std::vector<std::string> writable_volume_extensions() {
 }
 
 const VolumeFormat& volume_format_for_read(const std::filesystem::path& path) {
-  if (const auto* f = by_extension(path, false)) return *f;
+  if (const auto* f = by_extension(path, false)) {
+    // "slices/z*.tif": a pattern of a slice-folder format.
+    if (path.filename().string().find_first_of("*?[") == std::string::npos || f->slice_folders) return *f;
+  }
+  std::error_code ec;
+  if (fs_is_directory(path) || path.filename().string().find_first_of("*?[") != std::string::npos) {
+    // A folder of slices: the format of its files.
+    if (fs_is_directory(path))
+      for (const auto& e : std::filesystem::directory_iterator(path, ec))
+        if (const auto* f = by_extension(e.path(), false); f && f->slice_folders) return *f;
+    std::vector<std::string> exts;
+    for (const auto& f : volume_formats())
+      if (f.slice_folders) exts.insert(exts.end(), f.extensions.begin(), f.extensions.end());
+    throw InputError(path.string() + ": " + (fs_is_directory(path) ? "folder holds no slice files" : "pattern names no slice files") +
+                     " Skelflow reads (extensions: " + join(exts) + ")");
+  }
   std::string head;
   if (std::ifstream in(path, std::ios::binary); in) {
     head.resize(512);
@@ -84,17 +110,106 @@ const VolumeFormat& volume_format_for_read(const std::filesystem::path& path) {
 }
 
 const VolumeFormat& volume_format_for_write(const std::filesystem::path& path) {
-  if (const auto* f = by_extension(path, true)) return *f;
-  throw InputError(path.string() + ": cannot write a volume of this type (extensions that can be written: " +
+  // The engine's temporary (".v.h5.skelflow-tmp-...") is written in the format of its final name.
+  const std::filesystem::path final_path = display_path(path);
+  if (const auto* f = by_extension(final_path, true)) return *f;
+  throw InputError(final_path.string() + ": cannot write a volume of this type (extensions that can be written: " +
                    join(writable_volume_extensions()) + ")");
 }
 
+namespace {
+
+// The spacing and unit overrides of `o`, checked (the module checks them too; this names the file).
+void check_overrides(const std::filesystem::path& path, const VolumeReadOptions& o) {
+  if (!o.spacing.empty()) {
+    if (o.spacing.size() != 3)
+      throw InputError(path.string() + ": the spacing override needs 3 values (x, y, z), got " +
+                       std::to_string(o.spacing.size()));
+    for (double v : o.spacing)
+      if (!(v > 0) || !std::isfinite(v)) throw InputError(path.string() + ": the spacing override must be > 0 on every axis");
+  }
+}
+
+void override_grid(Grid& g, const VolumeReadOptions& o) {
+  if (!o.spacing.empty()) {
+    // The origin of a box stays at the same physical place in voxels: scale it with the spacing.
+    for (size_t k = 0; k < 3; ++k) {
+      g.origin[k] = g.spacing[k] > 0 ? g.origin[k] / g.spacing[k] * o.spacing[k] : g.origin[k];
+      g.spacing[k] = o.spacing[k];
+    }
+  }
+  if (!o.unit.empty()) g.unit = o.unit;
+}
+
+// Applies the overrides to a volume the reader has just made (not shared with anyone yet).
+DataPtr with_overrides(DataPtr v, const VolumeReadOptions& o) {
+  if (o.spacing.empty() && o.unit.empty()) return v;
+  visit_volume(*v, "volume", [&](const auto& vol) {
+    using V = std::decay_t<decltype(vol)>;
+    auto& mine = const_cast<V&>(vol);  // the reader's fresh object: safe to change before it is shared
+    Grid g = mine.grid();
+    override_grid(g, o);
+    mine.copy_geometry(g);
+  });
+  return v;
+}
+
+}  // namespace
+
 VolumeHeader read_volume_header(const std::filesystem::path& path, const VolumeReadOptions& options) {
-  return volume_format_for_read(path).read_header(path, options);
+  check_overrides(path, options);
+  VolumeHeader h = volume_format_for_read(path).read_header(path, options);
+  override_grid(h.grid, options);
+  if (!options.spacing.empty()) h.has_spacing = true;
+  if (!options.unit.empty()) h.has_unit = true;
+  return h;
 }
 
 DataPtr read_any_volume(const std::filesystem::path& path, const VolumeReadOptions& options) {
-  return volume_format_for_read(path).read(path, options);
+  check_overrides(path, options);
+  return with_overrides(volume_format_for_read(path).read(path, options), options);
+}
+
+DataPtr read_any_volume_box(const std::filesystem::path& path, const VolumeReadOptions& options, Dims begin, Dims size) {
+  check_overrides(path, options);
+  const VolumeFormat& f = volume_format_for_read(path);
+  if (f.read_box) {
+    const VolumeHeader h = f.read_header(path, options);
+    for (int k = 0; k < 3; ++k)
+      if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > h.grid.dims[k])
+        throw InputError(path.string() + ": box at (" + std::to_string(begin[0]) + ", " + std::to_string(begin[1]) + ", " +
+                         std::to_string(begin[2]) + ") of size " + std::to_string(size[0]) + "x" +
+                         std::to_string(size[1]) + "x" + std::to_string(size[2]) + " is outside the volume (" +
+                         std::to_string(h.grid.dims[0]) + "x" + std::to_string(h.grid.dims[1]) + "x" +
+                         std::to_string(h.grid.dims[2]) + ")");
+    return with_overrides(f.read_box(path, options, begin, size), options);
+  }
+  DataPtr whole = f.read(path, options);
+  return with_overrides(visit_volume(*whole, "volume", [&](const auto& v) -> DataPtr {
+    using T = typename std::decay_t<decltype(v)>::value_type;
+    for (int k = 0; k < 3; ++k)
+      if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > v.dims()[k])
+        throw InputError(path.string() + ": box outside the volume");
+    Grid g = v.grid();
+    g.dims = size;
+    for (int k = 0; k < 3; ++k) g.origin[k] += static_cast<double>(begin[k]) * g.spacing[k];
+    auto out = std::make_shared<Volume<T>>(Volume<T>::uninitialized(g));
+    for (int64_t z = 0; z < size[2]; ++z)
+      for (int64_t y = 0; y < size[1]; ++y)
+        std::copy_n(&v(begin[0], begin[1] + y, begin[2] + z), size[0], &(*out)(0, y, z));
+    return out;
+  }), options);
+}
+
+std::string volume_type_for_dtype(const std::string& dtype) {
+  if (dtype == "uint8") return type_ids::volume_u8;
+  if (dtype == "uint16") return type_ids::volume_u16;
+  if (dtype == "uint32") return type_ids::volume_u32;
+  if (dtype == "uint64") return type_ids::volume_u64;
+  if (dtype == "int8" || dtype == "int16" || dtype == "int32") return type_ids::volume_i32;
+  if (dtype == "float32") return type_ids::volume_f32;
+  if (dtype == "float64" || dtype == "int64") return type_ids::volume_f64;
+  throw InputError("unknown voxel type '" + dtype + "'");
 }
 
 void write_any_volume(const std::filesystem::path& path, const DataObject& volume, const VolumeWriteOptions& options) {
@@ -103,10 +218,12 @@ void write_any_volume(const std::filesystem::path& path, const DataObject& volum
 
 std::string describe_volume_file(const std::filesystem::path& path) {
   const VolumeFormat& f = volume_format_for_read(path);
-  if (f.describe) return f.describe(path);
-  const VolumeHeader h = f.read_header(path, {});
-  const Grid& g = h.grid;
   std::string s = "  format: " + f.name + "\n";
+  if (f.describe) return s + f.describe(path);
+  VolumeReadOptions first_channel;  // a multi-channel file is described by its first channel (details name the count)
+  first_channel.channel = 0;
+  const VolumeHeader h = f.read_header(path, first_channel);
+  const Grid& g = h.grid;
   s += "  voxels: " + h.dtype + " " + std::to_string(g.dims[0]) + "x" + std::to_string(g.dims[1]) + "x" +
        std::to_string(g.dims[2]) + " (x,y,z)\n";
   auto vec = [](const Vec3& v) {
@@ -114,7 +231,8 @@ std::string describe_volume_file(const std::filesystem::path& path) {
     o << v[0] << " " << v[1] << " " << v[2];
     return o.str();
   };
-  s += "  spacing: " + vec(g.spacing) + " " + g.unit + (h.has_spacing ? "" : " (default)") + "\n";
+  s += "  spacing: " + vec(g.spacing) + " " + g.unit + (h.has_spacing ? "" : " (default)") +
+       (h.has_unit ? "" : " (unit: default)") + "\n";
   s += "  origin: " + vec(g.origin) + " " + g.unit + (h.has_origin ? "" : " (default)") + "\n";
   if (g.direction != kIdentityDirection) {
     std::ostringstream o;

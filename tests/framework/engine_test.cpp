@@ -613,3 +613,47 @@ nodes:
   EXPECT_TRUE(r.ok);
   EXPECT_EQ(r.nodes.size(), 3u);
 }
+
+// ModuleSpec::output_type_from: validate() narrows an output's types from the parameters (here without
+// a file) and reports what the function throws at the node.
+namespace {
+class TypedSource final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("test_engine.typed_source", "A volume of the type named by `dtype`")
+        .add_output("volume", {type_ids::volume_u8, type_ids::volume_f32}, "one voxel")
+        .choice("dtype", {"u8", "f32", "broken"}, "u8", "voxel type; broken: the type cannot be told")
+        .output_type_from("volume", [](const OutputTypeQuery& q) {
+          const std::string t = std::get<std::string>(q.params.at("dtype"));
+          if (t == "broken") throw InputError("cannot tell the voxel type");
+          return DeducedOutput{{t == "u8" ? type_ids::volume_u8 : type_ids::volume_f32}, "dtype " + t};
+        });
+  }
+  void run(RunContext& ctx) override {
+    if (ctx.param<std::string>("dtype") == "u8") ctx.output("volume", VolumeU8(Dims{1, 1, 1}));
+    else ctx.output("volume", VolumeF32(Dims{1, 1, 1}));
+  }
+};
+SKEL_REGISTER_MODULE(TypedSource);
+}  // namespace
+
+TEST(Engine, OutputTypeFromNarrowsTypesAtValidation) {
+  auto check = [](const std::string& dtype) {
+    const std::string yaml = "skelflow: 1\nnodes:\n  src: {module: test_engine.typed_source, params: {dtype: " + dtype +
+                             "}}\n  scale: {module: test.scale, inputs: {volume: src.volume}}\n";
+    std::vector<std::string> r;
+    for (const auto& d : validate(Pipeline::parse(yaml, "p.yaml"))) r.push_back(d.format());
+    return r;
+  };
+  // Declared u8|f32 meets test.scale's f32 either way; the deduced type decides.
+  EXPECT_TRUE(check("f32").empty());
+  const auto u8 = check("u8");
+  ASSERT_EQ(u8.size(), 1u);
+  EXPECT_EQ(u8[0], "p.yaml:4:48: node 'scale': input 'volume': type mismatch: src.volume gives volume.u8 (dtype u8), but "
+                   "'volume' takes volume.f32");
+  const auto broken = check("broken");
+  ASSERT_EQ(broken.size(), 1u);
+  EXPECT_EQ(broken[0], "p.yaml:3:3: node 'src': cannot tell the voxel type");
+  // Unknown output port: a programming error when the spec is built.
+  EXPECT_THROW(ModuleSpec("x.y", "z").output_type_from("nope", {}), Error);
+}

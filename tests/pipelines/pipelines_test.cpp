@@ -10,6 +10,7 @@
 #include "skel/executor.hpp"
 #include "skel/mesh.hpp"
 #include "skel/pipeline.hpp"
+#include "skel/run_module.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
 
@@ -114,4 +115,34 @@ TEST(Pipelines, BonePipelinesWriteMeshes) {
   EXPECT_LT(lines->triangle_count(), lines->line_count());  // a curve skeleton: lines, at most a few 2-cells
   for (const char* f : {"bone_curve/geodesic_guided_lines.vtp", "bone_curve/distance_ordered_lines.vtp", "bone_curve/bone_surface.stl"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
+}
+
+// The "bring your own data" example: a 16-bit TIFF stack with ImageJ calibration in mm runs end to
+// end, its outputs in the file's unit. The stack is the vessel phantom (data/README.md), so the
+// reconstruction's total length matches the phantom's ground truth in mm.
+TEST(Pipelines, VesselsFromTiffRunsInTheUnitOfTheFile) {
+  const fs::path out = scratch("vessels_from_tiff");
+  Pipeline p = Pipeline::load_file(pipeline("vessels_from_tiff.yaml"));
+  Executor ex;
+  ExecOptions o;
+  o.output_dir = out;
+  o.threads = 2;
+  o.keep_outputs = true;
+  RunReport r = ex.run(p, o);
+  ASSERT_TRUE(r.ok) << r.error;
+  for (const char* f : {"network.am", "network.vtp", "segments.csv", "summary.csv"})
+    EXPECT_TRUE(fs::exists(out / "vessels_from_tiff" / f)) << f;
+  auto image = std::dynamic_pointer_cast<const VolumeU16>(ex.output(p, "image", "volume"));
+  ASSERT_TRUE(image);
+  EXPECT_EQ(image->unit(), "mm");
+  EXPECT_EQ(image->spacing(), (Vec3{0.005, 0.005, 0.005}));
+  EXPECT_EQ(image->dims(), (Dims{96, 96, 64}));
+  // Ground truth of the same phantom, scaled to the file's 5 µm voxels.
+  ParamMap truth_params{{"size", std::vector<int64_t>{96, 96, 64}}, {"seed", int64_t{3}}, {"roots", int64_t{4}},
+                        {"noise", 0.0}, {"spacing", std::vector<double>{0.005, 0.005, 0.005}}};
+  auto truth = run_module("synthetic.vessel_tree", {}, truth_params, {.threads = 2}).get<SpatialGraph>("truth");
+  auto summary = std::dynamic_pointer_cast<const Table>(ex.output(p, "stats", "summary"));
+  ASSERT_TRUE(summary);
+  const double length = summary->reals("total_length")[0];
+  EXPECT_NEAR(length, truth->total_length(), 0.1 * truth->total_length()) << "mm";
 }

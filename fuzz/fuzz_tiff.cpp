@@ -1,0 +1,21 @@
+// The TIFF path: the input is written to a scratch .tif file, then the registry reads its header (as
+// validate does) and, when the declared volume is small, its voxels (as io.read_volume does), the
+// first channel of multi-channel files.
+#include "fuzz_common.hpp"
+#include "io/volume_format.hpp"
+#include "skel/error.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  static skel::fuzz::ScratchFile file(".tif");
+  const auto& path = file.write(data, size);
+  try {
+    skel::io::VolumeReadOptions o;
+    o.channel = 0;
+    const skel::io::VolumeHeader h = skel::io::read_volume_header(path, o);
+    const double voxels = static_cast<double>(h.grid.dims[0]) * static_cast<double>(h.grid.dims[1]) *
+                          static_cast<double>(h.grid.dims[2]);
+    if (voxels <= double(1 << 24)) (void)skel::io::read_any_volume(path, o);
+  } catch (const skel::Error&) {
+  }
+  return 0;
+}
