@@ -11,11 +11,15 @@ namespace skel::io {
 
 // Each format file defines one of these.
 VolumeFormat hdf5_volume_format();
+VolumeFormat nrrd_volume_format();
+VolumeFormat nhdr_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
     std::vector<VolumeFormat> f;
     f.push_back(hdf5_volume_format());
+    f.push_back(nrrd_volume_format());
+    f.push_back(nhdr_volume_format());
     return f;
   }();
   return formats;
