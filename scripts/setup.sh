@@ -33,6 +33,7 @@ packages=(
   xvfb xauth
   clang libclang-rt-14-dev
   python3-scipy python3-skimage python3-h5py python3-numpy
+  python3-vtk9 python3-nibabel
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -13,6 +13,8 @@ namespace skel::io {
 VolumeFormat hdf5_volume_format();
 VolumeFormat nrrd_volume_format();
 VolumeFormat nhdr_volume_format();
+VolumeFormat metaimage_volume_format();
+VolumeFormat mhd_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
@@ -20,6 +22,8 @@ const std::vector<VolumeFormat>& volume_formats() {
     f.push_back(hdf5_volume_format());
     f.push_back(nrrd_volume_format());
     f.push_back(nhdr_volume_format());
+    f.push_back(metaimage_volume_format());
+    f.push_back(mhd_volume_format());
     return f;
   }();
   return formats;
