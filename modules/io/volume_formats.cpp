@@ -16,6 +16,7 @@ VolumeFormat nhdr_volume_format();
 VolumeFormat metaimage_volume_format();
 VolumeFormat mhd_volume_format();
 VolumeFormat nifti_volume_format();
+VolumeFormat vti_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
@@ -26,6 +27,7 @@ const std::vector<VolumeFormat>& volume_formats() {
     f.push_back(metaimage_volume_format());
     f.push_back(mhd_volume_format());
     f.push_back(nifti_volume_format());
+    f.push_back(vti_volume_format());
     return f;
   }();
   return formats;
