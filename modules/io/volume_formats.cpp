@@ -17,6 +17,7 @@ VolumeFormat metaimage_volume_format();
 VolumeFormat mhd_volume_format();
 VolumeFormat nifti_volume_format();
 VolumeFormat vti_volume_format();
+VolumeFormat amira_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
@@ -28,6 +29,7 @@ const std::vector<VolumeFormat>& volume_formats() {
     f.push_back(mhd_volume_format());
     f.push_back(nifti_volume_format());
     f.push_back(vti_volume_format());
+    f.push_back(amira_volume_format());
     return f;
   }();
   return formats;
