@@ -18,6 +18,7 @@ VolumeFormat mhd_volume_format();
 VolumeFormat nifti_volume_format();
 VolumeFormat vti_volume_format();
 VolumeFormat amira_volume_format();
+VolumeFormat zarr_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
@@ -30,6 +31,7 @@ const std::vector<VolumeFormat>& volume_formats() {
     f.push_back(nifti_volume_format());
     f.push_back(vti_volume_format());
     f.push_back(amira_volume_format());
+    f.push_back(zarr_volume_format());
     return f;
   }();
   return formats;
