@@ -239,7 +239,8 @@ std::string normalize_unit(const std::string& unit) {
   const std::string u = text::trim(unit);
   const std::string l = text::to_lower(u);
   if (l == "um" || l == "micron" || l == "microns" || l == "micrometer" || l == "micrometre" ||
-      l == "micrometers" || l == "micrometres" || u == "\xce\xbcm" /* Greek mu */ || u == "\xc2\xb5m")
+      l == "micrometers" || l == "micrometres" || u == "\xce\xbcm" /* Greek mu */ || u == "\xc2\xb5m" ||
+      u == "\xb5m" /* Latin-1 micro sign (older Amira files) */)
     return kDefaultUnit;
   if (l == "millimeter" || l == "millimetre" || l == "millimeters" || l == "millimetres") return "mm";
   if (l == "nanometer" || l == "nanometre" || l == "nanometers" || l == "nanometres") return "nm";

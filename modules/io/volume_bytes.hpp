@@ -54,7 +54,8 @@ void read_exact(const std::filesystem::path& path, uint64_t offset, char* dst, u
 // The size of a file; InputError naming it when it does not exist.
 uint64_t file_size(const std::filesystem::path& path);
 
-// One spelling per unit: "um", "micron", "micrometer", "μm" (Greek mu) become "µm" (kDefaultUnit),
+// One spelling per unit: "um", "micron", "micrometer", "μm" (Greek mu), a Latin-1 micro sign become
+// "µm" (kDefaultUnit),
 // "millimeter" "mm", "nanometer" "nm", "meter" "m"; any other name stays as written (trimmed).
 std::string normalize_unit(const std::string& unit);
 
