@@ -10,7 +10,8 @@
 // Write: an OME-Zarr 0.4 group with one level "0" (axes z, y, x with the unit, scale and translation),
 // chunks of about 1 MiB (as HDF5's), "/" keys, blosc lz4 with byte shuffle at level = compression
 // (null when 0), chunks that are all 0 not stored (they read as fill_value 0). The directory is
-// written under a temporary name and renamed into place. A volume with a direction cannot be stored
+// written under a temporary name and renamed into place. Block-wise writing for out-of-core stages:
+// create_zarr_volume / write_zarr_box (zarr_volume.hpp). A volume with a direction cannot be stored
 // (OME-Zarr 0.4 has no rotation).
 #include <blosc.h>
 #include <unistd.h>
@@ -29,6 +30,7 @@
 #include "io/hdf5_volume.hpp"
 #include "io/volume_bytes.hpp"
 #include "io/volume_format.hpp"
+#include "io/zarr_volume.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/parallel.hpp"
@@ -52,6 +54,9 @@ struct ZArray {
   size_t itemsize = 1;
   Codec codec = Codec::none;
   std::string codec_name;         // for describe
+  int clevel = 5;                 // compression level for writing (blosc clevel, zlib/gzip/zstd level)
+  std::string cname = "lz4";      // blosc compressor name
+  int shuffle = 1;                // blosc shuffle (0 none, 1 byte, 2 bit)
   std::string sep = ".";
   std::string fill_bytes;         // one voxel of fill_value, in the file's byte order
   VolumeHeader header;
@@ -177,12 +182,17 @@ void parse_zarray(ZArray& a, const fs::path& dir) {
     a.codec_name = "none";
   } else {
     const std::string id = c.is_object() && c.contains("id") && c["id"].is_string() ? c["id"].get<std::string>() : "";
-    if (id == "blosc") a.codec = Codec::blosc, a.codec_name = "blosc" + (c.contains("cname") ? " " + c["cname"].get<std::string>() : "");
-    else if (id == "zlib" || id == "gzip") a.codec = Codec::zlib, a.codec_name = id;
-    else if (id == "zstd") a.codec = Codec::zstd, a.codec_name = "zstd";
+    if (id == "blosc") a.codec = Codec::blosc;
+    else if (id == "zlib" || id == "gzip") a.codec = Codec::zlib;
+    else if (id == "zstd") a.codec = Codec::zstd;
     else
       throw InputError(where + ": unsupported compressor " + (id.empty() ? c.dump().substr(0, 60) : "'" + id + "'") +
                        " (blosc, zlib, gzip, zstd or null)");
+    a.codec_name = id;
+    if (c.contains("cname") && c["cname"].is_string()) a.cname = c["cname"].get<std::string>(), a.codec_name += " " + a.cname;
+    if (c.contains("clevel") && c["clevel"].is_number_integer()) a.clevel = c["clevel"].get<int>();
+    if (c.contains("level") && c["level"].is_number_integer()) a.clevel = c["level"].get<int>();
+    if (c.contains("shuffle") && c["shuffle"].is_number_integer()) a.shuffle = c["shuffle"].get<int>();
   }
   double fill = 0;
   if (j.contains("fill_value") && !j["fill_value"].is_null()) {
@@ -489,18 +499,109 @@ void write_dir_atomically(const fs::path& final_path, const std::function<void(c
   }
 }
 
-void write_zarr(const fs::path& path, const DataObject& volume, const VolumeWriteOptions& o) {
-  const std::string shown = display_path(path).string();
-  const Grid& g = volume_grid(volume, shown);
+// The stored bytes of one chunk, compressed with the array's codec.
+std::string compress_chunk(const ZArray& a, const char* data, size_t n) {
+  switch (a.codec) {
+    case Codec::none: return std::string(data, n);
+    case Codec::zlib: return volbytes::deflate(data, n, std::clamp(a.clevel, 1, 9), a.codec_name == "gzip");
+    case Codec::zstd: {
+      std::string out(ZSTD_compressBound(n), '\0');
+      const size_t r = ZSTD_compress(out.data(), out.size(), data, n, a.clevel);
+      if (ZSTD_isError(r)) throw Error(std::string("zstd: compression failed: ") + ZSTD_getErrorName(r));
+      out.resize(r);
+      return out;
+    }
+    case Codec::blosc: {
+      std::string out(n + BLOSC_MAX_OVERHEAD, '\0');
+      const int r = blosc_compress_ctx(std::clamp(a.clevel, 0, 9), a.shuffle, a.itemsize, n, data, out.data(), out.size(),
+                                       a.cname.c_str(), 0, 1);
+      if (r <= 0) throw Error("blosc: compression with '" + a.cname + "' failed");
+      out.resize(static_cast<size_t>(r));
+      return out;
+    }
+  }
+  return {};
+}
+
+std::string chunk_key(const ZArray& a, int64_t ix, int64_t iy, int64_t iz) {
+  const int nd = a.nd();
+  std::vector<int64_t> idx(static_cast<size_t>(nd), 0);
+  if (nd >= 1) idx[static_cast<size_t>(nd - 1)] = ix;
+  if (nd >= 2) idx[static_cast<size_t>(nd - 2)] = iy;
+  if (nd >= 3) idx[static_cast<size_t>(nd - 3)] = iz;
+  std::string key;
+  for (size_t i = 0; i < idx.size(); ++i) key += (i ? a.sep : "") + std::to_string(idx[i]);
+  return key;
+}
+
+// Writes the stored bytes of a block (x fastest, native little endian) whose voxel (0,0,0) is array
+// voxel `begin`: every chunk it touches is (re)written, partly covered ones read first; chunks that
+// end up all fill_value are removed.
+void write_chunks(const ZArray& a, const char* block, Dims bdims, Dims begin, int threads, const std::string& shown) {
+  const int nd = a.nd();
+  const size_t w = a.itemsize;
+  auto cdim = [&](int k) { return k < nd ? a.chunks[static_cast<size_t>(nd - 1 - k)] : int64_t{1}; };
+  const int64_t cx = cdim(0), cy = cdim(1), cz = cdim(2);
+  const Dims& dims = a.header.grid.dims;
+  uint64_t chunk_bytes = w;
+  for (auto c : a.chunks) chunk_bytes *= static_cast<uint64_t>(c);
+  if (bdims[0] <= 0 || bdims[1] <= 0 || bdims[2] <= 0) return;
+  const int64_t x0 = begin[0] / cx, x1 = (begin[0] + bdims[0] - 1) / cx;
+  const int64_t y0 = begin[1] / cy, y1 = (begin[1] + bdims[1] - 1) / cy;
+  const int64_t z0 = begin[2] / cz, z1 = (begin[2] + bdims[2] - 1) / cz;
+  const int64_t nx = x1 - x0 + 1, ny = y1 - y0 + 1, nz = z1 - z0 + 1;
+  std::mutex dir_mutex;
+  parallel_for(0, nx * ny * nz, threads, [&](int64_t lo, int64_t hi) {
+    std::string buf;
+    for (int64_t c = lo; c < hi; ++c) {
+      const int64_t ix = x0 + c % nx, iy = y0 + (c / nx) % ny, iz = z0 + c / (nx * ny);
+      // The part of the chunk inside the array, and inside the block.
+      const int64_t ax1 = std::min(dims[0], (ix + 1) * cx), ay1 = std::min(dims[1], (iy + 1) * cy),
+                    az1 = std::min(dims[2], (iz + 1) * cz);
+      const int64_t bx = std::max(begin[0], ix * cx), ex = std::min(begin[0] + bdims[0], ax1);
+      const int64_t by = std::max(begin[1], iy * cy), ey = std::min(begin[1] + bdims[1], ay1);
+      const int64_t bz = std::max(begin[2], iz * cz), ez = std::min(begin[2] + bdims[2], az1);
+      const bool whole = bx == ix * cx && ex == ax1 && by == iy * cy && ey == ay1 && bz == iz * cz && ez == az1;
+      std::vector<int64_t> idx(static_cast<size_t>(nd), 0);
+      if (nd >= 1) idx[static_cast<size_t>(nd - 1)] = ix;
+      if (nd >= 2) idx[static_cast<size_t>(nd - 2)] = iy;
+      if (nd >= 3) idx[static_cast<size_t>(nd - 3)] = iz;
+      if (whole || !load_chunk(a, idx, buf, chunk_bytes)) {
+        buf.resize(static_cast<size_t>(chunk_bytes));
+        for (size_t i = 0; i < buf.size(); i += w) std::memcpy(buf.data() + i, a.fill_bytes.data(), w);
+      }
+      const auto row = static_cast<size_t>(ex - bx) * w;
+      for (int64_t z = bz; z < ez; ++z)
+        for (int64_t y = by; y < ey; ++y) {
+          const char* src = block + ((bx - begin[0]) + bdims[0] * ((y - begin[1]) + bdims[1] * (z - begin[2]))) * static_cast<int64_t>(w);
+          char* dst = buf.data() + ((bx - ix * cx) + cx * ((y - iy * cy) + cy * (z - iz * cz))) * static_cast<int64_t>(w);
+          std::memcpy(dst, src, row);
+        }
+      const fs::path file = a.dir / chunk_key(a, ix, iy, iz);
+      bool all_fill = true;
+      for (size_t i = 0; i < buf.size() && all_fill; i += w) all_fill = std::memcmp(buf.data() + i, a.fill_bytes.data(), w) == 0;
+      if (all_fill) {  // not stored: reads as fill_value
+        std::error_code ec;
+        fs::remove(file, ec);
+        continue;
+      }
+      const std::string out = compress_chunk(a, buf.data(), buf.size());
+      if (file.parent_path() != a.dir) {
+        std::lock_guard<std::mutex> lock(dir_mutex);
+        fs::create_directories(file.parent_path());
+      }
+      write_file(file, out.data(), out.size(), shown);
+    }
+  });
+}
+
+// .zgroup, .zattrs (OME-Zarr 0.4 multiscales, one level) and the array's .zarray in `dir`.
+void write_metadata(const fs::path& dir, const std::string& dtype, const Grid& g, std::array<int64_t, 3> c, int level,
+                    const std::string& array_path, const std::string& shown) {
   if (g.direction != kIdentityDirection)
     throw InputError(shown + ": OME-Zarr 0.4 stores no rotation and this volume has a direction (write NRRD, MetaImage, "
                      "NIfTI or VTK image data to keep it)");
-  const std::string dtype = volbytes::volume_dtype(volume);
   const size_t w = volbytes::dtype_bytes(dtype);
-  const auto c = automatic_chunks(g.dims, static_cast<int64_t>(w));  // (x, y, z)
-  const int level = std::clamp(o.compression, 0, 9);
-  std::string array_path = o.dataset.empty() ? "0" : o.dataset;
-  while (!array_path.empty() && array_path.front() == '/') array_path.erase(0, 1);
   json zarray = {{"zarr_format", 2},
                  {"shape", {g.dims[2], g.dims[1], g.dims[0]}},
                  {"chunks", {c[2], c[1], c[0]}},
@@ -524,54 +625,36 @@ void write_zarr(const fs::path& path, const DataObject& volume, const VolumeWrit
                       {"coordinateTransformations",
                        {{{"type", "scale"}, {"scale", {g.spacing[2], g.spacing[1], g.spacing[0]}}},
                         {{"type", "translation"}, {"translation", {g.origin[2], g.origin[1], g.origin[0]}}}}}}}}}}}};
+  fs::create_directories(dir / array_path);
+  const std::string zgroup = "{\n    \"zarr_format\": 2\n}\n";
+  write_file(dir / ".zgroup", zgroup.data(), zgroup.size(), shown);
+  const std::string za = attrs.dump(4) + "\n";
+  write_file(dir / ".zattrs", za.data(), za.size(), shown);
+  const std::string zr = zarray.dump(4) + "\n";
+  write_file(dir / array_path / ".zarray", zr.data(), zr.size(), shown);
+}
+
+std::string array_path_of(const VolumeWriteOptions& o) {
+  std::string p = o.dataset.empty() ? "0" : o.dataset;
+  while (!p.empty() && p.front() == '/') p.erase(0, 1);
+  return p.empty() ? "0" : p;
+}
+
+void write_zarr(const fs::path& path, const DataObject& volume, const VolumeWriteOptions& o) {
+  const std::string shown = display_path(path).string();
+  const Grid& g = volume_grid(volume, shown);
+  const std::string dtype = volbytes::volume_dtype(volume);
+  if (g.direction != kIdentityDirection) write_metadata(path, dtype, g, {1, 1, 1}, 0, "0", shown);  // throws, writes nothing
+  if (std::endian::native == std::endian::big) throw Error("Zarr writer: big-endian hosts are not supported");
+  const auto c = automatic_chunks(g.dims, static_cast<int64_t>(volbytes::dtype_bytes(dtype)));  // (x, y, z)
+  const std::string array_path = array_path_of(o);
   write_dir_atomically(path, [&](const fs::path& dir) {
-    const std::string zgroup = "{\n    \"zarr_format\": 2\n}\n";
-    write_file(dir / ".zgroup", zgroup.data(), zgroup.size(), shown);
-    const std::string za = attrs.dump(4) + "\n";
-    write_file(dir / ".zattrs", za.data(), za.size(), shown);
-    const fs::path adir = dir / array_path;
-    fs::create_directories(adir);
-    const std::string zr = zarray.dump(4) + "\n";
-    write_file(adir / ".zarray", zr.data(), zr.size(), shown);
-    const int64_t nx = (g.dims[0] + c[0] - 1) / c[0], ny = (g.dims[1] + c[1] - 1) / c[1], nz = (g.dims[2] + c[2] - 1) / c[2];
-    std::mutex dir_mutex;
+    write_metadata(dir, dtype, g, c, std::clamp(o.compression, 0, 9), array_path, shown);
+    VolumeReadOptions ro;
+    ro.dataset = array_path;
+    const ZArray a = open_array(dir, ro);
     visit_volume(volume, shown, [&](const auto& v) {
-      using T = typename std::decay_t<decltype(v)>::value_type;
-      parallel_for(0, nx * ny * nz, o.threads, [&](int64_t lo, int64_t hi) {
-        std::vector<T> chunk(static_cast<size_t>(c[0] * c[1] * c[2]));
-        std::string comp;
-        for (int64_t k = lo; k < hi; ++k) {
-          const int64_t ix = k % nx, iy = (k / nx) % ny, iz = k / (nx * ny);
-          std::fill(chunk.begin(), chunk.end(), T{});
-          bool any = false;
-          for (int64_t z = iz * c[2]; z < std::min(g.dims[2], (iz + 1) * c[2]); ++z)
-            for (int64_t y = iy * c[1]; y < std::min(g.dims[1], (iy + 1) * c[1]); ++y) {
-              const int64_t x0 = ix * c[0], x1 = std::min(g.dims[0], (ix + 1) * c[0]);
-              const T* s = &v(x0, y, z);
-              T* d = &chunk[static_cast<size_t>((y - iy * c[1]) * c[0] + (z - iz * c[2]) * c[0] * c[1])];
-              std::memcpy(d, s, static_cast<size_t>(x1 - x0) * sizeof(T));
-              for (int64_t x = 0; x < x1 - x0 && !any; ++x) any = s[x] != T{};
-            }
-          if (!any) continue;  // all fill_value: not stored
-          const size_t n = chunk.size() * sizeof(T);
-          const char* data = reinterpret_cast<const char*>(chunk.data());
-          size_t out_n = n;
-          if (level > 0) {
-            comp.resize(n + BLOSC_MAX_OVERHEAD);
-            const int r = blosc_compress_ctx(level, w > 1 ? BLOSC_SHUFFLE : BLOSC_NOSHUFFLE, sizeof(T), n, data, comp.data(),
-                                             comp.size(), "lz4", 0, 1);
-            if (r <= 0) throw Error("blosc: compression failed for " + shown);
-            data = comp.data();
-            out_n = static_cast<size_t>(r);
-          }
-          const fs::path cdir = adir / std::to_string(iz) / std::to_string(iy);
-          {
-            std::lock_guard<std::mutex> lock(dir_mutex);
-            fs::create_directories(cdir);
-          }
-          write_file(cdir / std::to_string(ix), data, out_n, shown);
-        }
-      });
+      write_chunks(a, reinterpret_cast<const char*>(v.data()), g.dims, Dims{0, 0, 0}, o.threads, shown);
     });
   });
 }
@@ -588,5 +671,48 @@ VolumeFormat zarr_volume_format() {
   f.write = write_zarr;
   return f;
 }
+
+void create_zarr_volume(const std::filesystem::path& dir, const std::string& dtype, const Grid& grid,
+                        const VolumeWriteOptions& options, std::array<int64_t, 3> chunks) {
+  const std::string shown = display_path(dir).string();
+  if (volbytes::dtype_bytes(dtype) == 0 || dtype == "int8" || dtype == "int16" || dtype == "int64")
+    throw InputError(shown + ": cannot create a Zarr array of voxel type '" + dtype +
+                     "' (uint8, uint16, uint32, uint64, int32, float32, float64)");
+  grid.validate();
+  const auto automatic = automatic_chunks(grid.dims, static_cast<int64_t>(volbytes::dtype_bytes(dtype)));
+  for (size_t i = 0; i < 3; ++i)
+    if (chunks[i] <= 0) chunks[i] = automatic[i];
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  fs::create_directories(dir);
+  write_metadata(dir, dtype, grid, chunks, std::clamp(options.compression, 0, 9), array_path_of(options), shown);
+}
+
+template <class T>
+void write_zarr_box(const std::filesystem::path& dir, const Volume<T>& block, Dims begin, const VolumeWriteOptions& options) {
+  VolumeReadOptions ro;
+  ro.dataset = array_path_of(options);
+  const ZArray a = open_array(dir, ro);
+  const std::string shown = display_path(dir).string();
+  if (a.dtype != VoxelTraits<T>::name || a.big_endian)
+    throw InputError(shown + ": the Zarr array holds " + a.dtype + (a.big_endian ? " (big endian)" : "") +
+                     " voxels; cannot write a block of " + VoxelTraits<T>::name);
+  const Dims& d = a.header.grid.dims;
+  for (size_t i = 0; i < 3; ++i)
+    if (begin[i] < 0 || begin[i] + block.dims()[i] > d[i])
+      throw InputError(shown + ": a block of " + std::to_string(block.nx()) + "x" + std::to_string(block.ny()) + "x" +
+                       std::to_string(block.nz()) + " at " + std::to_string(begin[0]) + "," + std::to_string(begin[1]) + "," +
+                       std::to_string(begin[2]) + " does not fit the array (" + std::to_string(d[0]) + "x" +
+                       std::to_string(d[1]) + "x" + std::to_string(d[2]) + ")");
+  write_chunks(a, reinterpret_cast<const char*>(block.data()), block.dims(), begin, options.threads, shown);
+}
+
+template void write_zarr_box(const fs::path&, const Volume<uint8_t>&, Dims, const VolumeWriteOptions&);
+template void write_zarr_box(const fs::path&, const Volume<uint16_t>&, Dims, const VolumeWriteOptions&);
+template void write_zarr_box(const fs::path&, const Volume<uint32_t>&, Dims, const VolumeWriteOptions&);
+template void write_zarr_box(const fs::path&, const Volume<uint64_t>&, Dims, const VolumeWriteOptions&);
+template void write_zarr_box(const fs::path&, const Volume<int32_t>&, Dims, const VolumeWriteOptions&);
+template void write_zarr_box(const fs::path&, const Volume<float>&, Dims, const VolumeWriteOptions&);
+template void write_zarr_box(const fs::path&, const Volume<double>&, Dims, const VolumeWriteOptions&);
 
 }  // namespace skel::io

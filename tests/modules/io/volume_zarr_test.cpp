@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "io/volume_bytes.hpp"
+#include "io/zarr_volume.hpp"
 #include "volume_test_util.hpp"
 
 using namespace skel;
@@ -211,4 +212,45 @@ TEST(VolumeZarr, BadStoresNameTheFileAndTheProblem) {
   e = error_of([&] { io::write_any_volume(d / "rot.zarr", random_volume<uint8_t>(Dims{2, 2, 2}, 1, "mm", true)); });
   EXPECT_NE(e.find("rot.zarr: OME-Zarr 0.4 stores no rotation"), std::string::npos) << e;
   EXPECT_FALSE(fs::exists(d / "rot.zarr"));
+}
+
+TEST(VolumeZarr, BlockWiseWritingMatchesTheWholeVolume) {
+  // Blocks that do not fall on chunk boundaries (chunks 16^3, blocks split at 37/50/20) in any order.
+  const auto v = random_volume<uint16_t>(Dims{70, 60, 33}, 8, "mm");
+  const fs::path f = scratch() / "blocks.ome.zarr";
+  io::create_zarr_volume(f, "uint16", v.grid(), {}, {16, 16, 16});
+  const int64_t sx[] = {0, 37, 70}, sy[] = {0, 50, 60}, sz[] = {0, 20, 33};
+  for (int k = 1; k >= 0; --k)
+    for (int j = 0; j < 2; ++j)
+      for (int i = 1; i >= 0; --i) {
+        VolumeU16 b(Dims{sx[i + 1] - sx[i], sy[j + 1] - sy[j], sz[k + 1] - sz[k]}, 0);
+        for (int64_t z = 0; z < b.nz(); ++z)
+          for (int64_t y = 0; y < b.ny(); ++y)
+            for (int64_t x = 0; x < b.nx(); ++x) b(x, y, z) = v(sx[i] + x, sy[j] + y, sz[k] + z);
+        io::write_zarr_box(f, b, Dims{sx[i], sy[j], sz[k]});
+      }
+  const auto back = std::dynamic_pointer_cast<const VolumeU16>(io::read_any_volume(f));
+  ASSERT_TRUE(back);
+  EXPECT_TRUE(*back == v);
+  // A zero block over whole chunks removes them; a partial one keeps the rest of its chunks.
+  const int64_t before = count_files(f / "0");
+  io::write_zarr_box(f, VolumeU16(Dims{32, 32, 16}, 0), Dims{0, 0, 0});
+  EXPECT_EQ(count_files(f / "0"), before - 4);
+  io::write_zarr_box(f, VolumeU16(Dims{3, 3, 3}, 0), Dims{40, 40, 20});
+  auto expected = v;
+  for (int64_t z = 0; z < 16; ++z)
+    for (int64_t y = 0; y < 32; ++y)
+      for (int64_t x = 0; x < 32; ++x) expected(x, y, z) = 0;
+  for (int64_t z = 20; z < 23; ++z)
+    for (int64_t y = 40; y < 43; ++y)
+      for (int64_t x = 40; x < 43; ++x) expected(x, y, z) = 0;
+  const auto again = std::dynamic_pointer_cast<const VolumeU16>(io::read_any_volume(f));
+  ASSERT_TRUE(again);
+  EXPECT_TRUE(*again == expected);
+  std::string e = error_of([&] { io::write_zarr_box(f, VolumeU8(Dims{2, 2, 2}, 1), Dims{0, 0, 0}); });
+  EXPECT_NE(e.find("blocks.ome.zarr: the Zarr array holds uint16 voxels; cannot write a block of uint8"), std::string::npos) << e;
+  e = error_of([&] { io::write_zarr_box(f, VolumeU16(Dims{2, 2, 2}, 1), Dims{69, 0, 0}); });
+  EXPECT_NE(e.find("blocks.ome.zarr: a block of 2x2x2 at 69,0,0 does not fit the array (70x60x33)"), std::string::npos) << e;
+  e = error_of([&] { io::create_zarr_volume(scratch() / "i16.zarr", "int16", v.grid()); });
+  EXPECT_NE(e.find("i16.zarr: cannot create a Zarr array of voxel type 'int16'"), std::string::npos) << e;
 }
