@@ -155,7 +155,9 @@ AmiraHeader parse_header(const fs::path& path) {
   static const std::regex bbox_re(R"(BoundingBox\s+([^,\n}]*))");
   if (std::regex_search(params, m, bbox_re)) {
     std::vector<double> v;
-    for (const auto& w : text::split(text::trim(m[1].str()), ' ')) {
+    std::string box = text::trim(m[1].str());
+    std::replace(box.begin(), box.end(), '\t', ' ');
+    for (const auto& w : text::split(box, ' ')) {
       if (text::trim(w).empty()) continue;
       double x = 0;
       if (!text::parse_double(text::trim(w), x) || !std::isfinite(x))

@@ -71,7 +71,9 @@ std::string met_name(const std::string& dtype) {
 
 std::vector<double> numbers(const MetaHeader& h, const Field& f, size_t count) {
   std::vector<double> out;
-  for (const auto& w : text::split(f.value, ' ')) {
+  std::string v = f.value;
+  std::replace(v.begin(), v.end(), '\t', ' ');
+  for (const auto& w : text::split(v, ' ')) {
     const std::string t = text::trim(w);
     if (t.empty()) continue;
     double v = 0;

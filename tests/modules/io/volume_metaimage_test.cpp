@@ -116,6 +116,10 @@ TEST(VolumeMetaImage, BadFilesNameTheFileAndTheProblem) {
   EXPECT_NE(e.find("hugez.mha: the compressed voxel data claims 1000000000000 bytes"), std::string::npos) << e;
   e = err("csize.mha", hdr + "CompressedData = True\nCompressedDataSize = 5000\nElementDataFile = LOCAL\nxyz");
   EXPECT_NE(e.find("csize.mha: CompressedDataSize needs 5000 bytes but the file has only 3"), std::string::npos) << e;
+  // Tabs between values are white space too.
+  write_bytes(d / "tabs.mha", "NDims = 3\nDimSize = 2\t1 1\nElementSpacing = 0.5\t0.5 2\nElementType = MET_UCHAR\n"
+                              "ElementDataFile = LOCAL\nab");
+  EXPECT_EQ(io::read_volume_header(d / "tabs.mha").grid.spacing, (Vec3{0.5, 0.5, 2}));
   e = err("nodata.mhd", hdr + "ElementDataFile = missing.raw\n");
   EXPECT_NE(e.find("missing.raw: cannot read"), std::string::npos) << e;
 }
