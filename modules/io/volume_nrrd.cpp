@@ -263,8 +263,15 @@ NrrdHeader parse_header(const fs::path& path) {
         throw InputError(h.at(*dirf) + ": 'space directions': axis " + std::to_string(k) + " is 'none'; Skelflow reads spatial axes only");
     if (dim < 3) {
       // Complete the frame: the missing axes are orthogonal unit vectors.
-      Vec3& a = axes[0];
-      if (dim == 1) axes[1] = std::abs(a[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+      const Vec3& a = axes[0];
+      if (dim == 1) {  // a unit vector orthogonal to axis 0 (Gram-Schmidt on the least parallel axis)
+        const double la = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+        Vec3 b = la > 0 && std::abs(a[0]) / la < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+        const double p = la > 0 ? (b[0] * a[0] + b[1] * a[1] + b[2] * a[2]) / (la * la) : 0.0;
+        for (size_t i = 0; i < 3; ++i) b[i] -= p * a[i];
+        const double lb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+        axes[1] = {b[0] / lb, b[1] / lb, b[2] / lb};
+      }
       const Vec3& u = axes[0];
       const Vec3& v = axes[1];
       Vec3 w{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};

@@ -82,6 +82,23 @@ TEST(VolumeNrrd, ReadsDetachedGzipAndAsciiAndSlicerStyleSpace) {
   EXPECT_EQ(std::vector<float>(a->begin(), a->end()), (std::vector<float>{1.5f, 2, -3, 400, 5, 6}));
 }
 
+TEST(VolumeNrrd, OneAndTwoAxisImagesGetAnOrthonormalFrame) {
+  write_bytes(scratch() / "line.nrrd", "NRRD0004\ntype: uint8\ndimension: 1\nspace dimension: 3\nsizes: 3\n"
+                                       "space directions: (0.6,0.8,0)\nencoding: raw\n\nabc");
+  const io::VolumeHeader h = io::read_volume_header(scratch() / "line.nrrd");
+  EXPECT_EQ(h.grid.dims, (Dims{3, 1, 1}));
+  EXPECT_NEAR(h.grid.spacing[0], 1.0, 1e-15);
+  const Direction& d = h.grid.direction;
+  for (size_t i = 0; i < 3; ++i)
+    for (size_t j = 0; j < 3; ++j) {
+      double dot = 0;
+      for (size_t r = 0; r < 3; ++r) dot += d[r * 3 + i] * d[r * 3 + j];
+      EXPECT_NEAR(dot, i == j ? 1.0 : 0.0, 1e-12) << i << " " << j;
+    }
+  EXPECT_NEAR(d[0], 0.6, 1e-15);
+  EXPECT_NEAR(d[3], 0.8, 1e-15);
+}
+
 TEST(VolumeNrrd, FoundByMagicBytesWithoutExtension) {
   io::write_any_volume(scratch() / "v.nrrd", random_volume<uint8_t>(Dims{2, 2, 2}, 1));
   fs::copy_file(scratch() / "v.nrrd", scratch() / "v.data");
