@@ -251,19 +251,9 @@ DataPtr read_amira(const fs::path& path, const VolumeReadOptions&) {
         while (q < stop && std::isspace(static_cast<unsigned char>(*q))) ++q;
         const char* r = q;
         while (r < stop && !std::isspace(static_cast<unsigned char>(*r))) ++r;
-        double v = 0;
-        if (q == r || !text::parse_double(std::string_view(q, static_cast<size_t>(r - q)), v))
-          throw InputError(a.file + ": ASCII lattice value " + std::to_string(i) + " is missing or not a number");
+        if (q == r || !volbytes::store_text_value(std::string_view(q, static_cast<size_t>(r - q)), b.dtype, dst + i * w))
+          throw InputError(a.file + ": ASCII lattice value " + std::to_string(i) + " is missing or not a " + b.type + " value");
         q = r;
-        char* o = dst + i * w;
-        auto put = [&](auto x) { std::memcpy(o, &x, sizeof x); };
-        const std::string& t = b.dtype;
-        if (t == "uint8") put(static_cast<uint8_t>(v));
-        else if (t == "int16") put(static_cast<int16_t>(v));
-        else if (t == "uint16") put(static_cast<uint16_t>(v));
-        else if (t == "int32") put(static_cast<int32_t>(v));
-        else if (t == "float32") put(static_cast<float>(v));
-        else put(v);
       }
     });
   }

@@ -3,6 +3,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cctype>
 #include <bit>
 #include <cerrno>
@@ -77,6 +78,46 @@ DataPtr decode(const Grid& grid, const std::string& t, bool big_endian,
   if (t == "int16") return widened<int16_t, int32_t>(grid, big_endian, fill);
   if (t == "int64") return widened<int64_t, double>(grid, big_endian, fill);
   throw Error("volbytes::decode: unknown voxel type '" + t + "'");
+}
+
+namespace {
+template <class T>
+bool store_int(std::string_view tok, char* dst) {
+  T v{};
+  if constexpr (std::is_same_v<T, uint64_t>) {
+    const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (r.ec != std::errc() || r.ptr != tok.data() + tok.size()) return false;
+  } else {
+    int64_t x = 0;
+    if (!text::parse_int(tok, x) || x < static_cast<int64_t>(std::numeric_limits<T>::min()) ||
+        (x > 0 && static_cast<uint64_t>(x) > static_cast<uint64_t>(std::numeric_limits<T>::max())))
+      return false;
+    v = static_cast<T>(x);
+  }
+  std::memcpy(dst, &v, sizeof v);
+  return true;
+}
+}  // namespace
+
+bool store_text_value(std::string_view tok, const std::string& t, char* dst) {
+  if (t == "uint8") return store_int<uint8_t>(tok, dst);
+  if (t == "int8") return store_int<int8_t>(tok, dst);
+  if (t == "uint16") return store_int<uint16_t>(tok, dst);
+  if (t == "int16") return store_int<int16_t>(tok, dst);
+  if (t == "uint32") return store_int<uint32_t>(tok, dst);
+  if (t == "int32") return store_int<int32_t>(tok, dst);
+  if (t == "uint64") return store_int<uint64_t>(tok, dst);
+  if (t == "int64") return store_int<int64_t>(tok, dst);
+  double v = 0;
+  if (!text::parse_double(tok, v)) return false;
+  if (t == "float32") {
+    if (std::isfinite(v) && std::abs(v) > static_cast<double>(std::numeric_limits<float>::max())) return false;
+    const auto f = static_cast<float>(v);
+    std::memcpy(dst, &f, sizeof f);
+    return true;
+  }
+  std::memcpy(dst, &v, sizeof v);
+  return true;
 }
 
 std::string encode(const DataObject& volume, bool big_endian) {

@@ -25,6 +25,11 @@ std::string volume_dtype(const DataObject& volume);
 DataPtr decode(const Grid& grid, const std::string& dtype, bool big_endian,
                const std::function<void(char* dst, uint64_t bytes)>& fill);
 
+// Parses one ASCII voxel value `tok` and stores it at dst as native `dtype` bytes. False when `tok`
+// is not a number, not an integer for an integer type, or outside the type's range (NaN and
+// infinities are values of the float types).
+bool store_text_value(std::string_view tok, const std::string& dtype, char* dst);
+
 // The voxels of any volume as bytes of its own type (volume_dtype), in the given byte order.
 std::string encode(const DataObject& volume, bool big_endian);
 

@@ -339,43 +339,6 @@ uint64_t skip_lines(const NrrdHeader& h, uint64_t start) {
   return static_cast<uint64_t>(in.tellg());
 }
 
-template <class T>
-void parse_ascii_values(const std::string& file, const std::string& text_data, uint64_t count, char* dst) {
-  T* out = reinterpret_cast<T*>(dst);
-  const char* p = text_data.data();
-  const char* end = p + text_data.size();
-  for (uint64_t i = 0; i < count; ++i) {
-    while (p < end && (std::isspace(static_cast<unsigned char>(*p)) || *p == ',')) ++p;
-    if (p >= end)
-      throw InputError(file + ": ascii data ends after " + std::to_string(i) + " of " + std::to_string(count) + " values");
-    const char* q = p;
-    while (q < end && !(std::isspace(static_cast<unsigned char>(*q)) || *q == ',')) ++q;
-    const std::string_view tok(p, static_cast<size_t>(q - p));
-    bool ok = false;
-    if constexpr (std::is_integral_v<T>) {
-      int64_t v = 0;
-      ok = text::parse_int(tok, v) && v >= static_cast<int64_t>(std::numeric_limits<T>::min()) &&
-           (v < 0 || static_cast<uint64_t>(v) <= static_cast<uint64_t>(std::numeric_limits<T>::max()));
-      if (!ok && std::is_same_v<T, uint64_t>) {
-        uint64_t u = 0;
-        const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), u);
-        ok = r.ec == std::errc() && r.ptr == tok.data() + tok.size();
-        if (ok) out[i] = static_cast<T>(u);
-      } else if (ok) {
-        out[i] = static_cast<T>(v);
-      }
-    } else {
-      double v = 0;
-      ok = text::parse_double(tok, v);
-      out[i] = static_cast<T>(v);
-    }
-    if (!ok)
-      throw InputError(file + ": ascii data value " + std::to_string(i) + " '" + std::string(tok.substr(0, 30)) +
-                       "' is not a " + (std::is_integral_v<T> ? "integer of the header's type" : "number"));
-    p = q;
-  }
-}
-
 DataPtr read_nrrd(const fs::path& path, const VolumeReadOptions&) {
   const NrrdHeader h = parse_header(path);
   const std::string data_file = h.data_path.string();
@@ -411,17 +374,22 @@ DataPtr read_nrrd(const fs::path& path, const VolumeReadOptions&) {
   volbytes::read_exact(h.data_path, start, txt.data(), avail, "voxel data");
   const bool native_big = std::endian::native == std::endian::big;
   return volbytes::decode(h.header.grid, h.header.dtype, native_big, [&](char* dst, uint64_t) {
-    const std::string& t = h.header.dtype;
-    if (t == "uint8") parse_ascii_values<uint8_t>(data_file, txt, count, dst);
-    else if (t == "int8") parse_ascii_values<int8_t>(data_file, txt, count, dst);
-    else if (t == "uint16") parse_ascii_values<uint16_t>(data_file, txt, count, dst);
-    else if (t == "int16") parse_ascii_values<int16_t>(data_file, txt, count, dst);
-    else if (t == "uint32") parse_ascii_values<uint32_t>(data_file, txt, count, dst);
-    else if (t == "int32") parse_ascii_values<int32_t>(data_file, txt, count, dst);
-    else if (t == "uint64") parse_ascii_values<uint64_t>(data_file, txt, count, dst);
-    else if (t == "int64") parse_ascii_values<int64_t>(data_file, txt, count, dst);
-    else if (t == "float32") parse_ascii_values<float>(data_file, txt, count, dst);
-    else parse_ascii_values<double>(data_file, txt, count, dst);
+    const size_t w = volbytes::dtype_bytes(h.header.dtype);
+    const char* p = txt.data();
+    const char* end = p + txt.size();
+    auto sep = [](char c) { return std::isspace(static_cast<unsigned char>(c)) || c == ','; };
+    for (uint64_t i = 0; i < count; ++i) {
+      while (p < end && sep(*p)) ++p;
+      if (p >= end)
+        throw InputError(data_file + ": ascii data ends after " + std::to_string(i) + " of " + std::to_string(count) + " values");
+      const char* q = p;
+      while (q < end && !sep(*q)) ++q;
+      const std::string_view tok(p, static_cast<size_t>(q - p));
+      if (!volbytes::store_text_value(tok, h.header.dtype, dst + i * w))
+        throw InputError(data_file + ": ascii data value " + std::to_string(i) + " '" + std::string(tok.substr(0, 30)) +
+                         "' is not a " + h.header.dtype + " value");
+      p = q;
+    }
   });
 }
 

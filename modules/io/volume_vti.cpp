@@ -364,23 +364,9 @@ DataPtr read_vti(const fs::path& path, const VolumeReadOptions&) {
         while (p < end && std::isspace(static_cast<unsigned char>(*p))) ++p;
         const char* q = p;
         while (q < end && !std::isspace(static_cast<unsigned char>(*q))) ++q;
-        double v = 0;
-        if (p == q || !text::parse_double(std::string_view(p, static_cast<size_t>(q - p)), v))
-          throw InputError(d.file + ": ascii data value " + std::to_string(i) + " is missing or not a number");
+        if (p == q || !volbytes::store_text_value(std::string_view(p, static_cast<size_t>(q - p)), d.stored, dst + i * w))
+          throw InputError(d.file + ": ascii data value " + std::to_string(i) + " is missing or not a " + d.stored + " value");
         p = q;
-        char* o = dst + i * w;
-        const std::string& t = d.stored;
-        auto put = [&](auto x) { std::memcpy(o, &x, sizeof x); };
-        if (t == "uint8") put(static_cast<uint8_t>(v));
-        else if (t == "int8") put(static_cast<int8_t>(v));
-        else if (t == "uint16") put(static_cast<uint16_t>(v));
-        else if (t == "int16") put(static_cast<int16_t>(v));
-        else if (t == "uint32") put(static_cast<uint32_t>(v));
-        else if (t == "int32") put(static_cast<int32_t>(v));
-        else if (t == "uint64") put(static_cast<uint64_t>(v));
-        else if (t == "int64") put(static_cast<int64_t>(v));
-        else if (t == "float32") put(static_cast<float>(v));
-        else put(v);
       }
     });
   } else {

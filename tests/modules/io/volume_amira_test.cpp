@@ -102,6 +102,8 @@ TEST(VolumeAmira, BadFilesNameTheFileAndTheProblem) {
   EXPECT_NE(e.find("enc.am:14: unsupported AmiraMesh encoding 'HxJPEG'"), std::string::npos) << e;
   e = err("rect.am", le + "define Lattice 2 2 2\nParameters { CoordType \"rectilinear\" }\nLattice { byte Data } @1\n@1\n12345678");
   EXPECT_NE(e.find("rect.am: CoordType \"rectilinear\""), std::string::npos) << e;
+  e = err("asciirange.am", "# AmiraMesh 3D ASCII 2.0\ndefine Lattice 2 1 1\nLattice { byte Data } @1\n@1\n5 1e30\n");
+  EXPECT_NE(e.find("asciirange.am: ASCII lattice value 1 is missing or not a byte value"), std::string::npos) << e;
   std::string z = io::volbytes::deflate("abcdefgh", 8, 6, false);
   e = err("zip.am", le + kHeader + "Lattice { byte Data } @1(HxZip," + std::to_string(z.size()) + ")\n@1\n" + z + "\n");
   EXPECT_NE(e.find("zip.am: HxZip lattice data: compressed data holds 8 of 12 bytes"), std::string::npos) << e;

@@ -137,6 +137,10 @@ TEST(VolumeNrrd, BadFilesNameTheFileAndTheProblem) {
   e = err("corrupt.nrrd", "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: gzip\n\n" + z.substr(0, 10) +
                               std::string(20, '\xff'));
   EXPECT_NE(e.find("corrupt.nrrd: gzip voxel data: corrupt compressed data"), std::string::npos) << e;
+  e = err("range.nrrd", "NRRD0004\ntype: uint8\ndimension: 1\nsizes: 3\nencoding: ascii\n\n1 300 2\n");
+  EXPECT_NE(e.find("range.nrrd: ascii data value 1 '300' is not a uint8 value"), std::string::npos) << e;
+  e = err("fl.nrrd", "NRRD0004\ntype: float\ndimension: 1\nsizes: 2\nencoding: ascii\n\n1 1e300\n");
+  EXPECT_NE(e.find("fl.nrrd: ascii data value 1 '1e300' is not a float32 value"), std::string::npos) << e;
   e = err("nodata.nhdr", "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: raw\ndata file: missing.raw\n");
   EXPECT_NE(e.find("missing.raw: cannot read"), std::string::npos) << e;
   e = err("negsp.nrrd", "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 1 1 1\nspacings: 1 -2 1\nencoding: raw\n\nx");

@@ -132,6 +132,17 @@ TEST(VolumeVti, BadFilesNameTheFileAndTheProblem) {
   EXPECT_NE(e.find("lz4.vti: unsupported compressor 'vtkLZ4DataCompressor'"), std::string::npos) << e;
   e = err("xml.vti", replace(good, "<PointData", "<PointData <"));
   EXPECT_NE(e.find("xml.vti:10: XML error: not well-formed"), std::string::npos) << e;
+  const std::string ascii =
+      "<VTKFile type=\"ImageData\" version=\"1.0\"><ImageData WholeExtent=\"0 1 0 0 0 0\" Origin=\"0 0 0\" Spacing=\"1 1 1\">"
+      "<Piece Extent=\"0 1 0 0 0 0\"><PointData><DataArray type=\"Int16\" Name=\"a\" format=\"ascii\">";
+  const std::string tail = "</DataArray></PointData></Piece></ImageData></VTKFile>";
+  write_bytes(d / "ascii.vti", ascii + "-7 12" + tail);
+  const auto av = std::dynamic_pointer_cast<const VolumeI32>(io::read_any_volume(d / "ascii.vti"));
+  ASSERT_TRUE(av);
+  EXPECT_EQ((*av)[0], -7);
+  EXPECT_EQ((*av)[1], 12);
+  e = err("asciirange.vti", ascii + "-7 99999" + tail);
+  EXPECT_NE(e.find("asciirange.vti: ascii data value 1 is missing or not a int16 value"), std::string::npos) << e;
   // 10^12 voxels claimed by a small file: refused before anything is allocated.
   const std::string huge_ext = "0 9999 0 9999 0 9999";
   e = err("huge.vti", replace(replace(good, "WholeExtent=\"0 3 0 3 0 3\"", "WholeExtent=\"" + huge_ext + "\""),
