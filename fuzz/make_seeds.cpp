@@ -9,6 +9,7 @@
 #include "io/graph_io.hpp"
 #include "io/hdf5_volume.hpp"
 #include "io/landmark_io.hpp"
+#include "io/volume_format.hpp"
 
 using namespace skel;
 namespace fs = std::filesystem;
@@ -88,5 +89,18 @@ int main(int argc, char** argv) {
   io::write_volume(dir / "hdf5/valid_u8.h5", v);
   Volume<float> f(Dims{3, 3, 3}, 1.5f);
   io::write_volume(dir / "hdf5/valid_f32.h5", f);
+  // The single-file formats of the volume registry, raw and compressed.
+  Volume<uint16_t> w(Grid(Dims{5, 4, 3}, {0.5, 0.75, 2}, {-1, 2, 3}, "mm"), 0);
+  for (int64_t i = 0; i < w.size(); ++i) w[i] = static_cast<uint16_t>(i * 331);
+  for (const auto& [format, ext] : {std::pair{"nrrd", ".nrrd"}, {"metaimage", ".mha"}, {"nifti", ".nii"}, {"vti", ".vti"},
+                                    {"amira", ".am"}}) {
+    fs::create_directories(dir / ("volume_" + std::string(format)));
+    for (int c : {0, 1}) {
+      io::VolumeWriteOptions o;
+      o.compression = c;
+      io::write_any_volume(dir / ("volume_" + std::string(format)) / ("valid_u16_" + std::to_string(c) + ext), w, o);
+      io::write_any_volume(dir / ("volume_" + std::string(format)) / ("valid_u8_" + std::to_string(c) + ext), v, o);
+    }
+  }
   return 0;
 }

@@ -4,6 +4,7 @@
 #                                          build-fuzz/corpus/<target>/, the seeds in fuzz/corpus/ stay)
 #   scripts/fuzz.sh regress                every seed of fuzz/corpus/ once through its target (CI)
 # Targets: pipeline hdf5 graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal
+#          volume_nrrd volume_metaimage volume_nifti volume_vti volume_amira
 # A crash, sanitizer report, leak, timeout (10 s per input) or allocation over 1 GB stops a target; its
 # input is saved as fuzz/crashes/<target>/crash-<sha1> (or leak-, timeout-, oom-) and the script fails.
 # A huge malloc returns NULL as glibc would (allocator_may_return_null): libhdf5 then reports an error,
@@ -12,7 +13,8 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${SKEL_FUZZ_BUILD_DIR:-$here/build-fuzz}
-all_targets=(pipeline hdf5 graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal)
+all_targets=(pipeline hdf5 graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal
+             volume_nrrd volume_metaimage volume_nifti volume_vti volume_amira)
 
 usage() { sed -n '2,9p' "$0" >&2; exit 2; }
 [ $# -ge 1 ] || usage

@@ -34,6 +34,7 @@ packages=(
   clang libclang-rt-14-dev
   python3-scipy python3-skimage python3-h5py python3-numpy python3-vtk9 python3-tifffile
   python3-dev pybind11-dev python3-pytest python3-networkx python3-pandas
+  python3-nibabel python3-zarr libblosc-dev libzstd-dev nlohmann-json3-dev
 )
 missing=()
 for p in "${packages[@]}"; do

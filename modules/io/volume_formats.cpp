@@ -15,6 +15,14 @@ namespace skel::io {
 VolumeFormat hdf5_volume_format();
 VolumeFormat tiff_volume_format();
 VolumeFormat raw_volume_format();
+VolumeFormat nrrd_volume_format();
+VolumeFormat nhdr_volume_format();
+VolumeFormat metaimage_volume_format();
+VolumeFormat mhd_volume_format();
+VolumeFormat nifti_volume_format();
+VolumeFormat vti_volume_format();
+VolumeFormat amira_volume_format();
+VolumeFormat zarr_volume_format();
 
 const std::vector<VolumeFormat>& volume_formats() {
   static const std::vector<VolumeFormat> formats = [] {
@@ -22,6 +30,14 @@ const std::vector<VolumeFormat>& volume_formats() {
     f.push_back(hdf5_volume_format());
     f.push_back(tiff_volume_format());
     f.push_back(raw_volume_format());
+    f.push_back(nrrd_volume_format());
+    f.push_back(nhdr_volume_format());
+    f.push_back(metaimage_volume_format());
+    f.push_back(mhd_volume_format());
+    f.push_back(nifti_volume_format());
+    f.push_back(vti_volume_format());
+    f.push_back(amira_volume_format());
+    f.push_back(zarr_volume_format());
     return f;
   }();
   return formats;
