@@ -15,22 +15,13 @@
 #include "io/volume_format.hpp"
 #include "skel/pipeline.hpp"
 #include "skel/run_module.hpp"
+#include "volume_test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace skel;
 
 namespace {
-fs::path scratch() {
-  static fs::path d = [] {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "formats";
-    fs::path p = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "io_formats" / name;
-    fs::remove_all(p);
-    fs::create_directories(p);
-    return p;
-  }();
-  return d;
-}
+using skel::test::scratch;  // one folder per test (volume_test_util.hpp)
 
 template <class T>
 Volume<T> random_volume(Dims d, uint64_t seed) {

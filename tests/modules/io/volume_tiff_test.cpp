@@ -13,22 +13,13 @@
 #include "io/volume_format.hpp"
 #include "skel/pipeline.hpp"
 #include "skel/run_module.hpp"
+#include "volume_test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace skel;
 
 namespace {
-fs::path scratch() {
-  static fs::path d = [] {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = info ? std::string(info->test_suite_name()) + "." + info->name() : "tiff";
-    fs::path p = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "io_tiff" / name;
-    fs::remove_all(p);
-    fs::create_directories(p);
-    return p;
-  }();
-  return d;
-}
+using skel::test::scratch;  // one folder per test (volume_test_util.hpp)
 
 template <class T>
 Volume<T> ramp_volume(Dims d, Vec3 spacing = {0.5, 0.75, 2.0}, Vec3 origin = {-3.0, 1.5, 10.0}) {
