@@ -155,8 +155,38 @@ struct BlockPlan {
 // blocks with halo, at `bytes_per_voxel`, take at most a quarter of `budget`.
 Dims block_for_budget(uint64_t budget, int64_t halo, int64_t bytes_per_voxel, const Dims& grid_dims);
 
+// Calls f(T{}) with the voxel type T of volume type id `type_id` ("volume.u8" -> uint8_t); throws
+// InputError naming `what` for a type id that is no volume.
+template <class F>
+decltype(auto) visit_voxel_type(const std::string& type_id, const std::string& what, F&& f) {
+  if (type_id == type_ids::volume_u8) return f(uint8_t{});
+  if (type_id == type_ids::volume_u16) return f(uint16_t{});
+  if (type_id == type_ids::volume_u32) return f(uint32_t{});
+  if (type_id == type_ids::volume_u64) return f(uint64_t{});
+  if (type_id == type_ids::volume_i32) return f(int32_t{});
+  if (type_id == type_ids::volume_f32) return f(float{});
+  if (type_id == type_ids::volume_f64) return f(double{});
+  throw InputError(what + ": expected a volume, got " + type_id);
+}
+
 // Progress of a block-wise stage: "LABEL DONE/TOTAL blocks" through the interrupter, cancellation
 // checked.
 void report_blocks(const Interrupter& interrupter, const std::string& label, int64_t done, int64_t total);
+
+// Calls f(block) for every block of `layout` in z, y, x order, reporting "LABEL k/n blocks" and
+// checking cancellation between blocks.
+template <class F>
+void for_each_block(const BlockLayout& layout, const Interrupter& interrupter, const std::string& label, F&& f) {
+  const Dims c = layout.count();
+  const int64_t total = layout.total();
+  int64_t done = 0;
+  report_blocks(interrupter, label, 0, total);
+  for (int64_t bz = 0; bz < c[2]; ++bz)
+    for (int64_t by = 0; by < c[1]; ++by)
+      for (int64_t bx = 0; bx < c[0]; ++bx) {
+        f(layout.at(bx, by, bz));
+        report_blocks(interrupter, label, ++done, total);
+      }
+}
 
 }  // namespace skel

@@ -14,6 +14,7 @@
 #include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/table.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/volume.hpp"
 
 namespace skel::segmentation {
@@ -41,6 +42,17 @@ struct ThresholdResult {
   int64_t object_voxels = 0;
 };
 ThresholdResult threshold(const DataObject& image, const ThresholdOptions& options);
+
+// Block-wise threshold (out-of-core, docs/architecture.md): reads `image` (in memory or on disk)
+// in blocks of `block` voxels and writes the mask into `mask` (on disk, the image's grid); the
+// same voxels and thresholds as threshold() (Otsu: two more block passes, value range and
+// histogram). Progress "threshold k/n blocks".
+struct BlockThresholdResult {
+  double low = 0, high = 0;
+  int64_t object_voxels = 0;
+};
+BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolume& mask, const ThresholdOptions& options,
+                                      const Dims& block, const Interrupter& interrupter = {});
 
 struct GaussianOptions {
   Vec3 sigma{1, 1, 1};  // physical units per axis; 0 on an axis skips it

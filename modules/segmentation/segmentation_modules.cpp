@@ -34,9 +34,27 @@ public:
 the between-class variance of a 256-bin histogram between the image's minimum and maximum (exact bins
 for uint8); voxels above it become object. NaN voxels are background. The table reports the
 thresholds used and the object fraction, so a pipeline run documents itself. An empty result is
-allowed (a warning says so). Memory: 1 byte per voxel (output).)");
+allowed (a warning says so). Memory: 1 byte per voxel (output).
+
+Block-wise under a memory budget: blocks of the image in, blocks of the mask out (on disk); Otsu
+first reads the image twice more (value range, histogram). The same mask and table as in memory.)")
+        .blockwise(0, 9);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& image = *ctx.input_data("image");
+      auto mask = ctx.scratch_volume("mask", type_ids::volume_u8, any_volume_grid(image, "input 'image'"));
+      const BlockThresholdResult r =
+          threshold_blocks(image, *mask, ctx.options<ThresholdOptions>(), blocks->block, ctx.progress());
+      if (r.object_voxels == 0) ctx.warn("no voxel lies between the thresholds: the mask is empty");
+      const int64_t n = mask->grid().voxel_count();
+      Table t;
+      t.add("low", std::vector<double>{r.low}).add("high", std::vector<double>{r.high});
+      t.add("object_fraction", std::vector<double>{n ? static_cast<double>(r.object_voxels) / static_cast<double>(n) : 0.0});
+      ctx.output("mask", DataPtr(std::move(mask)));
+      ctx.output("table", std::move(t));
+      return;
+    }
     ThresholdResult r = threshold(*ctx.input_data("image"), ctx.options<ThresholdOptions>());
     if (r.object_voxels == 0) ctx.warn("no voxel lies between the thresholds: the mask is empty");
     Table t;
