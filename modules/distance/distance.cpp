@@ -3,6 +3,7 @@
 #include "distance/distance.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -816,6 +817,157 @@ VolumeF32 seeded(const VolumeU8& seeds, const SeededOptions& options) {
                        options.interrupter, out.data(), nullptr);
   finish_distances(out, iso, options.squared, options.threads);
   return out;
+}
+
+// ============================================================================ block-wise chamfer (ch. 5.1)
+namespace {
+
+struct Step {
+  int dx, dy, dz;
+  uint64_t w;
+};
+
+// The 13 steps of the forward mask (plane z-1, row y-1, voxel x-1) with their weights; the backward
+// mask is their mirror.
+std::array<Step, 13> forward_steps(const Weights64& w) {
+  auto weight = [&](int dx, int dy, int dz) -> uint64_t {
+    const int n = std::abs(dx) + std::abs(dy) + std::abs(dz);
+    if (n == 1) return dx ? w.fx : dy ? w.fy : w.fz;
+    if (n == 2) return dz == 0 ? w.exy : dy == 0 ? w.exz : w.eyz;
+    return w.v;
+  };
+  std::array<Step, 13> s{};
+  int k = 0;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) s[static_cast<size_t>(k++)] = {dx, dy, -1, weight(dx, dy, -1)};
+  for (int dx = -1; dx <= 1; ++dx) s[static_cast<size_t>(k++)] = {dx, -1, 0, weight(dx, -1, 0)};
+  s[static_cast<size_t>(k)] = {-1, 0, 0, w.fx};
+  return s;
+}
+
+// One chamfer raster scan (forward: z, y, x increasing over the forward mask; backward: the mirror)
+// of a box of the grid: d(p) = min(d(p), d(n) + w) over the mask's neighbours n of every object
+// voxel p. Neighbours outside the grid count as `B` (the ring outside the array); neighbours outside
+// the box but inside the grid are left to the block order of Algorithm 4. Values stay <= INF.
+template <class T>
+void scan_box(VolumeView<const uint8_t> m, VolumeView<T> d, const Dims& grid, const std::array<Step, 13>& steps,
+              bool forward, Acc<T> B) {
+  using A = Acc<T>;
+  const A INF = std::numeric_limits<T>::max();
+  const int64_t nx = d.dims[0], ny = d.dims[1], nz = d.dims[2];
+  const int sign = forward ? 1 : -1;
+  std::array<int64_t, 13> offset{};
+  for (size_t k = 0; k < steps.size(); ++k)
+    offset[k] = sign * (steps[k].dx * d.strides[0] + steps[k].dy * d.strides[1] + steps[k].dz * d.strides[2]);
+  for (int64_t zi = 0; zi < nz; ++zi) {
+    const int64_t z = forward ? zi : nz - 1 - zi;
+    for (int64_t yi = 0; yi < ny; ++yi) {
+      const int64_t y = forward ? yi : ny - 1 - yi;
+      for (int64_t xi = 0; xi < nx; ++xi) {
+        const int64_t x = forward ? xi : nx - 1 - xi;
+        if (!m(x, y, z)) continue;  // background stays 0
+        T* p = &d(x, y, z);
+        A c = *p;
+        if (x > 0 && y > 0 && z > 0 && x < nx - 1 && y < ny - 1 && z < nz - 1) {
+          for (size_t k = 0; k < steps.size(); ++k) c = std::min(c, static_cast<A>(p[offset[k]]) + static_cast<A>(steps[k].w));
+        } else {
+          for (const Step& s : steps) {
+            const int64_t lx = x + sign * s.dx, ly = y + sign * s.dy, lz = z + sign * s.dz;
+            const int64_t gx = d.offset[0] + lx, gy = d.offset[1] + ly, gz = d.offset[2] + lz;
+            if (gx < 0 || gy < 0 || gz < 0 || gx >= grid[0] || gy >= grid[1] || gz >= grid[2])
+              c = std::min(c, B + static_cast<A>(s.w));
+            else if (lx >= 0 && ly >= 0 && lz >= 0 && lx < nx && ly < ny && lz < nz)
+              c = std::min(c, static_cast<A>(d(lx, ly, lz)) + static_cast<A>(s.w));
+          }
+        }
+        *p = static_cast<T>(std::min(c, INF));
+      }
+    }
+  }
+}
+
+// The box [begin, begin + size) of an integer mask (in memory or on disk) as 0/1 bytes.
+VolumeU8 read_mask_box(const DataObject& mask, const Dims& begin, const Dims& size) {
+  return visit_voxel_type(mask.type_id(), "input 'mask'", [&](auto tag) {
+    using M = decltype(tag);
+    if constexpr (std::is_floating_point_v<M>) {
+      throw InputError("input 'mask': expected an integer volume (voxel > 0 is object), got " + mask.type_id());
+      return VolumeU8();
+    } else {
+      const Volume<M> v = read_block<M>(mask, begin, size, "input 'mask'");
+      VolumeU8 out = VolumeU8::uninitialized(v.grid());
+      for (int64_t i = 0; i < v.size(); ++i) out[i] = v[i] > 0 ? 1 : 0;
+      return out;
+    }
+  });
+}
+
+// Block order of Algorithm 4 along one axis: 0, 1, ..., n-1, n-2, ..., 0 (up) or its mirror.
+std::vector<int64_t> there_and_back(int64_t n, bool up) {
+  std::vector<int64_t> s;
+  for (int64_t i = 0; i < n; ++i) s.push_back(up ? i : n - 1 - i);
+  for (int64_t i = n - 2; i >= 0; --i) s.push_back(up ? i : n - 1 - i);
+  return s;
+}
+
+template <class T>
+void chamfer_blocks_t(const DataObject& mask, const ChunkedVolume& out, const Weights64& w, const ChamferOptions& o,
+                      const Dims& block) {
+  const Grid& g = out.grid();
+  const BlockLayout layout(g.dims, block, 1);
+  const Dims n = layout.count();
+  const int64_t total = layout.total() + 2 * n[2] * (2 * n[0] - 1) * (2 * n[1] - 1);
+  const T INF = std::numeric_limits<T>::max();
+  const Acc<T> B = o.border_is_object ? Acc<T>(INF) : Acc<T>(0);
+  const auto steps = forward_steps(w);
+  int64_t done = 0;
+  report_blocks(o.interrupter, "chamfer", 0, total);
+  // Start: 0 on background, INF on object.
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block b = layout.at(bx, by, bz);
+        const VolumeU8 m = read_mask_box(mask, b.begin, b.size);
+        Volume<T> d = Volume<T>::uninitialized(m.grid());
+        for (int64_t i = 0; i < m.size(); ++i) d[i] = m[i] ? INF : T(0);
+        out.write(d, b.begin);
+        report_blocks(o.interrupter, "chamfer", ++done, total);
+      }
+  // Eight block-wise scans: each block with a one-voxel overlap (its halo), visited there and back
+  // along x within each row of blocks, along y within each layer, layers in scan order.
+  auto visit = [&](int64_t bx, int64_t by, int64_t bz, bool forward) {
+    const Block b = layout.at(bx, by, bz);
+    const VolumeU8 m = read_mask_box(mask, b.outer_begin, b.outer_size);
+    Volume<T> d = out.read<T>(b.outer_begin, b.outer_size);
+    VolumeView<const uint8_t> mv = m.view();
+    VolumeView<T> dv = d.view();
+    mv.offset = dv.offset = b.outer_begin;
+    scan_box<T>(mv, dv, g.dims, steps, forward, B);
+    out.write(d, b.outer_begin);
+    report_blocks(o.interrupter, "chamfer", ++done, total);
+  };
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by : there_and_back(n[1], true))
+      for (int64_t bx : there_and_back(n[0], true)) visit(bx, by, bz, true);
+  for (int64_t bz = n[2] - 1; bz >= 0; --bz)
+    for (int64_t by : there_and_back(n[1], false))
+      for (int64_t bx : there_and_back(n[0], false)) visit(bx, by, bz, false);
+}
+
+}  // namespace
+
+const char* chamfer_output_type(const Grid& grid, const ChamferOptions& options) {
+  return chamfer_output_bits(grid, options) == 16 ? type_ids::volume_u16 : type_ids::volume_u32;
+}
+
+void chamfer_blocks(const DataObject& mask, const ChunkedVolume& out, const ChamferOptions& options, const Dims& block) {
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  if (out.grid().dims != g.dims) throw Error("chamfer_blocks: the output's grid differs from the mask's");
+  const Weights64 w = effective_weights(g, options);
+  if (out.type_id() != chamfer_output_type(g, options))
+    throw Error("chamfer_blocks: the output must be " + std::string(chamfer_output_type(g, options)));
+  if (out.type_id() == type_ids::volume_u16) chamfer_blocks_t<uint16_t>(mask, out, w, options, block);
+  else chamfer_blocks_t<uint32_t>(mask, out, w, options, block);
 }
 
 }  // namespace skel::distance

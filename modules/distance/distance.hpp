@@ -22,6 +22,7 @@
 #include "skel/data.hpp"
 #include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/volume.hpp"
 
 namespace skel::distance {
@@ -84,6 +85,15 @@ struct ChamferNearest {
   DataPtr nearest;   // VolumeU32 if the grid has < 2^32 - 1 voxels, else VolumeU64
 };
 ChamferNearest chamfer_nearest(const VolumeU8& mask, const ChamferOptions& options = {});
+
+// Block-wise chamfer (out-of-core, thesis ch. 5.1, Algorithm 4): `mask` (any integer volume, in
+// memory or on disk) in blocks of `block` voxels with a one-voxel overlap, eight block-wise raster
+// scans (each layer of blocks row by row there and back, each row there and back), the distances
+// written into `out` (on disk, the mask's grid, of chamfer_output_type). Bit-identical to chamfer()
+// for weights obeying the chamfer-norm conditions (see distance.chamfer). Blocks visited:
+// n + 2·nz·(2nx-1)·(2ny-1) for n = nx·ny·nz blocks; progress "chamfer k/total blocks".
+const char* chamfer_output_type(const Grid& grid, const ChamferOptions& options);  // volume.u16 or volume.u32
+void chamfer_blocks(const DataObject& mask, const ChunkedVolume& out, const ChamferOptions& options, const Dims& block);
 
 struct EuclideanOptions : DistanceOptions {
   using OptionsBase = DistanceOptions;
