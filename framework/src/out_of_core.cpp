@@ -32,7 +32,7 @@ uint64_t parse_byte_size(const std::string& text, const std::string& what) {
   else if (unit == "mib") scale = 1024.0 * 1024.0;
   else if (unit == "gib") scale = 1024.0 * 1024.0 * 1024.0;
   else if (unit == "tib") scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
-  else throw InputError(what + ": unknown unit '" + t.substr(i) + "' in '" + text + "'" + help);
+  else throw InputError(what + ": unknown unit '" + text::trim(t.substr(i)) + "' in '" + text + "'" + help);
   const double bytes = std::floor(value * scale);
   if (bytes < 1) throw InputError(what + ": '" + text + "' is no memory at all" + help);
   if (bytes > 4.6e18) throw InputError(what + ": '" + text + "' is larger than any machine's memory");
