@@ -146,6 +146,7 @@ struct BlockLayout {
 struct BlockPlan {
   uint64_t memory_budget = 0;  // bytes
   Dims block{64, 64, 64};      // interior block shape (x, y, z)
+  bool block_from_user = false;  // `block` was given (execution: block); else chosen from the budget
   // Makes an empty on-disk volume for output port `port` (every voxel 0), removed when the run ends.
   std::function<std::shared_ptr<ChunkedVolume>(const std::string& port, const std::string& type_id, const Grid& grid)>
       scratch;

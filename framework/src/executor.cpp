@@ -688,6 +688,7 @@ BlockPlan Executor::Scheduler::block_plan(size_t i, const std::map<std::string, 
   b.block = plan_.block != Dims{0, 0, 0}
                 ? plan_.block
                 : block_for_budget(plan_.memory_budget, spec.block_support().halo, spec.block_support().bytes_per_voxel, grid);
+  b.block_from_user = plan_.block != Dims{0, 0, 0};
   const Dims chunk = b.block;
   b.scratch = [this, i, chunk](const std::string& port, const std::string& type_id, const Grid& g) {
     return make_scratch(i, port, type_id, g, chunk);

@@ -109,6 +109,16 @@ struct EuclideanOptions : DistanceOptions {
 // Memory: 4 bytes per voxel (output) plus per-thread line buffers.
 VolumeF32 euclidean(const VolumeU8& mask, const EuclideanOptions& options = {});
 
+// Block-wise exact Euclidean DT (out-of-core): the three separable passes of euclidean(), each over
+// slabs of whole lines along its axis (`cross` voxels across: pass x reads slabs of nx x cross[1] x
+// cross[2], pass y cross[0] x ny x cross[2], pass z cross[0] x cross[1] x nz), from `mask` (any
+// integer volume, in memory or on disk) into `out` (float32 on disk, the mask's grid), which holds
+// the squared distances between passes. Bit-identical to euclidean(), anisotropic grids included.
+// Progress "euclidean k/n blocks" (slabs).
+void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const EuclideanOptions& options, const Dims& cross);
+// The slab cross-section for a budget: a quarter of it holds one slab along the longest axis.
+Dims euclidean_cross_section(uint64_t budget, const Dims& grid_dims);
+
 // Exact Euclidean feature transform: for every voxel the linear index of its nearest background voxel
 // (ties as described at the top); background voxels get their own index; kOutside* where the
 // nearest point is outside the array, and everywhere if there is no background at all.

@@ -109,9 +109,24 @@ Multi-threaded over rows and planes; identical results for any thread count.
 Voxels outside the array are background by default (the distance never exceeds the distance to the
 array's border); with border_is_object a mask without background gives +inf everywhere. An empty
 mask gives all zeros.
-Memory: the output, 4 bytes per voxel, plus per-thread line buffers (~40 bytes per voxel of one line).)");
+Memory: the output, 4 bytes per voxel, plus per-thread line buffers (~40 bytes per voxel of one line).
+
+Block-wise under a memory budget: the same three passes, each over slabs of whole lines along its
+axis (the squared distances on disk between passes), bit-identical to the in-memory result. A slab
+takes 5 bytes per voxel (mask + float32); its cross-section is chosen so that one slab along the
+longest axis fits a quarter of the budget, or is the `block` of the pipeline's `execution:`.)")
+        .blockwise(0, 5);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      DataPtr mask = ctx.input_data("mask");
+      const Grid& g = any_volume_grid(*mask, "input 'mask'");
+      auto out = ctx.scratch_volume("distance", type_ids::volume_f32, g);
+      const Dims cross = blocks->block_from_user ? blocks->block : euclidean_cross_section(blocks->memory_budget, g.dims);
+      euclidean_blocks(*mask, *out, ctx.options<EuclideanOptions>(), cross);
+      ctx.output("distance", DataPtr(std::move(out)));
+      return;
+    }
     auto mask = mask_input(ctx, "mask");
     ctx.output("distance", euclidean(*mask, ctx.options<EuclideanOptions>()));
   }

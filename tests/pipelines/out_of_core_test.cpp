@@ -1,5 +1,5 @@
-// Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise threshold and
-// chamfer with their volumes in scratch files) writes the same bytes as the in-memory run, leaves
+// Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise threshold, chamfer
+// and Euclidean DT with their volumes in scratch files) writes the same bytes as the in-memory run, leaves
 // no scratch file behind (also when a node fails), and an in-memory stage whose on-disk input does
 // not fit the budget fails naming the node.
 #include <gtest/gtest.h>
@@ -44,6 +44,8 @@ nodes:
   dist: {module: distance.chamfer, inputs: {mask: seg.mask}}
   save_mask: {module: io.write_volume, inputs: {volume: seg.mask}, params: {path: out/mask.h5}}
   save_dist: {module: io.write_volume, inputs: {volume: dist.distance}, params: {path: out/dist.h5}}
+  edt: {module: distance.euclidean, inputs: {mask: seg.mask}}
+  save_edt: {module: io.write_volume, inputs: {volume: edt.distance}, params: {path: out/edt.h5}}
 )";
 
 RunReport run_into(const Pipeline& p, const fs::path& dir, uint64_t budget, Dims block = {0, 0, 0},
@@ -66,7 +68,7 @@ TEST(OutOfCore, TinyBudgetGivesTheSameBytesAndLeavesNoScratch) {
   run_into(p, a, 0);
   run_into(p, b, 1ull << 20, {13, 17, 11});
   run_into(p, c, 1ull << 20);  // 16³ blocks from the budget
-  const std::vector<std::string> outputs = {"out/dist.h5", "out/mask.h5"};
+  const std::vector<std::string> outputs = {"out/dist.h5", "out/edt.h5", "out/mask.h5"};
   EXPECT_EQ(files_under(a), outputs);
   EXPECT_EQ(files_under(b), outputs);  // the scratch files went next to the outputs, and are gone
   EXPECT_EQ(files_under(c), outputs);
@@ -92,14 +94,15 @@ TEST(OutOfCore, BudgetFromThePipelineFileAndScratchFolder) {
   };
   Executor ex;
   ex.run(p, o);
-  for (const auto& f : {"out/dist.h5", "out/mask.h5"}) EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
+  for (const auto& f : {"out/dist.h5", "out/edt.h5", "out/mask.h5"}) EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
   EXPECT_TRUE(files_under(s).empty());
   EXPECT_NE(std::find(messages.begin(), messages.end(), "dist: chamfer 1/" + std::to_string(27 + 2 * 3 * 5 * 5) + " blocks"),
             messages.end());
 }
 
 TEST(OutOfCore, InMemoryStageOverTheBudgetFailsNamingTheNodeAndCleansUp) {
-  const Pipeline p = Pipeline::parse(kPipeline, "ooc.yaml");
+  const std::string without_edt = std::string(kPipeline).substr(0, std::string(kPipeline).find("  edt:"));
+  const Pipeline p = Pipeline::parse(without_edt, "ooc.yaml");
   const fs::path b = scratch("over_budget");
   // 30 KiB: the blocks and the mask fit, but io.write_volume (in memory) cannot load the distance map.
   try {

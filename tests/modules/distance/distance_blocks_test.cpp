@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <cstring>
 #include <random>
 
 #include "distance/distance.hpp"
@@ -120,6 +121,56 @@ TEST(ChamferBlocks, CancelledBetweenBlocks) {
   o.interrupter = Interrupter([](double) {}, &cancel);
   auto out = scratch("cancel", chamfer_output_type(m.grid(), o), m.grid(), {8, 8, 8});
   EXPECT_THROW(chamfer_blocks(m, *out, o, {8, 8, 8}), Cancelled);
+}
+
+}  // namespace
+}  // namespace skel::distance
+
+namespace skel::distance {
+namespace {
+
+void expect_same_edt(const VolumeU8& mask, const EuclideanOptions& o, const Dims& cross, const std::string& what) {
+  const VolumeF32 in_core = euclidean(mask, o);
+  auto out = scratch("edt", type_ids::volume_f32, mask.grid(), {8, 8, 8});
+  euclidean_blocks(mask, *out, o, cross);
+  const auto blocked = std::dynamic_pointer_cast<const VolumeF32>(materialize(out));
+  ASSERT_TRUE(blocked) << what;
+  ASSERT_EQ(blocked->grid(), in_core.grid()) << what;
+  int64_t diff = 0;
+  for (int64_t i = 0; i < in_core.size(); ++i)
+    diff += std::memcmp(&in_core[i], &(*blocked)[i], sizeof(float)) != 0;  // bit for bit (inf included)
+  EXPECT_EQ(diff, 0) << what << ": " << diff << " voxels differ";
+}
+
+TEST(EuclideanBlocks, BitIdenticalForAnySlabShape) {
+  std::mt19937 rng(5);
+  for (double p : {0.7, 0.97}) {
+    const VolumeU8 m = random_mask(rng, {29, 23, 19}, p);
+    for (const Dims& c : std::vector<Dims>{{1, 1, 1}, {3, 5, 2}, {7, 4, 9}, {64, 64, 64}})
+      expect_same_edt(m, {}, c, "p " + std::to_string(p) + " cross " + std::to_string(c[0]) + "x" + std::to_string(c[1]) +
+                                    "x" + std::to_string(c[2]));
+  }
+  expect_same_edt(ball({33, 30, 28}, {16, 16, 16}, 12.5), {}, {5, 9, 6}, "ball");
+}
+
+TEST(EuclideanBlocks, AnisotropicSquaredAndBorderAsObject) {
+  std::mt19937 rng(9);
+  const VolumeU8 m = random_mask(rng, {21, 18, 15}, 0.95, {0.7, 1.3, 2.1});
+  expect_same_edt(m, {}, {4, 3, 5}, "anisotropic");
+  EuclideanOptions sq;
+  sq.squared = true;
+  expect_same_edt(m, sq, {4, 3, 5}, "squared");
+  EuclideanOptions b;
+  b.border_is_object = true;
+  expect_same_edt(m, b, {6, 5, 4}, "border is object");
+  expect_same_edt(VolumeU8({9, 8, 7}, 1), b, {4, 3, 5}, "no background: +inf everywhere");
+  expect_same_edt(VolumeU8({9, 1, 7}, 1), {}, {4, 3, 5}, "one row thick");
+}
+
+TEST(EuclideanBlocks, CrossSectionFromBudget) {
+  // 256 MiB: a quarter holds one slab of 512-voxel lines at 5 bytes per voxel: side sqrt(13421772 / 512) = 161.
+  EXPECT_EQ(euclidean_cross_section(256ull << 20, {512, 512, 300}), (Dims{161, 161, 161}));
+  EXPECT_EQ(euclidean_cross_section(1024, {512, 512, 512}), (Dims{1, 1, 1}));
 }
 
 }  // namespace
