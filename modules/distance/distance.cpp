@@ -14,6 +14,7 @@
 #endif
 
 #include "skel/error.hpp"
+#include "skel/mask.hpp"
 #include "skel/parallel.hpp"
 
 namespace skel::distance {
@@ -908,18 +909,7 @@ void scan_box(VolumeView<const uint8_t> m, VolumeView<T> d, const Dims& grid, co
 
 // The box [begin, begin + size) of an integer mask (in memory or on disk) as 0/1 bytes.
 VolumeU8 read_mask_box(const DataObject& mask, const Dims& begin, const Dims& size) {
-  return visit_voxel_type(mask.type_id(), "input 'mask'", [&](auto tag) {
-    using M = decltype(tag);
-    if constexpr (std::is_floating_point_v<M>) {
-      throw InputError("input 'mask': expected an integer volume (voxel > 0 is object), got " + mask.type_id());
-      return VolumeU8();
-    } else {
-      const Volume<M> v = read_block<M>(mask, begin, size, "input 'mask'");
-      VolumeU8 out = VolumeU8::uninitialized(v.grid());
-      for (int64_t i = 0; i < v.size(); ++i) out[i] = v[i] > 0 ? 1 : 0;
-      return out;
-    }
-  });
+  return read_mask_block(mask, begin, size, "input 'mask'");
 }
 
 // Block order of Algorithm 4 along one axis: 0, 1, ..., n-1, n-2, ..., 0 (up) or its mirror.

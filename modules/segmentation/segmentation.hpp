@@ -89,6 +89,21 @@ struct ComponentsResult {
 };
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
 
+// Block-wise connected components (out-of-core): components inside every block of `block` voxels
+// (union-find over runs, as in memory) get provisional ids in `work` (uint64, on disk); those
+// touching across block faces, edges and corners (per connectivity) are united; labels, mask and
+// table are then the same as connected_components() gives (size descending, ties by first voxel in
+// raster order). `labels` (uint32), `kept` (uint8) and `work` are on disk with the mask's grid.
+// Memory: one block (mask, runs, 8 bytes per voxel of provisional ids) plus ~100 bytes per
+// provisional component. Progress "components k/n blocks" (four passes).
+struct BlockComponentsResult {
+  Table table;
+  int64_t count = 0;
+};
+BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
+                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
+                                                  const ComponentOptions& options, const Dims& block);
+
 // Counts components without labelling: of the object (non-zero) voxels, or of the background (zero)
 // voxels when `background`; touching_border = those with a voxel on an array face. Union-find over
 // x-runs as connected_components; memory ~ 24 bytes per run, no label volume.

@@ -108,9 +108,28 @@ then slab borders are merged. Labels are ordered by size, largest first; equal s
 their first voxel in raster order (x fastest), so labels do not depend on the thread count. An empty
 mask gives all-zero labels, an empty table and a warning; a full volume gives one component.
 Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run and 8 per row
-(typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).)");
+(typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).
+
+Block-wise under a memory budget: components per block, provisional ids on disk (8 bytes per voxel),
+united across block faces, edges and corners, then relabelled: the same labels, mask and table as in
+memory. Memory per block: 1 (mask) + 8 (ids) + 4 + 1 (outputs) bytes per voxel, plus ~100 bytes per
+component piece.)")
+        .blockwise(1, 14);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& mask = *ctx.input_data("mask");
+      const Grid& g = any_volume_grid(mask, "input 'mask'");
+      auto labels = ctx.scratch_volume("labels", type_ids::volume_u32, g);
+      auto kept = ctx.scratch_volume("mask", type_ids::volume_u8, g);
+      auto work = ctx.scratch_volume("work", type_ids::volume_u64, g);
+      auto r = connected_components_blocks(mask, *labels, *kept, *work, ctx.options<ComponentOptions>(), blocks->block);
+      if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
+      ctx.output("labels", DataPtr(std::move(labels)));
+      ctx.output("mask", DataPtr(std::move(kept)));
+      ctx.output("table", std::move(r.table));
+      return;
+    }
     auto r = connected_components(mask_input(ctx), ctx.options<ComponentOptions>());
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     ctx.output("labels", std::move(r.labels));

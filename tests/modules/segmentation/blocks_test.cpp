@@ -1,0 +1,113 @@
+// Block-wise (out-of-core) segmentation against the in-memory functions: threshold (manual and
+// Otsu) and connected components (same labels, mask and table for 6/18/26-connectivity, min_size,
+// keep_largest) for odd block shapes, one-voxel blocks and objects that touch only across block
+// edges and corners.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <random>
+
+#include "io/hdf5_volume.hpp"
+#include "segmentation/segmentation.hpp"
+#include "skel/out_of_core.hpp"
+
+namespace skel::segmentation {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::shared_ptr<ChunkedVolume> scratch(const std::string& name, const std::string& type, const Grid& g) {
+  const fs::path f = fs::path(SKEL_BINARY_DIR) / "tests" / ("segmentation_blocks_" + name + ".h5");
+  return std::make_shared<ChunkedVolume>(g, type, io::create_scratch_store(f, type, g, {8, 8, 8}));
+}
+
+template <class T>
+Volume<T> whole(const ChunkedVolume& c) {
+  return c.read<T>({0, 0, 0}, c.dims());
+}
+
+TEST(ThresholdBlocks, ManualAndOtsuSameMaskAndThresholds) {
+  std::mt19937 rng(3);
+  VolumeF32 img({23, 19, 17}, 0.0f, {0.5, 1, 2});
+  std::normal_distribution<float> noise(0.0f, 0.3f);
+  for (int64_t i = 0; i < img.size(); ++i) img[i] = (i % 7 < 3 ? 1.0f : 0.0f) + noise(rng);
+  for (ThresholdMethod method : {ThresholdMethod::manual, ThresholdMethod::otsu}) {
+    ThresholdOptions o;
+    o.method = method;
+    o.low = 0.4;
+    o.high = 1.2;
+    const ThresholdResult in_core = threshold(img, o);
+    for (const Dims& b : std::vector<Dims>{{1, 1, 1}, {5, 7, 3}, {13, 17, 11}}) {
+      auto mask = scratch("threshold", type_ids::volume_u8, img.grid());
+      const BlockThresholdResult r = threshold_blocks(img, *mask, o, b);
+      EXPECT_EQ(r.low, in_core.low);
+      EXPECT_EQ(r.high, in_core.high);
+      EXPECT_EQ(r.object_voxels, in_core.object_voxels);
+      EXPECT_TRUE(whole<uint8_t>(*mask) == in_core.mask);
+    }
+  }
+  // uint8 images (exact Otsu bins) read from disk.
+  VolumeU8 bytes({16, 16, 16});
+  for (int64_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<uint8_t>((i * 37) % 251);
+  auto on_disk = scratch("threshold_in", type_ids::volume_u8, bytes.grid());
+  on_disk->write(bytes, {0, 0, 0});
+  ThresholdOptions otsu;
+  otsu.method = ThresholdMethod::otsu;
+  auto mask = scratch("threshold_u8", type_ids::volume_u8, bytes.grid());
+  const BlockThresholdResult r = threshold_blocks(*on_disk, *mask, otsu, {6, 5, 7});
+  const ThresholdResult in_core = threshold(bytes, otsu);
+  EXPECT_EQ(r.low, in_core.low);
+  EXPECT_TRUE(whole<uint8_t>(*mask) == in_core.mask);
+}
+
+void expect_same_components(const VolumeU8& m, const ComponentOptions& o, const Dims& block, const std::string& what) {
+  const ComponentsResult in_core = connected_components(m, o);
+  auto labels = scratch("labels", type_ids::volume_u32, m.grid());
+  auto kept = scratch("kept", type_ids::volume_u8, m.grid());
+  auto work = scratch("work", type_ids::volume_u64, m.grid());
+  const BlockComponentsResult r = connected_components_blocks(m, *labels, *kept, *work, o, block);
+  EXPECT_EQ(r.count, in_core.count) << what;
+  EXPECT_TRUE(whole<uint32_t>(*labels) == in_core.labels) << what;
+  EXPECT_TRUE(whole<uint8_t>(*kept) == in_core.mask) << what;
+  EXPECT_EQ(r.table.to_csv(), in_core.table.to_csv()) << what;
+}
+
+TEST(ComponentsBlocks, RandomMasksSameLabelsAndTable) {
+  std::mt19937 rng(11);
+  for (double p : {0.2, 0.35, 0.6}) {
+    VolumeU8 m({25, 21, 18}, 0, {1, 2, 3}, {5, 6, 7});
+    std::bernoulli_distribution obj(p);
+    for (auto& v : m) v = obj(rng) ? 1 : 0;
+    for (Connectivity c : {Connectivity::c6, Connectivity::c18, Connectivity::c26})
+      for (const Dims& b : std::vector<Dims>{{1, 1, 1}, {4, 7, 5}, {13, 17, 11}, {64, 64, 64}}) {
+        ComponentOptions o;
+        o.connectivity = c;
+        expect_same_components(m, o, b, "p " + std::to_string(p) + " c" + std::to_string(static_cast<int>(c)) +
+                                            " block " + std::to_string(b[0]) + "x" + std::to_string(b[1]) + "x" +
+                                            std::to_string(b[2]));
+      }
+  }
+}
+
+TEST(ComponentsBlocks, DiagonalChainsThroughBlockCornersAndFilters) {
+  // A chain of voxels touching only at corners, crossing the corners of 4x4x4 blocks: one component
+  // for 26-connectivity, single voxels for 6 and 18.
+  VolumeU8 m({16, 16, 16});
+  for (int64_t i = 0; i < 16; ++i) m(i, i, i) = 1;
+  for (int64_t i = 0; i < 10; ++i) m(15 - i, i, 3) = 1;  // an edge-diagonal chain in a plane
+  for (Connectivity c : {Connectivity::c6, Connectivity::c18, Connectivity::c26}) {
+    ComponentOptions o;
+    o.connectivity = c;
+    expect_same_components(m, o, {4, 4, 4}, "chains c" + std::to_string(static_cast<int>(c)));
+  }
+  ComponentOptions o;
+  o.min_size = 2;
+  expect_same_components(m, o, {3, 5, 4}, "min_size");
+  o.keep_largest = true;
+  expect_same_components(m, o, {3, 5, 4}, "keep_largest");
+  expect_same_components(VolumeU8({9, 8, 7}), {}, {4, 4, 4}, "empty");
+  expect_same_components(VolumeU8({9, 8, 7}, 1), {}, {4, 4, 4}, "full");
+}
+
+}  // namespace
+}  // namespace skel::segmentation
