@@ -1,5 +1,5 @@
 // Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise threshold, chamfer
-// and Euclidean DT with their volumes in scratch files) writes the same bytes as the in-memory run, leaves
+// Euclidean DT and connected components with their volumes in scratch files) writes the same bytes as the in-memory run, leaves
 // no scratch file behind (also when a node fails), and an in-memory stage whose on-disk input does
 // not fit the budget fails naming the node.
 #include <gtest/gtest.h>
@@ -46,6 +46,9 @@ nodes:
   save_dist: {module: io.write_volume, inputs: {volume: dist.distance}, params: {path: out/dist.h5}}
   edt: {module: distance.euclidean, inputs: {mask: seg.mask}}
   save_edt: {module: io.write_volume, inputs: {volume: edt.distance}, params: {path: out/edt.h5}}
+  parts: {module: segmentation.connected_components, inputs: {mask: seg.mask}, params: {connectivity: 6}}
+  save_labels: {module: io.write_volume, inputs: {volume: parts.labels}, params: {path: out/labels.h5}}
+  save_table: {module: io.write_table, inputs: {table: parts.table}, params: {path: out/components.csv}}
 )";
 
 RunReport run_into(const Pipeline& p, const fs::path& dir, uint64_t budget, Dims block = {0, 0, 0},
@@ -68,7 +71,7 @@ TEST(OutOfCore, TinyBudgetGivesTheSameBytesAndLeavesNoScratch) {
   run_into(p, a, 0);
   run_into(p, b, 1ull << 20, {13, 17, 11});
   run_into(p, c, 1ull << 20);  // 16³ blocks from the budget
-  const std::vector<std::string> outputs = {"out/dist.h5", "out/edt.h5", "out/mask.h5"};
+  const std::vector<std::string> outputs = {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/labels.h5", "out/mask.h5"};
   EXPECT_EQ(files_under(a), outputs);
   EXPECT_EQ(files_under(b), outputs);  // the scratch files went next to the outputs, and are gone
   EXPECT_EQ(files_under(c), outputs);
@@ -94,7 +97,7 @@ TEST(OutOfCore, BudgetFromThePipelineFileAndScratchFolder) {
   };
   Executor ex;
   ex.run(p, o);
-  for (const auto& f : {"out/dist.h5", "out/edt.h5", "out/mask.h5"}) EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
+  for (const auto& f : {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/labels.h5", "out/mask.h5"}) EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
   EXPECT_TRUE(files_under(s).empty());
   EXPECT_NE(std::find(messages.begin(), messages.end(), "dist: chamfer 1/" + std::to_string(27 + 2 * 3 * 5 * 5) + " blocks"),
             messages.end());
