@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <functional>
 #include <numeric>
 #include <vector>
 
@@ -274,62 +275,65 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
 }
 
 // ---------------------------------------------------------------- block-wise (out-of-core)
-BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
-                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
-                                                  const ComponentOptions& o, const Dims& block) {
-  const int conn = static_cast<int>(o.connectivity);
-  check_connectivity(conn);
-  const Grid& g = any_volume_grid(mask, "input 'mask'");
-  if (labels.dims() != g.dims || kept.dims() != g.dims || work.dims() != g.dims || labels.type_id() != type_ids::volume_u32 ||
-      kept.type_id() != type_ids::volume_u8 || work.type_id() != type_ids::volume_u64)
-    throw Error("connected_components_blocks: labels (uint32), mask (uint8) and work (uint64) must have the mask's grid");
-  const BlockLayout layout(g.dims, block, 1);
+namespace {
+
+// Components of the object (or of the background) of a mask in memory or on disk, found block by
+// block: inside every block by union-find over runs as in memory, each piece with a provisional id
+// (1-based, written to `work`), its statistics in global coordinates and whether it touches a face
+// of the array; then the pieces that touch across block faces, edges and corners (per
+// connectivity) are united. Two passes over the blocks.
+struct Provisional {
+  std::vector<ComponentInfo> info;  // per piece
+  std::vector<uint8_t> border;      // per piece: a voxel on a face of the array
+  std::vector<int64_t> root;        // per piece: its component's smallest piece id
+};
+Provisional provisional_components(const DataObject& mask, const ChunkedVolume& work, int conn, bool background,
+                                   const BlockLayout& layout, int threads, const std::function<void()>& block_done) {
+  const Grid& g = work.grid();
   const Dims n = layout.count();
-  const int64_t total = 4 * layout.total();
-  int64_t done = 0;
   auto each = [&](auto&& f) {
     for (int64_t bz = 0; bz < n[2]; ++bz)
       for (int64_t by = 0; by < n[1]; ++by)
         for (int64_t bx = 0; bx < n[0]; ++bx) {
           f(layout.at(bx, by, bz));
-          report_blocks(o.interrupter, "components", ++done, total);
+          block_done();
         }
   };
-  report_blocks(o.interrupter, "components", 0, total);
-  // 1. Components inside every block (runs and union-find as in memory); each gets a provisional
-  //    id (1-based in `work`) and its statistics in global coordinates.
-  std::vector<ComponentInfo> info;
+  Provisional pv;
+  std::vector<ComponentInfo>& info = pv.info;
   each([&](const Block& b) {
     const VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
-    const Runs r = extract_runs(m, o.threads);
-    std::vector<int64_t> parent = union_runs(r, b.size[1], b.size[2], conn, o.threads, Interrupter());
+    const Runs r = extract_runs(m, threads, background);
+    std::vector<int64_t> parent = union_runs(r, b.size[1], b.size[2], conn, threads, Interrupter());
     const auto nruns = static_cast<int64_t>(r.x0.size());
     std::vector<int64_t> comp(static_cast<size_t>(nruns));
     const auto base = static_cast<int64_t>(info.size());
     VolumeU64 w(m.grid(), 0);
     for (int64_t row = 0; row < b.size[1] * b.size[2]; ++row) {
       const int64_t y = row % b.size[1], z = row / b.size[1];
+      const int64_t gy = b.begin[1] + y, gz = b.begin[2] + z;
+      const bool face_row = gy == 0 || gz == 0 || gy == g.dims[1] - 1 || gz == g.dims[2] - 1;
       for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
         const auto si = static_cast<size_t>(i);
         const int64_t p = parent[si];
         if (p == i) {
           comp[si] = static_cast<int64_t>(info.size()) - base;
           info.emplace_back();
-          info.back().first = g.index(b.begin[0] + r.x0[si], b.begin[1] + y, b.begin[2] + z);
+          info.back().first = g.index(b.begin[0] + r.x0[si], gy, gz);
+          pv.border.push_back(0);
         } else {
           comp[si] = comp[static_cast<size_t>(p)];
         }
         parent[si] = parent[static_cast<size_t>(p)];
         const int64_t id = base + comp[si];
-        add_run(info[static_cast<size_t>(id)], b.begin[0] + r.x0[si], b.begin[0] + r.x1[si] - 1, b.begin[1] + y,
-                b.begin[2] + z);
+        const int64_t x0 = b.begin[0] + r.x0[si], x1 = b.begin[0] + r.x1[si];
+        add_run(info[static_cast<size_t>(id)], x0, x1 - 1, gy, gz);
+        if (face_row || x0 == 0 || x1 == g.dims[0]) pv.border[static_cast<size_t>(id)] = 1;
         std::fill(&w(r.x0[si], y, z), &w(r.x0[si], y, z) + (r.x1[si] - r.x0[si]), static_cast<uint64_t>(id + 1));
       }
     }
     work.write(w, b.begin);
   });
-  // 2. Provisional components touching across block faces, edges and corners are united: every
-  //    voxel on a block's boundary shell against its neighbours in the halo.
   UnionFind uf(static_cast<int64_t>(info.size()));
   std::vector<std::array<int, 3>> steps;
   for (int dz = -1; dz <= 1; ++dz)
@@ -362,9 +366,37 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
           }
         }
   });
-  // 3. Components = roots, statistics merged, ordered by first voxel, then labelled as in memory.
   uf.flatten();
-  const auto& root = uf.parents();
+  pv.root = std::move(uf).release();
+  return pv;
+}
+
+void check_block_volume(const ChunkedVolume& v, const Grid& g, const char* type, const char* what) {
+  if (v.dims() != g.dims || v.type_id() != type)
+    throw Error(std::string(what) + ": an on-disk " + type + " volume with the mask's grid is needed");
+}
+
+}  // namespace
+
+BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
+                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
+                                                  const ComponentOptions& o, const Dims& block) {
+  const int conn = static_cast<int>(o.connectivity);
+  check_connectivity(conn);
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  check_block_volume(labels, g, type_ids::volume_u32, "connected_components_blocks: labels");
+  check_block_volume(kept, g, type_ids::volume_u8, "connected_components_blocks: mask");
+  check_block_volume(work, g, type_ids::volume_u64, "connected_components_blocks: work");
+  const BlockLayout layout(g.dims, block, 1);
+  const Dims n = layout.count();
+  const int64_t total = 3 * layout.total();
+  int64_t done = 0;
+  report_blocks(o.interrupter, "components", 0, total);
+  auto block_done = [&] { report_blocks(o.interrupter, "components", ++done, total); };
+  const Provisional pv = provisional_components(mask, work, conn, false, layout, o.threads, block_done);
+  const std::vector<ComponentInfo>& info = pv.info;
+  const std::vector<int64_t>& root = pv.root;
+  // Components = roots, statistics merged, ordered by first voxel, then labelled as in memory.
   std::vector<int64_t> index_of_root(info.size(), -1);
   std::vector<ComponentInfo> comps;
   for (size_t i = 0; i < info.size(); ++i) {
@@ -399,18 +431,22 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
   std::vector<uint32_t> label_of_provisional(info.size());
   for (size_t i = 0; i < info.size(); ++i)
     label_of_provisional[i] = label_of[rank[static_cast<size_t>(index_of_root[static_cast<size_t>(root[i])])]];
-  // 4. Final labels and the mask of the kept components.
-  each([&](const Block& b) {
-    const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
-    VolumeU32 l = VolumeU32::uninitialized(w.grid());
-    VolumeU8 k = VolumeU8::uninitialized(w.grid());
-    for (int64_t i = 0; i < w.size(); ++i) {
-      l[i] = w[i] ? label_of_provisional[static_cast<size_t>(w[i] - 1)] : 0u;
-      k[i] = l[i] ? 1 : 0;
-    }
-    labels.write(l, b.begin);
-    kept.write(k, b.begin);
-  });
+  // Final labels and the mask of the kept components.
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block b = layout.at(bx, by, bz);
+        const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
+        VolumeU32 l = VolumeU32::uninitialized(w.grid());
+        VolumeU8 k = VolumeU8::uninitialized(w.grid());
+        for (int64_t i = 0; i < w.size(); ++i) {
+          l[i] = w[i] ? label_of_provisional[static_cast<size_t>(w[i] - 1)] : 0u;
+          k[i] = l[i] ? 1 : 0;
+        }
+        labels.write(l, b.begin);
+        kept.write(k, b.begin);
+        block_done();
+      }
   BlockComponentsResult res;
   res.count = count;
   res.table = component_table(ordered, order, label_of, g);
@@ -493,6 +529,40 @@ VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled, int threads) {
     *filled = f;
   }
   return out;
+}
+
+int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const ChunkedVolume& work,
+                             const Dims& block, int threads, const Interrupter& interrupter) {
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  check_block_volume(out, g, type_ids::volume_u8, "fill_cavities_blocks: output");
+  check_block_volume(work, g, type_ids::volume_u64, "fill_cavities_blocks: work");
+  const BlockLayout layout(g.dims, block, 1);
+  const int64_t total = 3 * layout.total();
+  int64_t done = 0;
+  report_blocks(interrupter, "fill_cavities", 0, total);
+  auto block_done = [&] { report_blocks(interrupter, "fill_cavities", ++done, total); };
+  // Background 6-components (pieces united across blocks); a component touching a face is no cavity.
+  const Provisional pv = provisional_components(mask, work, 6, true, layout, threads, block_done);
+  std::vector<uint8_t> open(pv.info.size(), 0);
+  for (size_t i = 0; i < pv.info.size(); ++i)
+    if (pv.border[i]) open[static_cast<size_t>(pv.root[i])] = 1;
+  int64_t filled = 0;
+  const Dims n = layout.count();
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block b = layout.at(bx, by, bz);
+        const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
+        VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
+        for (int64_t i = 0; i < w.size(); ++i)
+          if (w[i] && !open[static_cast<size_t>(pv.root[static_cast<size_t>(w[i] - 1)])]) {
+            m[i] = 1;
+            ++filled;
+          }
+        out.write(m, b.begin);
+        block_done();
+      }
+  return filled;
 }
 
 }  // namespace skel::segmentation

@@ -61,6 +61,12 @@ struct GaussianOptions {
   Interrupter interrupter;
 };
 VolumeF32 gaussian(const DataObject& image, const GaussianOptions& options = {});
+// Block-wise Gaussian (out-of-core): every block of `block` voxels is read with the kernel's radius
+// around it (gaussian_halo, per axis), smoothed as in memory and its interior written into `out`
+// (float32 on disk, the image's grid). The same values as gaussian(). Progress "gaussian k/n blocks".
+void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const GaussianOptions& options, const Dims& block);
+// Kernel radius in voxels per axis (0 where an axis is skipped) for this grid and these options.
+Dims gaussian_halo(const Grid& grid, const GaussianOptions& options);
 
 // How the sampled kernel is rounded and its taps summed: the same filter up to float rounding, each
 // kept because outputs made with it must stay bit-identical.
@@ -117,6 +123,12 @@ ComponentCount count_components(const VolumeU8& mask, int connectivity, bool bac
 // Background components not 6-connected to the volume border become object (thesis §6.2). Union-find
 // over background x-runs (as count_components); `filled` receives the number of filled voxels.
 VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr, int threads = 0);
+// Block-wise fill_cavities (out-of-core): background 6-components found per block of `block` voxels
+// (provisional ids in `work`, uint64 on disk) and united across block faces; those without a voxel
+// on an array face are written as object into `out` (uint8 on disk). The same mask as
+// fill_cavities(); returns the number of filled voxels. Progress "fill_cavities k/n blocks".
+int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const ChunkedVolume& work,
+                             const Dims& block, int threads = 0, const Interrupter& interrupter = {});
 
 // Median over the (2·radius+1)³ cube around each voxel; voxels outside the volume take the value of
 // the nearest border voxel (replicated border, SciPy mode "nearest"). Output has the input's type.

@@ -81,9 +81,22 @@ sampled Gaussian of radius max(1, ceil(truncate·sigma/spacing)) voxels; the bor
 (SciPy mode "nearest"). The x pass works on padded rows, the y and z passes combine whole x-rows
 (vectorised over x, one slice or one xz-plane copied per task). Parallel over rows/slices; the result
 does not depend on the thread count. Memory: 4 bytes per voxel (output, also the work buffer) plus one
-slice per thread.)");
+slice per thread.
+
+Block-wise under a memory budget: each block is read with the kernel radius around it (halo =
+max(1, ceil(truncate·sigma/spacing)) voxels per axis), smoothed as in memory and its interior
+written: the same values as in memory. Memory per block with halo: 8 (input) + 4 (float) bytes per
+voxel.)")
+        .blockwise(8, 12);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& image = *ctx.input_data("image");
+      auto out = ctx.scratch_volume("image", type_ids::volume_f32, any_volume_grid(image, "input 'image'"));
+      gaussian_blocks(image, *out, ctx.options<GaussianOptions>(), blocks->block);
+      ctx.output("image", DataPtr(std::move(out)));
+      return;
+    }
     ctx.output("image", gaussian(*ctx.input_data("image"), ctx.options<GaussianOptions>()));
   }
 };
@@ -230,9 +243,24 @@ the border of the volume become object, so the object has no cavities (the outsi
 to the border). Mask rule: voxel > 0 is object for any integer volume; a float volume is an error
 naming the port. Empty mask: unchanged (all background touches the border); full volume: unchanged.
 Union-find over the x-runs of the background (6-connected), on the node's threads; memory: the output
-plus about 24 bytes per background run.)");
+plus about 24 bytes per background run.
+
+Block-wise under a memory budget: background components per block, provisional ids on disk (8 bytes
+per voxel), united across block faces; the same mask as in memory. Memory per block: 1 (mask) + 8
+(ids) + 1 (output) bytes per voxel, plus ~100 bytes per background piece.)")
+        .blockwise(1, 10);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& mask = *ctx.input_data("mask");
+      const Grid& g = any_volume_grid(mask, "input 'mask'");
+      auto out = ctx.scratch_volume("mask", type_ids::volume_u8, g);
+      auto work = ctx.scratch_volume("work", type_ids::volume_u64, g);
+      const int64_t filled = segmentation::fill_cavities_blocks(mask, *out, *work, blocks->block, ctx.threads(), ctx.progress());
+      if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
+      ctx.output("mask", DataPtr(std::move(out)));
+      return;
+    }
     int64_t filled = 0;
     VolumeU8 m = segmentation::fill_cavities(mask_input(ctx), &filled,
                                               ctx.threads());

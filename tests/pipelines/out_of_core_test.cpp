@@ -1,7 +1,8 @@
-// Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise threshold, chamfer
-// Euclidean DT and connected components with their volumes in scratch files) writes the same bytes as the in-memory run, leaves
-// no scratch file behind (also when a node fails), and an in-memory stage whose on-disk input does
-// not fit the budget fails naming the node.
+// Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise Gaussian,
+// threshold, chamfer, Euclidean DT, connected components and fill_cavities with their volumes in
+// scratch files) writes the same bytes as the in-memory run, leaves no scratch file behind (also
+// when a node fails), and an in-memory stage whose on-disk input does not fit the budget fails
+// naming the node.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -40,7 +41,8 @@ std::vector<std::string> files_under(const fs::path& dir) {
 const char* kPipeline = R"(skelflow: 1
 nodes:
   phantom: {module: synthetic.network, params: {shape: rods, size: [37, 29, 23], period: 12, radius: 3, noise: 0.1}}
-  seg: {module: segmentation.threshold, inputs: {image: phantom.image}, params: {method: otsu}}
+  smooth: {module: segmentation.gaussian, inputs: {image: phantom.image}, params: {sigma: [1.0, 1.5, 0.7]}}
+  seg: {module: segmentation.threshold, inputs: {image: smooth.image}, params: {method: otsu}}
   dist: {module: distance.chamfer, inputs: {mask: seg.mask}}
   save_mask: {module: io.write_volume, inputs: {volume: seg.mask}, params: {path: out/mask.h5}}
   save_dist: {module: io.write_volume, inputs: {volume: dist.distance}, params: {path: out/dist.h5}}
@@ -49,6 +51,8 @@ nodes:
   parts: {module: segmentation.connected_components, inputs: {mask: seg.mask}, params: {connectivity: 6}}
   save_labels: {module: io.write_volume, inputs: {volume: parts.labels}, params: {path: out/labels.h5}}
   save_table: {module: io.write_table, inputs: {table: parts.table}, params: {path: out/components.csv}}
+  filled: {module: segmentation.fill_cavities, inputs: {mask: seg.mask}}
+  save_filled: {module: io.write_volume, inputs: {volume: filled.mask}, params: {path: out/filled.h5}}
 )";
 
 RunReport run_into(const Pipeline& p, const fs::path& dir, uint64_t budget, Dims block = {0, 0, 0},
@@ -71,7 +75,7 @@ TEST(OutOfCore, TinyBudgetGivesTheSameBytesAndLeavesNoScratch) {
   run_into(p, a, 0);
   run_into(p, b, 1ull << 20, {13, 17, 11});
   run_into(p, c, 1ull << 20);  // 16³ blocks from the budget
-  const std::vector<std::string> outputs = {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/labels.h5", "out/mask.h5"};
+  const std::vector<std::string> outputs = {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/filled.h5", "out/labels.h5", "out/mask.h5"};
   EXPECT_EQ(files_under(a), outputs);
   EXPECT_EQ(files_under(b), outputs);  // the scratch files went next to the outputs, and are gone
   EXPECT_EQ(files_under(c), outputs);
@@ -97,7 +101,8 @@ TEST(OutOfCore, BudgetFromThePipelineFileAndScratchFolder) {
   };
   Executor ex;
   ex.run(p, o);
-  for (const auto& f : {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/labels.h5", "out/mask.h5"}) EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
+  for (const auto& f : {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/filled.h5", "out/labels.h5", "out/mask.h5"})
+    EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
   EXPECT_TRUE(files_under(s).empty());
   EXPECT_NE(std::find(messages.begin(), messages.end(), "dist: chamfer 1/" + std::to_string(27 + 2 * 3 * 5 * 5) + " blocks"),
             messages.end());
@@ -113,7 +118,7 @@ TEST(OutOfCore, InMemoryStageOverTheBudgetFailsNamingTheNodeAndCleansUp) {
     FAIL() << "no error";
   } catch (const InputError& e) {
     const std::string msg = e.what();
-    EXPECT_NE(msg.find("ooc.yaml:7:3: node 'save_dist' (io.write_volume): input 'volume': the volume on disk (volume.u16 "
+    EXPECT_NE(msg.find("ooc.yaml:8:3: node 'save_dist' (io.write_volume): input 'volume': the volume on disk (volume.u16 "
                        "37x29x23, 48.2 KiB) does not fit the memory budget of 30 KiB"),
               std::string::npos)
         << msg;

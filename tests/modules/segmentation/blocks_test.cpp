@@ -1,9 +1,11 @@
 // Block-wise (out-of-core) segmentation against the in-memory functions: threshold (manual and
-// Otsu) and connected components (same labels, mask and table for 6/18/26-connectivity, min_size,
-// keep_largest) for odd block shapes, one-voxel blocks and objects that touch only across block
+// Otsu), connected components (same labels, mask and table for 6/18/26-connectivity, min_size,
+// keep_largest) and fill_cavities for odd block shapes, one-voxel blocks and objects that touch only across block
 // edges and corners.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <random>
 
@@ -79,7 +81,7 @@ TEST(ComponentsBlocks, RandomMasksSameLabelsAndTable) {
     std::bernoulli_distribution obj(p);
     for (auto& v : m) v = obj(rng) ? 1 : 0;
     for (Connectivity c : {Connectivity::c6, Connectivity::c18, Connectivity::c26})
-      for (const Dims& b : std::vector<Dims>{{1, 1, 1}, {4, 7, 5}, {13, 17, 11}, {64, 64, 64}}) {
+      for (const Dims& b : std::vector<Dims>{{2, 1, 3}, {4, 7, 5}, {13, 17, 11}, {64, 64, 64}}) {
         ComponentOptions o;
         o.connectivity = c;
         expect_same_components(m, o, b, "p " + std::to_string(p) + " c" + std::to_string(static_cast<int>(c)) +
@@ -99,6 +101,7 @@ TEST(ComponentsBlocks, DiagonalChainsThroughBlockCornersAndFilters) {
     ComponentOptions o;
     o.connectivity = c;
     expect_same_components(m, o, {4, 4, 4}, "chains c" + std::to_string(static_cast<int>(c)));
+    expect_same_components(m, o, {1, 1, 1}, "chains, one-voxel blocks, c" + std::to_string(static_cast<int>(c)));
   }
   ComponentOptions o;
   o.min_size = 2;
@@ -107,6 +110,65 @@ TEST(ComponentsBlocks, DiagonalChainsThroughBlockCornersAndFilters) {
   expect_same_components(m, o, {3, 5, 4}, "keep_largest");
   expect_same_components(VolumeU8({9, 8, 7}), {}, {4, 4, 4}, "empty");
   expect_same_components(VolumeU8({9, 8, 7}, 1), {}, {4, 4, 4}, "full");
+}
+
+void expect_same_fill(const VolumeU8& m, const Dims& block, const std::string& what) {
+  int64_t filled_in_core = 0;
+  const VolumeU8 in_core = fill_cavities(m, &filled_in_core);
+  auto out = scratch("filled", type_ids::volume_u8, m.grid());
+  auto work = scratch("fill_work", type_ids::volume_u64, m.grid());
+  const int64_t filled = fill_cavities_blocks(m, *out, *work, block);
+  EXPECT_EQ(filled, filled_in_core) << what;
+  EXPECT_TRUE(whole<uint8_t>(*out) == in_core) << what;
+}
+
+TEST(FillCavitiesBlocks, SameMaskAsInMemory) {
+  std::mt19937 rng(21);
+  for (double p : {0.55, 0.7, 0.85}) {
+    VolumeU8 m({22, 19, 17});
+    std::bernoulli_distribution obj(p);
+    for (auto& v : m) v = obj(rng) ? 1 : 0;
+    for (const Dims& b : std::vector<Dims>{{1, 1, 1}, {4, 7, 5}, {13, 17, 11}})
+      expect_same_fill(m, b, "p " + std::to_string(p) + " block " + std::to_string(b[0]));
+  }
+  // A hollow ball whose cavity spans the corner of eight 8³ blocks, and a tunnel to the border that
+  // leaves through a block face: the first is filled, the second not.
+  VolumeU8 shell({24, 24, 24});
+  for (int64_t z = 0; z < 24; ++z)
+    for (int64_t y = 0; y < 24; ++y)
+      for (int64_t x = 0; x < 24; ++x) {
+        const double r = std::sqrt(double((x - 8) * (x - 8) + (y - 8) * (y - 8) + (z - 8) * (z - 8)));
+        shell(x, y, z) = r >= 4 && r <= 6.5 ? 1 : 0;
+      }
+  expect_same_fill(shell, {8, 8, 8}, "hollow ball");
+  int64_t filled = 0;
+  (void)fill_cavities(shell, &filled);
+  EXPECT_GT(filled, 100);
+  for (int64_t x = 8; x < 24; ++x) shell(x, 8, 8) = 0;  // tunnel to the x face
+  expect_same_fill(shell, {8, 8, 8}, "opened ball");
+}
+
+TEST(GaussianBlocks, SameValuesAsInMemory) {
+  std::mt19937 rng(4);
+  VolumeU16 img({27, 22, 19}, 0, {0.8, 1.0, 1.7});
+  std::uniform_int_distribution<int> val(0, 4000);
+  for (auto& v : img) v = static_cast<uint16_t>(val(rng));
+  for (const Vec3& sigma : std::vector<Vec3>{{1, 1, 1}, {2.5, 0, 1.2}}) {
+    GaussianOptions o;
+    o.sigma = sigma;
+    const VolumeF32 in_core = gaussian(img, o);
+    for (const Dims& b : std::vector<Dims>{{3, 4, 2}, {5, 7, 3}, {13, 17, 11}}) {
+      auto out = scratch("gaussian", type_ids::volume_f32, img.grid());
+      gaussian_blocks(img, *out, o, b);
+      const VolumeF32 blocked = whole<float>(*out);
+      int64_t diff = 0;
+      for (int64_t i = 0; i < img.size(); ++i) diff += std::memcmp(&blocked[i], &in_core[i], sizeof(float)) != 0;
+      EXPECT_EQ(diff, 0) << "sigma " << sigma[0] << " block " << b[0] << "x" << b[1] << "x" << b[2];
+    }
+  }
+  GaussianOptions o;
+  o.sigma = {2.5, 0, 1.2};
+  EXPECT_EQ(gaussian_halo(img.grid(), o), (Dims{11, 0, 3}));  // ceil(3.5 * 2.5 / 0.8), -, ceil(3.5 * 1.2 / 1.7)
 }
 
 }  // namespace
