@@ -3,6 +3,7 @@
 // odd ones and one-voxel blocks included, on random masks, on objects crossing block corners, with
 // anisotropic weights and with the border as object.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <cstring>
@@ -18,7 +19,10 @@ namespace {
 namespace fs = std::filesystem;
 
 std::shared_ptr<ChunkedVolume> scratch(const std::string& name, const std::string& type, const Grid& g, const Dims& chunk) {
-  const fs::path f = fs::path(SKEL_BINARY_DIR) / "tests" / ("distance_blocks_" + name + ".h5");
+  // One file per process and volume: ctest runs the tests of this file in parallel processes.
+  static int counter = 0;
+  const fs::path f = fs::path(SKEL_BINARY_DIR) / "tests" /
+                     ("distance_blocks_" + name + "_" + std::to_string(::getpid()) + "_" + std::to_string(++counter) + ".h5");
   return std::make_shared<ChunkedVolume>(g, type, io::create_scratch_store(f, type, g, chunk));
 }
 

@@ -3,6 +3,7 @@
 // keep_largest) and fill_cavities for odd block shapes, one-voxel blocks and objects that touch only across block
 // edges and corners.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -19,7 +20,10 @@ namespace {
 namespace fs = std::filesystem;
 
 std::shared_ptr<ChunkedVolume> scratch(const std::string& name, const std::string& type, const Grid& g) {
-  const fs::path f = fs::path(SKEL_BINARY_DIR) / "tests" / ("segmentation_blocks_" + name + ".h5");
+  // One file per process and volume: ctest runs the tests of this file in parallel processes.
+  static int counter = 0;
+  const fs::path f = fs::path(SKEL_BINARY_DIR) / "tests" /
+                     ("segmentation_blocks_" + name + "_" + std::to_string(::getpid()) + "_" + std::to_string(++counter) + ".h5");
   return std::make_shared<ChunkedVolume>(g, type, io::create_scratch_store(f, type, g, {8, 8, 8}));
 }
 
