@@ -639,7 +639,8 @@ void Executor::Scheduler::release_inputs(size_t i) {
 // A pool of `node_workers` threads pulls ready nodes; each node gets the whole thread budget (TBB's
 // global scheduler keeps the total number of busy threads at the hardware count).
 void Executor::Scheduler::run_all() {
-  const size_t node_workers =
+  // Under a memory budget one node runs at a time: each may use the whole budget.
+  const size_t node_workers = plan_.memory_budget > 0 ? 1 :
       std::min<size_t>(static_cast<size_t>(std::clamp(plan_.threads, 1, 4)), std::max<size_t>(n_, 1));
   std::vector<std::thread> pool;
   auto stop_now = [&] { return im_.cancel.load(); };
@@ -689,7 +690,8 @@ BlockPlan Executor::Scheduler::block_plan(size_t i, const std::map<std::string, 
                 ? plan_.block
                 : block_for_budget(plan_.memory_budget, spec.block_support().halo, spec.block_support().bytes_per_voxel, grid);
   b.block_from_user = plan_.block != Dims{0, 0, 0};
-  const Dims chunk = b.block;
+  // Chunks of at most 32³: a block with its halo covers whole chunks but for a thin edge.
+  const Dims chunk{std::min<int64_t>(b.block[0], 32), std::min<int64_t>(b.block[1], 32), std::min<int64_t>(b.block[2], 32)};
   b.scratch = [this, i, chunk](const std::string& port, const std::string& type_id, const Grid& g) {
     return make_scratch(i, port, type_id, g, chunk);
   };

@@ -558,7 +558,13 @@ public:
     try {
       auto [f, d] = create_dataset(file_, kDataset, type_, grid, opt);
       file_handle_ = std::move(f);
-      dset_ = std::move(d);
+      d = Handle();
+      // Reopened with a chunk cache that holds the chunks of a block with its halo, so that writing
+      // a block just read does not read its edge chunks from the file again (HDF5's default: 1 MiB).
+      Handle dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
+      H5Pset_chunk_cache(dapl.id, 10007, kChunkCacheBytes, 1.0);
+      dset_ = Handle(H5Dopen2(file_handle_.id, kDataset, dapl.id), H5Dclose);
+      if (!dset_) fail_write(file_, "cannot open the scratch dataset");
     } catch (...) {
       std::error_code ec;
       fs::remove(file_, ec);
@@ -591,6 +597,7 @@ public:
 
 private:
   static constexpr const char* kDataset = "/volume";
+  static constexpr size_t kChunkCacheBytes = size_t{16} << 20;
   void select(const Dims& begin, const Dims& size, Handle& mem, Handle& space) const {
     const hsize_t start[3] = {static_cast<hsize_t>(begin[2]), static_cast<hsize_t>(begin[1]), static_cast<hsize_t>(begin[0])};
     const hsize_t count[3] = {static_cast<hsize_t>(size[2]), static_cast<hsize_t>(size[1]), static_cast<hsize_t>(size[0])};

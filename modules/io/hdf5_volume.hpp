@@ -65,8 +65,9 @@ void write_box(const std::filesystem::path& file, const std::string& dataset, co
 
 // The on-disk store of out-of-core runs (skel/out_of_core.hpp): an uncompressed HDF5 file at `file`
 // with one dataset of `type_id` ("volume.u8", ...), chunked by `chunk` (x, y, z), every voxel 0 until
-// written, open while the store lives and removed when it is destroyed. Registered at start-up as
-// the framework's VolumeStoreFactory.
+// written, open while the store lives and removed when it is destroyed; each open store keeps a
+// 16 MiB chunk cache (a fixed overhead outside the memory budget). Registered at start-up as the
+// framework's VolumeStoreFactory.
 std::shared_ptr<VolumeStore> create_scratch_store(const std::filesystem::path& file, const std::string& type_id,
                                                   const Grid& grid, const Dims& chunk);
 
