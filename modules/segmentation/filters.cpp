@@ -359,4 +359,28 @@ void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const Ga
   });
 }
 
+// ---------------------------------------------------------------- block-wise median (out-of-core)
+void median_blocks(const DataObject& image, const ChunkedVolume& out, const MedianOptions& o, const Dims& block) {
+  const Grid& g = any_volume_grid(image, "input 'image'");
+  if (out.dims() != g.dims || out.type_id() != image.type_id())
+    throw Error("median_blocks: the output must have the image's type and grid");
+  const int64_t r = o.radius;
+  if (r < 0) throw InputError("param 'radius': expected >= 0");
+  const BlockLayout layout(g.dims, block, r);
+  MedianOptions inner = o;
+  inner.interrupter = Interrupter();
+  visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
+    using T = decltype(tag);
+    for_each_block(layout, o.interrupter, "median", [&](const Block& b) {
+      // The block with `radius` voxels around it (clipped to the grid, where the border value is
+      // replicated as in memory): every interior voxel sees the same cube as in memory.
+      const Volume<T> v = read_block<T>(image, b.outer_begin, b.outer_size, "input 'image'");
+      const Volume<T> m = median_as(v, inner);
+      out.write(read_block<T>(m, {b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]},
+                              b.size, "block"),
+                b.begin);
+    });
+  });
+}
+
 }  // namespace skel::segmentation

@@ -140,6 +140,10 @@ struct MedianOptions {
 };
 DataPtr median(const DataObject& image, const MedianOptions& options = {});
 template <class T> Volume<T> median_as(const Volume<T>& image, const MedianOptions& options = {});
+// Block-wise median (out-of-core): every block of `block` voxels is read with `radius` voxels around
+// it, filtered as in memory and its interior written into `out` (on disk, the image's type and
+// grid). The same values as median(). Progress "median k/n blocks".
+void median_blocks(const DataObject& image, const ChunkedVolume& out, const MedianOptions& options, const Dims& block);
 
 // Depth-attenuation correction of confocal stacks (thesis §6.1): every z-slice is multiplied by a
 // factor f(z). Given mode: f(z) = intercept + slope·z (z = slice index). Fitted mode: per slice the

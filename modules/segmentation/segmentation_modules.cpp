@@ -165,9 +165,21 @@ of the (2r+1)³ cube around it; voxels outside the volume take the value of the 
 minimum and maximum, add the next; about 400 min/max per voxel) vectorised over 64 voxels of a row;
 radius > 1: nth_element per voxel (O(r³) per voxel, slow for large radii). radius 0 copies. Parallel
 over rows; identical for any thread count. Memory: output of the input's type plus 9 padded rows per
-thread.)");
+thread.
+
+Block-wise under a memory budget: each block is read with `radius` voxels around it, filtered as in
+memory and its interior written: the same values as in memory. Memory per block with halo: twice
+the input's bytes per voxel.)")
+        .blockwise(1, 16);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& image = *ctx.input_data("image");
+      auto out = ctx.scratch_volume("image", image.type_id(), any_volume_grid(image, "input 'image'"));
+      median_blocks(image, *out, ctx.options<MedianOptions>(), blocks->block);
+      ctx.output("image", DataPtr(std::move(out)));
+      return;
+    }
     ctx.output("image", median(*ctx.input_data("image"), ctx.options<MedianOptions>()));
   }
 };

@@ -1,4 +1,4 @@
-// Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise Gaussian,
+// Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise median, Gaussian,
 // threshold, chamfer, Euclidean DT, connected components and fill_cavities with their volumes in
 // scratch files) writes the same bytes as the in-memory run, leaves no scratch file behind (also
 // when a node fails), and an in-memory stage whose on-disk input does not fit the budget fails
@@ -41,7 +41,8 @@ std::vector<std::string> files_under(const fs::path& dir) {
 const char* kPipeline = R"(skelflow: 1
 nodes:
   phantom: {module: synthetic.network, params: {shape: rods, size: [37, 29, 23], period: 12, radius: 3, noise: 0.1}}
-  smooth: {module: segmentation.gaussian, inputs: {image: phantom.image}, params: {sigma: [1.0, 1.5, 0.7]}}
+  denoise: {module: segmentation.median, inputs: {image: phantom.image}}
+  smooth: {module: segmentation.gaussian, inputs: {image: denoise.image}, params: {sigma: [1.0, 1.5, 0.7]}}
   seg: {module: segmentation.threshold, inputs: {image: smooth.image}, params: {method: otsu}}
   dist: {module: distance.chamfer, inputs: {mask: seg.mask}}
   save_mask: {module: io.write_volume, inputs: {volume: seg.mask}, params: {path: out/mask.h5}}
@@ -118,7 +119,7 @@ TEST(OutOfCore, InMemoryStageOverTheBudgetFailsNamingTheNodeAndCleansUp) {
     FAIL() << "no error";
   } catch (const InputError& e) {
     const std::string msg = e.what();
-    EXPECT_NE(msg.find("ooc.yaml:8:3: node 'save_dist' (io.write_volume): input 'volume': the volume on disk (volume.u16 "
+    EXPECT_NE(msg.find("ooc.yaml:9:3: node 'save_dist' (io.write_volume): input 'volume': the volume on disk (volume.u16 "
                        "37x29x23, 48.2 KiB) does not fit the memory budget of 30 KiB"),
               std::string::npos)
         << msg;

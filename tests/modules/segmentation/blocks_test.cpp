@@ -175,5 +175,22 @@ TEST(GaussianBlocks, SameValuesAsInMemory) {
   EXPECT_EQ(gaussian_halo(img.grid(), o), (Dims{11, 0, 3}));  // ceil(3.5 * 2.5 / 0.8), -, ceil(3.5 * 1.2 / 1.7)
 }
 
+TEST(MedianBlocks, SameValuesAsInMemory) {
+  std::mt19937 rng(8);
+  VolumeU16 img({21, 17, 13});
+  std::uniform_int_distribution<int> val(0, 1000);
+  for (auto& v : img) v = static_cast<uint16_t>(val(rng));
+  for (int64_t radius : {0, 1, 2}) {
+    MedianOptions o;
+    o.radius = static_cast<int>(radius);
+    const VolumeU16 in_core = median_as(img, o);
+    for (const Dims& b : std::vector<Dims>{{3, 4, 2}, {13, 17, 11}}) {
+      auto out = scratch("median", type_ids::volume_u16, img.grid());
+      median_blocks(img, *out, o, b);
+      EXPECT_TRUE(whole<uint16_t>(*out) == in_core) << "radius " << radius << " block " << b[0];
+    }
+  }
+}
+
 }  // namespace
 }  // namespace skel::segmentation
