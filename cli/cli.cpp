@@ -40,13 +40,18 @@ const char* kUsage = R"(usage: skelflow <command> [options]
 commands:
   run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]
                [--target NODE]... [--quiet] [--allow-outside-output-dir]
+               [--memory-budget SIZE] [--scratch DIR]
       Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths
       resolve against --output-dir when given. Outputs appear only when the whole run succeeds.
       With --output-dir, every output must lie inside D: absolute paths, '..' and symbolic links
       that lead out of D are refused before anything runs, unless --allow-outside-output-dir.
+      --memory-budget 2GiB runs the block-wise stages block by block with their volumes in scratch
+      files (in DIR, else next to the first output) and stops a stage that would load more than
+      the budget; the pipeline's `execution: {memory_budget: ...}` does the same.
   validate PIPELINE [--output-dir D] [--allow-outside-output-dir]
       Checks a pipeline without running it: modules, parameters, connections, types, cycles, input
       files that do not exist, output extensions, two outputs into one file, outputs outside D.
+      Lists the stages that run block-wise under a memory budget.
   modules [--markdown] [NAME]
       Lists the modules, or documents one (or all, with --markdown) in full.
   info FILE
@@ -67,7 +72,7 @@ public:
     std::lock_guard lock(m_);
     if (quiet_) return;
     if (s.state == NodeState::Running) {
-      current_ = node;
+      current_ = s.message.empty() ? node : node + ": " + s.message;  // e.g. "dist: chamfer 37/512 blocks"
       return;
     }
     if (s.state == NodeState::Done || s.state == NodeState::Cached || s.state == NodeState::Error) {
@@ -289,6 +294,14 @@ int cmd_validate(const std::vector<std::string>& args) {
   Pipeline p = Pipeline::load_file(file);
   validate_or_throw(p, Registry::instance(), paths);
   std::printf("%s: valid (%zu nodes)\n", file.c_str(), p.nodes().size());
+  std::string blockwise;
+  for (const auto& n : p.nodes())
+    if (Registry::instance().find(n.module)->block_support().blockwise) blockwise += (blockwise.empty() ? "" : ", ") + n.id;
+  if (p.execution().memory_budget > 0)
+    std::printf("memory budget %s: block-wise: %s\n", format_byte_size(p.execution().memory_budget).c_str(),
+                blockwise.empty() ? "none" : blockwise.c_str());
+  else
+    std::printf("block-wise under --memory-budget: %s\n", blockwise.empty() ? "none" : blockwise.c_str());
   return kOk;
 }
 
@@ -344,6 +357,10 @@ int cmd_run(const std::vector<std::string>& args) {
       report_path = need(i, "--report");
     } else if (a == "--target") {
       opt.targets.push_back(need(i, "--target"));
+    } else if (a == "--memory-budget") {
+      opt.memory_budget = parse_byte_size(need(i, "--memory-budget"), "--memory-budget");
+    } else if (a == "--scratch") {
+      opt.scratch_dir = need(i, "--scratch");
     } else if (a == "--quiet" || a == "-q") {
       quiet = true;
     } else if (!a.empty() && a[0] == '-') {
@@ -356,6 +373,9 @@ int cmd_run(const std::vector<std::string>& args) {
   }
   if (file.empty()) throw InputError("run: no PIPELINE given");
   Pipeline p = Pipeline::load_file(file);
+  if (!opt.scratch_dir.empty() && opt.memory_budget == 0 && p.execution().memory_budget == 0)
+    throw InputError("--scratch " + opt.scratch_dir.string() + ": scratch files are only made under a memory budget "
+                     "(--memory-budget SIZE or execution: {memory_budget: SIZE} in the pipeline)");
   Executor ex;
   if (!report_path.empty()) refuse_report_over_outputs(report_path, file, ex.plan(p, opt));
 

@@ -42,6 +42,12 @@ struct ExecOptions {
   std::function<void(const std::string& node, const std::string& message)> on_warning;
   // Run-level notes (not about one node), e.g. stale temporary files of dead runs removed.
   std::function<void(const std::string& message)> on_notice;
+  // Out-of-core execution (docs/architecture.md): a memory budget in bytes (0: the pipeline's
+  // `execution: memory_budget`, or none), the block shape (0: the pipeline's, else from the
+  // budget) and the folder of the scratch files (empty: next to the first output file).
+  uint64_t memory_budget = 0;
+  Dims block{0, 0, 0};
+  std::filesystem::path scratch_dir;
 };
 
 struct NodeReport {
@@ -77,6 +83,7 @@ struct PlannedNode {
   bool cached = false;            // the cache holds its results (and its files exist): it will not run
   std::vector<size_t> inputs_from;  // indices (in ExecutionPlan::nodes) of the nodes it reads from
   std::vector<size_t> users;        // indices of the nodes reading its outputs
+  bool blockwise = false;           // runs block by block (a memory budget and a block-wise module)
 };
 
 // An output file a planned node will write: a Path parameter with PathRole::Output that is set.
@@ -91,6 +98,9 @@ struct ExecutionPlan {
   int threads = 0;                 // thread budget
   std::filesystem::path input_base, output_base;  // relative input / output paths resolve here
   std::vector<PlannedOutput> outputs;              // the files the planned nodes write, in node order
+  uint64_t memory_budget = 0;      // bytes; 0: everything in memory
+  Dims block{0, 0, 0};             // block shape given by the user; 0: from the budget per node
+  std::filesystem::path scratch_dir;  // where on-disk volumes go (set when memory_budget > 0)
   // Index in `nodes`, or -1.
   [[nodiscard]] int64_t index_of(const std::string& id) const;
 };

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <string>
 
 namespace skel {
 
@@ -13,8 +14,10 @@ public:
   using ReportFn = std::function<void(double)>;  // fraction in [0, 1]
 
   Interrupter() = default;  // no progress, never cancelled
-  Interrupter(ReportFn report, const std::atomic<bool>* cancel_flag)
-      : report_(std::make_shared<ReportFn>(std::move(report))), cancel_(cancel_flag) {}
+  using NoteFn = std::function<void(const std::string&)>;  // a short status text
+  Interrupter(ReportFn report, const std::atomic<bool>* cancel_flag, NoteFn note = {})
+      : report_(std::make_shared<ReportFn>(std::move(report))), cancel_(cancel_flag),
+        note_(note ? std::make_shared<NoteFn>(std::move(note)) : nullptr) {}
 
   // True once cancellation was requested.
   [[nodiscard]] bool cancelled() const {
@@ -25,6 +28,8 @@ public:
   void check(double fraction) const;
   void check() const;  // cancellation only
   void report(double fraction) const;
+  // Reports a short status text ("chamfer 37/512 blocks") where the runner shows one.
+  void note(const std::string& text) const;
 
   // A view onto the sub-range [begin, end] of this interrupter's progress range, for multi-phase
   // algorithms (phase 1 = 0..0.3, phase 2 = 0.3..1).
@@ -33,6 +38,7 @@ public:
 private:
   std::shared_ptr<ReportFn> report_;
   const std::atomic<bool>* cancel_ = nullptr;
+  std::shared_ptr<NoteFn> note_;
   double begin_ = 0.0, end_ = 1.0;
 };
 

@@ -21,4 +21,8 @@ VolumeU8 to_mask(const DataObject& data, const std::string& what, std::string* w
 std::shared_ptr<const VolumeU8> shared_mask(const DataPtr& data, const std::string& what,
                                             std::string* warning = nullptr);
 
+// The box [begin, begin + size) of a volume in memory or on disk (skel/out_of_core.hpp) as a
+// 0/1 mask (the rule and errors of to_mask), for block-wise stages.
+VolumeU8 read_mask_block(const DataObject& data, const Dims& begin, const Dims& size, const std::string& what);
+
 }  // namespace skel

@@ -17,6 +17,7 @@
 #include "skel/enum_names.hpp"
 #include "skel/error.hpp"
 #include "skel/interrupter.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/param.hpp"
 #include "skel/volume.hpp"
 
@@ -265,6 +266,16 @@ public:
   // Long documentation (markdown): algorithm, memory per voxel, conventions, references.
   ModuleSpec& details(std::string text);
 
+  // Declares that the module runs block by block under a memory budget (see
+  // docs/architecture.md, "Out-of-core execution"): `halo` voxels of context around every block,
+  // `bytes_per_voxel` of block buffers (inputs + outputs + work per voxel of a block with halo).
+  ModuleSpec& blockwise(int64_t halo, int64_t bytes_per_voxel);
+  struct BlockSupport {
+    bool blockwise = false;
+    int64_t halo = 0, bytes_per_voxel = 1;
+  };
+  [[nodiscard]] const BlockSupport& block_support() const { return block_support_; }
+
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] std::string family() const { return name_.substr(0, name_.find('.')); }
   [[nodiscard]] const std::string& doc() const { return doc_; }
@@ -281,6 +292,7 @@ private:
   std::string name_, doc_, details_;
   std::vector<PortSpec> inputs_, outputs_;
   std::vector<ParamSpec> params_;
+  BlockSupport block_support_;
 };
 
 // Everything run() may use: inputs, parameters, outputs, progress, cancellation, threads, paths.
@@ -366,6 +378,16 @@ public:
   // created. The final path is returned by final_output_path().
   [[nodiscard]] virtual std::filesystem::path output_path(const std::string& param_name) = 0;
   [[nodiscard]] virtual std::filesystem::path final_output_path(const std::string& param_name) const = 0;
+
+  // Under a memory budget, for a module whose spec declares blockwise(): the block shape and the
+  // factory of on-disk output volumes; nullptr when the module runs in memory (no budget).
+  [[nodiscard]] virtual const BlockPlan* blocks() const { return nullptr; }
+  // An empty on-disk volume for output `port` (blocks() must be set); removed when the run ends.
+  [[nodiscard]] std::shared_ptr<ChunkedVolume> scratch_volume(const std::string& port, const std::string& type_id,
+                                                              const Grid& grid) const {
+    if (!blocks() || !blocks()->scratch) throw Error("output '" + port + "': no scratch volumes outside a budgeted run");
+    return blocks()->scratch(port, type_id, grid);
+  }
 };
 
 class Module {

@@ -7,6 +7,7 @@
 //   nodes:
 //     phantom: {module: synthetic.network, params: {shape: rods, size: [128, 128, 128]}}
 //     seg:     {module: segmentation.threshold, inputs: {image: phantom.image}, params: {low: 0.5}}
+//   execution: {memory_budget: 2GiB}   # optional; out-of-core execution (docs/architecture.md)
 //   gui: {}   # optional; preserved untouched
 #include <cstdint>
 #include <filesystem>
@@ -47,6 +48,17 @@ struct PipelineNode {
   // Parameters set outside the file, with where they came from (e.g. "--set seg.low=0.5"): their
   // messages name that origin instead of a file position that holds another value.
   std::map<std::string, std::string> param_origin;
+};
+
+// The optional `execution:` section of a pipeline file: how it runs, not what it computes.
+//   execution: {memory_budget: 2GiB, block: [64, 64, 32]}
+struct ExecutionSettings {
+  uint64_t memory_budget = 0;      // bytes; 0: no budget, every stage runs in memory
+  std::string memory_budget_text;  // as written ("2GiB"), kept for saving
+  Dims block{0, 0, 0};             // block shape (x, y, z); 0: chosen from the budget
+  SourcePos memory_budget_pos, block_pos;
+  [[nodiscard]] bool empty() const { return memory_budget == 0 && block == Dims{0, 0, 0}; }
+  bool operator==(const ExecutionSettings& o) const { return memory_budget == o.memory_budget && block == o.block; }
 };
 
 struct Diagnostic {
@@ -96,6 +108,10 @@ public:
   [[nodiscard]] const std::string& gui_yaml() const { return gui_yaml_; }
   void set_gui_yaml(std::string yaml) { gui_yaml_ = std::move(yaml); }
 
+  // The `execution:` section (empty when the file has none).
+  [[nodiscard]] const ExecutionSettings& execution() const { return execution_; }
+  void set_execution(ExecutionSettings e) { execution_ = std::move(e); }
+
   [[nodiscard]] const std::string& file() const { return file_; }
   // Folder relative paths resolve against (the pipeline file's folder).
   [[nodiscard]] const std::filesystem::path& base_dir() const { return base_dir_; }
@@ -112,6 +128,7 @@ public:
 private:
   std::vector<PipelineNode> nodes_;
   std::string gui_yaml_;
+  ExecutionSettings execution_;
   std::string file_ = "<pipeline>";
   std::filesystem::path base_dir_ = ".";
 };

@@ -56,6 +56,10 @@ public:
   [[nodiscard]] std::filesystem::path output_path(const std::string& param_name) override;
   [[nodiscard]] std::filesystem::path final_output_path(const std::string& param_name) const override;
 
+  // Out-of-core: the blocks of a block-wise node (see RunContext::blocks()).
+  void set_blocks(const BlockPlan* blocks) { blocks_ = blocks; }
+  [[nodiscard]] const BlockPlan* blocks() const override { return blocks_; }
+
   std::map<std::string, DataPtr>& outputs() { return outputs_; }
   [[nodiscard]] const std::vector<std::string>& warnings() const { return warnings_; }
   [[nodiscard]] const std::vector<std::string>& written() const { return written_; }
@@ -73,6 +77,7 @@ private:
   std::map<std::string, DataPtr> outputs_;
   std::vector<std::string> warnings_, written_;
   std::map<std::string, std::filesystem::path> tmp_paths_;
+  const BlockPlan* blocks_ = nullptr;
 };
 
 // Resolves a (possibly relative) path against `base`.

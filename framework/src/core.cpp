@@ -110,6 +110,9 @@ void Interrupter::check(double fraction) const {
   check();
   report(fraction);
 }
+void Interrupter::note(const std::string& text) const {
+  if (note_ && *note_) (*note_)(text);
+}
 Interrupter Interrupter::sub(double begin, double end) const {
   Interrupter s = *this;
   s.begin_ = begin_ + (end_ - begin_) * begin;

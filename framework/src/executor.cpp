@@ -17,6 +17,7 @@
 
 #include "context.hpp"
 #include "skel/fs.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
 #include "skel/text.hpp"
 
@@ -297,6 +298,18 @@ ExecutionPlan Executor::Impl::make_plan(const Pipeline& pipeline_in, const ExecO
     }
   }
 
+  // Out-of-core: the budget from the command line, else from the pipeline's `execution:` section.
+  const ExecutionSettings& es = p.execution();
+  plan.memory_budget = opt.memory_budget > 0 ? opt.memory_budget : es.memory_budget;
+  plan.block = opt.block != Dims{0, 0, 0} ? opt.block : es.block;
+  if (plan.memory_budget > 0) {
+    if (!opt.scratch_dir.empty()) plan.scratch_dir = fs::absolute(opt.scratch_dir);
+    else if (!plan.outputs.empty() && !plan.outputs.front().path.parent_path().empty())
+      plan.scratch_dir = plan.outputs.front().path.parent_path();
+    else plan.scratch_dir = plan.output_base.empty() ? fs::path(".") : plan.output_base;
+    for (auto& pn : plan.nodes) pn.blockwise = im.registry.find(pn.module)->block_support().blockwise;
+  }
+
   // Dependencies: each distinct upstream node once.
   std::unordered_map<std::string, size_t> idx;
   for (size_t i = 0; i < plan.nodes.size(); ++i) idx[plan.nodes[i].id] = i;
@@ -348,12 +361,17 @@ void check_outputs(const ExecutionPlan& plan) {
     if (auto origin = n.param_origin.find(o.param); origin != n.param_origin.end()) where = origin->second + ": " + where;
     throw InputError(ErrorSite{plan.pipeline.file(), pos.line, pos.column, n.id, n.module, where + ": " + why});
   }
+  if (plan.memory_budget > 0) {
+    const std::string why = output_problem(plan.scratch_dir / "scratch.h5");
+    if (!why.empty()) throw InputError("scratch folder " + plan.scratch_dir.string() + " (--scratch): " + why);
+  }
 }
 
 // Removes the temporaries that dead runs left in the output folders; returns one note or none.
 std::vector<std::string> remove_stale_outputs(const ExecutionPlan& plan) {
   std::set<fs::path> folders;
   for (const auto& o : plan.outputs) folders.insert(o.path.parent_path().empty() ? fs::path(".") : o.path.parent_path());
+  if (plan.memory_budget > 0 && fs::is_directory(plan.scratch_dir)) folders.insert(plan.scratch_dir);
   std::vector<std::string> done;
   for (const auto& f : folders)
     for (auto& d : remove_stale_temps(f)) done.push_back(std::move(d));
@@ -423,6 +441,10 @@ private:
   void node_failed(size_t i);
   void release_inputs(size_t i);
   void store_in_cache();
+  BlockPlan block_plan(size_t i, const std::map<std::string, DataPtr>& inputs);
+  std::shared_ptr<ChunkedVolume> make_scratch(size_t i, const std::string& port, const std::string& type_id,
+                                              const Grid& grid, const Dims& chunk);
+  void remove_scratch(bool keep_live);
 
   void status(size_t i, NodeState s, double prog, const std::string& msg) const {
     if (opt_.on_status) opt_.on_status(plan_.nodes[i].id, NodeStatus{s, prog, msg});
@@ -454,6 +476,9 @@ private:
   std::exception_ptr first_error_;
   int64_t first_error_node_ = -1;  // -1: none, or the error is a cancellation
   detail::OutputFiles files_;
+  std::mutex scratch_m_;
+  std::vector<fs::path> scratch_files_;  // every scratch file of this run (out-of-core)
+  std::map<std::string, int> scratch_names_;
 };
 
 // The inputs of node i from its upstream results, checked against the port's types.
@@ -480,6 +505,25 @@ std::map<std::string, DataPtr> Executor::Scheduler::gather_inputs(size_t i) {
   return inputs;
 }
 
+// Out-of-core: a module without block support reads its on-disk inputs into memory, unless they
+// exceed the budget (an error naming the port and the sizes, before anything is loaded).
+static std::map<std::string, DataPtr> load_for_in_memory_module(std::map<std::string, DataPtr> inputs, uint64_t budget,
+                                                         const std::string& module) {
+  uint64_t total = 0;
+  for (const auto& [port, d] : inputs)
+    if (auto* c = dynamic_cast<const ChunkedVolume*>(d.get())) {
+      total += c->voxel_data_bytes();
+      if (total > budget)
+        throw InputError("input '" + port + "': the volume on disk (" + c->type_id() + " " + std::to_string(c->dims()[0]) +
+                         "x" + std::to_string(c->dims()[1]) + "x" + std::to_string(c->dims()[2]) + ", " +
+                         format_byte_size(c->voxel_data_bytes()) + ") does not fit the memory budget of " +
+                         format_byte_size(budget) + ", and " + module +
+                         " does not run block-wise; raise --memory-budget or use block-wise stages");
+    }
+  for (auto& [port, d] : inputs) d = materialize(d);
+  return inputs;
+}
+
 // Calls the module's run() with progress, cancellation and warnings wired to the run.
 void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> inputs, NodeReport& nr) {
   const PipelineNode& node = *node_of_[i];
@@ -498,11 +542,17 @@ void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> in
         status(i, NodeState::Running, f, {});
         overall();
       },
-      &im_.cancel);
+      &im_.cancel, [this, i](const std::string& text) {
+        std::lock_guard lock(m_);
+        status(i, NodeState::Running, progress_[i], text);
+      });
+  BlockPlan blocks;
+  if (plan_.nodes[i].blockwise) blocks = block_plan(i, inputs);
   detail::NodeContext ctx(spec, node.id, std::move(inputs), std::move(eff), plan_.threads, intr, plan_.input_base,
                           plan_.output_base, files_, [this, i](const std::string& w) {
                             if (opt_.on_warning) opt_.on_warning(plan_.nodes[i].id, w);
                           });
+  if (plan_.nodes[i].blockwise) ctx.set_blocks(&blocks);
   status(i, NodeState::Running, 0.0, {});
   auto mod = im_.registry.create(node.module);
   ++modules_run_;
@@ -522,6 +572,8 @@ void Executor::Scheduler::run_node(size_t i) {
   const auto t0 = std::chrono::steady_clock::now();
   try {
     auto inputs = gather_inputs(i);
+    if (plan_.memory_budget > 0 && !plan_.nodes[i].blockwise && !plan_.nodes[i].cached)
+      inputs = load_for_in_memory_module(std::move(inputs), plan_.memory_budget, node.module);
     if (plan_.nodes[i].cached) nr.cached = true;
     else run_module(i, std::move(inputs), nr);
     nr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -594,7 +646,8 @@ void Executor::Scheduler::release_inputs(size_t i) {
 // A pool of `node_workers` threads pulls ready nodes; each node gets the whole thread budget (TBB's
 // global scheduler keeps the total number of busy threads at the hardware count).
 void Executor::Scheduler::run_all() {
-  const size_t node_workers =
+  // Under a memory budget one node runs at a time: each may use the whole budget.
+  const size_t node_workers = plan_.memory_budget > 0 ? 1 :
       std::min<size_t>(static_cast<size_t>(std::clamp(plan_.threads, 1, 4)), std::max<size_t>(n_, 1));
   std::vector<std::thread> pool;
   auto stop_now = [&] { return im_.cancel.load(); };
@@ -626,6 +679,60 @@ void Executor::Scheduler::run_all() {
     cv_.notify_all();
   }
   for (auto& t : pool) t.join();
+}
+
+// The blocks of a block-wise node: the user's block shape, or the largest the budget allows for the
+// module's halo and bytes per voxel on the grid of its first volume input.
+BlockPlan Executor::Scheduler::block_plan(size_t i, const std::map<std::string, DataPtr>& inputs) {
+  const ModuleSpec& spec = *im_.registry.find(plan_.nodes[i].module);
+  BlockPlan b;
+  b.memory_budget = plan_.memory_budget;
+  Dims grid{64, 64, 64};
+  for (const auto& [port, d] : inputs)
+    if (d && voxel_bytes(d->type_id()) > 0) {
+      grid = any_volume_grid(*d, "input '" + port + "'").dims;
+      break;
+    }
+  b.block = plan_.block != Dims{0, 0, 0}
+                ? plan_.block
+                : block_for_budget(plan_.memory_budget, spec.block_support().halo, spec.block_support().bytes_per_voxel, grid);
+  b.block_from_user = plan_.block != Dims{0, 0, 0};
+  // Chunks of at most 32³: a block with its halo covers whole chunks but for a thin edge.
+  const Dims chunk{std::min<int64_t>(b.block[0], 32), std::min<int64_t>(b.block[1], 32), std::min<int64_t>(b.block[2], 32)};
+  b.scratch = [this, i, chunk](const std::string& port, const std::string& type_id, const Grid& g) {
+    return make_scratch(i, port, type_id, g, chunk);
+  };
+  return b;
+}
+
+// A scratch volume in the scratch folder, named like the run's temporaries (so that a later run
+// removes it if this process dies) and recorded for removal at the end of the run.
+std::shared_ptr<ChunkedVolume> Executor::Scheduler::make_scratch(size_t i, const std::string& port,
+                                                                 const std::string& type_id, const Grid& grid,
+                                                                 const Dims& chunk) {
+  fs::path file;
+  {
+    std::lock_guard lock(scratch_m_);
+    std::string stem = plan_.nodes[i].id + "." + port;
+    const int n = scratch_names_[stem]++;
+    if (n > 0) stem += "." + std::to_string(n);
+    std::error_code ec;
+    fs::create_directories(plan_.scratch_dir, ec);
+    file = temp_sibling(plan_.scratch_dir / (stem + ".scratch.h5"), files_.run_id());
+    scratch_files_.push_back(file);
+  }
+  return std::make_shared<ChunkedVolume>(grid, type_id, create_volume_store(file, type_id, grid, chunk));
+}
+
+// Removes the run's scratch files; `keep_live`: leave those whose volumes are still held (the GUI's
+// cache): their stores remove them when the last user lets go.
+void Executor::Scheduler::remove_scratch(bool keep_live) {
+  std::lock_guard lock(scratch_m_);
+  if (keep_live) return;
+  for (const auto& f : scratch_files_) {
+    std::error_code ec;
+    fs::remove(f, ec);
+  }
 }
 
 // Caches what ran when outputs are kept (GUI); headless runs free intermediates instead.
@@ -662,9 +769,17 @@ void Executor::Scheduler::conclude(double seconds) {
     }
     report_.ok = true;
     store_in_cache();
+    if (plan_.memory_budget > 0) {
+      if (!opt_.keep_outputs) results_.clear();  // drops the on-disk volumes: their stores remove their files
+      remove_scratch(opt_.keep_outputs);
+    }
     return;
   }
   files_.rollback();
+  if (plan_.memory_budget > 0) {
+    results_.clear();
+    remove_scratch(false);
+  }
   for (size_t i = 0; i < n_; ++i)
     if (state_[i] == NodeState::Waiting) status(i, NodeState::Cancelled, 0.0, {});
   report_.ok = false;

@@ -1,4 +1,5 @@
 #include "skel/mask.hpp"
+#include "skel/out_of_core.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -78,6 +79,13 @@ std::shared_ptr<const VolumeU8> shared_mask(const DataPtr& data, const std::stri
     return u8;
   }
   return std::make_shared<const VolumeU8>(to_mask(*data, what, warning));
+}
+
+VolumeU8 read_mask_block(const DataObject& data, const Dims& begin, const Dims& size, const std::string& what) {
+  return visit_voxel_type(data.type_id(), what, [&](auto tag) {
+    using T = decltype(tag);
+    return to_mask(read_block<T>(data, begin, size, what), what);
+  });
 }
 
 }  // namespace skel

@@ -186,6 +186,11 @@ ModuleSpec& ModuleSpec::details(std::string text) {
   details_ = std::move(text);
   return *this;
 }
+ModuleSpec& ModuleSpec::blockwise(int64_t halo, int64_t bytes_per_voxel) {
+  if (halo < 0 || bytes_per_voxel < 1) throw Error(name_ + ": blockwise() needs halo >= 0 and bytes_per_voxel >= 1");
+  block_support_ = {true, halo, bytes_per_voxel};
+  return *this;
+}
 const PortSpec* ModuleSpec::find_input(const std::string& n) const {
   for (const auto& p : inputs_)
     if (p.name == n) return &p;

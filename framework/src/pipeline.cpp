@@ -1,4 +1,5 @@
 #include "skel/pipeline.hpp"
+#include "skel/out_of_core.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -65,6 +66,41 @@ bool parse_bool(const std::string& s, bool& out) {
   if (s == "true" || s == "True" || s == "TRUE" || s == "yes" || s == "on") { out = true; return true; }
   if (s == "false" || s == "False" || s == "FALSE" || s == "no" || s == "off") { out = false; return true; }
   return false;
+}
+
+// The `execution:` section: {memory_budget: SIZE, block: [x, y, z]}, each optional.
+ExecutionSettings parse_execution(const YAML::Node& n, const std::string& file) {
+  ExecutionSettings e;
+  if (n.IsNull()) return e;
+  if (!n.IsMap()) fail(file, pos_of(n), "'execution' must be a mapping (memory_budget, block)");
+  std::set<std::string> seen;
+  for (const auto& kv : n) {
+    const std::string k = kv.first.Scalar();
+    if (!seen.insert(k).second) fail(file, pos_of(kv.first), "execution: '" + k + "' given twice");
+    if (k == "memory_budget") {
+      if (!kv.second.IsScalar()) fail(file, pos_of(kv.second), "execution: memory_budget must be a size such as 2GiB");
+      try {
+        e.memory_budget = parse_byte_size(kv.second.Scalar(), "execution: memory_budget");
+      } catch (const InputError& err) {
+        fail(file, pos_of(kv.second), err.what());
+      }
+      e.memory_budget_text = kv.second.Scalar();
+      e.memory_budget_pos = pos_of(kv.second);
+    } else if (k == "block") {
+      const std::string help = "execution: block must be a list of three whole numbers >= 1 (x, y, z), e.g. [64, 64, 64]";
+      if (!kv.second.IsSequence() || kv.second.size() != 3) fail(file, pos_of(kv.second), help);
+      for (size_t a = 0; a < 3; ++a) {
+        int64_t v = 0;
+        if (!kv.second[a].IsScalar() || !parse_int(kv.second[a].Scalar(), v) || v < 1 || v > (int64_t{1} << 30))
+          fail(file, pos_of(kv.second[a]), help);
+        e.block[a] = v;
+      }
+      e.block_pos = pos_of(kv.second);
+    } else {
+      fail(file, pos_of(kv.first), "execution: unknown key '" + k + "' (expected memory_budget, block)");
+    }
+  }
+  return e;
 }
 
 // A plain scalar's most specific value: bool, int, float, else string. Quoted scalars are strings.
@@ -386,6 +422,8 @@ Pipeline Pipeline::parse(const std::string& text, const std::string& file, const
         if (n.module.empty()) fail(file, n.pos, "node '" + n.id + "' has no 'module'");
         p.nodes_.push_back(std::move(n));
       }
+    } else if (key == "execution") {
+      p.execution_ = parse_execution(kv.second, file);
     } else if (key == "gui") {
       if (!kv.second.IsNull()) {
         YAML::Emitter e;
@@ -393,7 +431,7 @@ Pipeline Pipeline::parse(const std::string& text, const std::string& file, const
         p.gui_yaml_ = e.c_str();
       }
     } else {
-      fail(file, pos_of(kv.first), "unknown top-level key '" + key + "' (expected skelflow, nodes, gui)");
+      fail(file, pos_of(kv.first), "unknown top-level key '" + key + "' (expected skelflow, nodes, execution, gui)");
     }
   }
   if (!have_version) fail(file, pos_of(root), "missing 'skelflow: 1' (the format version)");
@@ -448,6 +486,16 @@ std::string Pipeline::to_yaml() const {
       }
       out << YAML::EndMap;
     }
+    out << YAML::EndMap;
+  }
+  if (!execution_.empty()) {
+    out << YAML::Key << "execution" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    if (execution_.memory_budget > 0)
+      out << YAML::Key << "memory_budget" << YAML::Value
+          << (execution_.memory_budget_text.empty() ? std::to_string(execution_.memory_budget) : execution_.memory_budget_text);
+    if (execution_.block != Dims{0, 0, 0})
+      out << YAML::Key << "block" << YAML::Value << YAML::Flow << YAML::BeginSeq << execution_.block[0]
+          << execution_.block[1] << execution_.block[2] << YAML::EndSeq;
     out << YAML::EndMap;
   }
   if (!gui_yaml_.empty()) {
@@ -713,7 +761,7 @@ bool Pipeline::operator==(const Pipeline& o) const {
     e << YAML::Load(g);
     return e.c_str();
   };
-  return norm(gui_yaml_) == norm(o.gui_yaml_);
+  return execution_ == o.execution_ && norm(gui_yaml_) == norm(o.gui_yaml_);
 }
 
 // ---------------------------------------------------------------- validation

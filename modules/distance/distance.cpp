@@ -3,6 +3,7 @@
 #include "distance/distance.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -13,6 +14,7 @@
 #endif
 
 #include "skel/error.hpp"
+#include "skel/mask.hpp"
 #include "skel/parallel.hpp"
 
 namespace skel::distance {
@@ -519,23 +521,16 @@ bool envelope_run(const float* f, int64_t stride, int64_t a, int64_t e, int64_t 
 
 struct NoIndex {};
 
-// Squared distance (isotropic: voxel units; anisotropic: physical units) from every voxel to the
-// nearest site, plus optionally the site's index. is_site(i) decides sites inside the array;
-// `outside_site` whether the ring outside the array consists of sites.
+// Pass x of squared_edt over a contiguous buffer of dims (nx, ny, nz): per row, the squared distance
+// along x to the nearest site (two scans). is_site(i) takes buffer indices; feat receives them.
 template <class Index, class IsSite>
-void squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotropic, int threads,
-                 const Interrupter& interrupter, float* sq, Index* feat) {
+void edt_pass_x(const Dims& dims, IsSite is_site, bool outside_site, double wx, int threads,
+                const Interrupter& interrupter, float* sq, Index* feat) {
   constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
   using Idx = std::conditional_t<with_feat, Index, uint32_t>;
   const Idx OUT = std::numeric_limits<Idx>::max();
-  const int64_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2], plane = nx * ny;
-  if (nx * ny * nz == 0) return;
-  const double wx = isotropic ? 1.0 : grid.spacing[0] * grid.spacing[0];
-  const double wy = isotropic ? 1.0 : grid.spacing[1] * grid.spacing[1];
-  const double wz = isotropic ? 1.0 : grid.spacing[2] * grid.spacing[2];
-
-  // ---- pass x: contiguous rows, two scans.
-  interrupter.check(0.0);
+  (void)OUT;
+  const int64_t nx = dims[0], ny = dims[1], nz = dims[2], plane = nx * ny;
   parallel_for(0, nz, threads, [&](int64_t z0, int64_t z1) {
     std::vector<int64_t> left(static_cast<size_t>(nx));
     std::vector<int32_t> dist_left(static_cast<size_t>(nx));
@@ -604,75 +599,102 @@ void squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotr
       }
     }
   });
+}
+
+// Pass y or z of squared_edt over a buffer whose rows are `nx` wide: n_outer groups of columns, each
+// of n_line elements `line_stride` apart; the lower envelope of the parabolas w (x - s)² + f(s) per
+// column. Blocks of 16 adjacent columns are gathered into contiguous line buffers.
+template <class Index>
+void edt_column_pass(float* sq, Index* feat, int64_t nx, int64_t n_outer, int64_t n_line, int64_t outer_stride,
+                     int64_t line_stride, double w, bool outside_site, int threads, const Interrupter& interrupter) {
+  constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
+  using Idx = std::conditional_t<with_feat, Index, uint32_t>;
+  const Idx OUT = std::numeric_limits<Idx>::max();
+  (void)OUT;
+  constexpr int64_t kB = 16;
+  parallel_for(0, n_outer, threads, [&](int64_t o0, int64_t o1) {
+    // block of kB adjacent columns, stored line-major: blk[t * kB + b] (one 64-byte row per t)
+    std::vector<float> blk(static_cast<size_t>(kB * n_line)), fout(static_cast<size_t>(n_line));
+    std::vector<uint32_t> nonzero(static_cast<size_t>(n_line));
+    std::vector<int64_t> site(static_cast<size_t>(n_line));
+    std::vector<Idx> iout(with_feat ? static_cast<size_t>(n_line) : 0);
+    Envelope env(n_line);
+    for (int64_t o = o0; o < o1; ++o) {
+      interrupter.check();
+      for (int64_t x0 = 0; x0 < nx; x0 += kB) {
+        const int64_t nb = std::min(kB, nx - x0);
+        const int64_t base = o * outer_stride + x0;
+        uint32_t any = 0;
+        for (int64_t t = 0; t < n_line; ++t) {
+          const float* src = sq + base + t * line_stride;
+          float* dst = blk.data() + t * kB;
+          uint32_t bits = 0;
+          for (int64_t b = 0; b < nb; ++b) {
+            dst[b] = src[b];
+            bits |= static_cast<uint32_t>(src[b] != 0.0f) << b;
+          }
+          nonzero[static_cast<size_t>(t)] = bits;
+          any |= bits;
+        }
+        if (!any) continue;  // every voxel is a site: nothing changes
+        bool changed = false;
+        for (int64_t b = 0; b < nb; ++b) {
+          if (!((any >> b) & 1u)) continue;
+          float* f = blk.data() + b;
+          const int64_t col = base + b;
+          for (int64_t a = 0; a < n_line;) {
+            if (!((nonzero[static_cast<size_t>(a)] >> b) & 1u)) {
+              ++a;
+              continue;
+            }
+            int64_t e = a + 1;
+            while (e < n_line && ((nonzero[static_cast<size_t>(e)] >> b) & 1u)) ++e;
+            if (envelope_run(f, kB, a, e, n_line, w, outside_site, env, fout.data(), site.data())) {
+              if constexpr (with_feat) {
+                for (int64_t x = a; x < e; ++x) {
+                  const int64_t sx = site[static_cast<size_t>(x - a)];
+                  iout[static_cast<size_t>(x - a)] =
+                      (sx < 0 || sx >= n_line) ? OUT
+                      : (f[sx * kB] == 0.0f)   ? static_cast<Idx>(col + sx * line_stride)
+                                               : feat[col + sx * line_stride];
+                }
+                for (int64_t x = a; x < e; ++x) feat[col + x * line_stride] = iout[static_cast<size_t>(x - a)];
+              }
+              for (int64_t x = a; x < e; ++x) f[x * kB] = fout[static_cast<size_t>(x - a)];
+              changed = true;
+            }
+            a = e;
+          }
+        }
+        if (!changed) continue;
+        for (int64_t t = 0; t < n_line; ++t)
+          std::memcpy(sq + base + t * line_stride, blk.data() + t * kB, static_cast<size_t>(nb) * sizeof(float));
+      }
+    }
+  });
+}
+
+// Squared distance (isotropic: voxel units; anisotropic: physical units) from every voxel to the
+// nearest site, plus optionally the site's index. is_site(i) decides sites inside the array;
+// `outside_site` whether the ring outside the array consists of sites.
+template <class Index, class IsSite>
+void squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotropic, int threads,
+                 const Interrupter& interrupter, float* sq, Index* feat) {
+  const int64_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2], plane = nx * ny;
+  if (nx * ny * nz == 0) return;
+  const double wx = isotropic ? 1.0 : grid.spacing[0] * grid.spacing[0];
+  const double wy = isotropic ? 1.0 : grid.spacing[1] * grid.spacing[1];
+  const double wz = isotropic ? 1.0 : grid.spacing[2] * grid.spacing[2];
+
+  // ---- pass x: contiguous rows, two scans.
+  interrupter.check(0.0);
+  edt_pass_x<Index>(grid.dims, is_site, outside_site, wx, threads, interrupter, sq, feat);
   interrupter.check(1.0 / 3.0);
 
-  // ---- passes y and z: blocks of kB adjacent columns gathered into contiguous line buffers.
-  constexpr int64_t kB = 16;
-  auto column_pass = [&](int64_t n_outer, int64_t n_line, int64_t outer_stride, int64_t line_stride, double w) {
-    parallel_for(0, n_outer, threads, [&](int64_t o0, int64_t o1) {
-      // block of kB adjacent columns, stored line-major: blk[t * kB + b] (one 64-byte row per t)
-      std::vector<float> blk(static_cast<size_t>(kB * n_line)), fout(static_cast<size_t>(n_line));
-      std::vector<uint32_t> nonzero(static_cast<size_t>(n_line));
-      std::vector<int64_t> site(static_cast<size_t>(n_line));
-      std::vector<Idx> iout(with_feat ? static_cast<size_t>(n_line) : 0);
-      Envelope env(n_line);
-      for (int64_t o = o0; o < o1; ++o) {
-        interrupter.check();
-        for (int64_t x0 = 0; x0 < nx; x0 += kB) {
-          const int64_t nb = std::min(kB, nx - x0);
-          const int64_t base = o * outer_stride + x0;
-          uint32_t any = 0;
-          for (int64_t t = 0; t < n_line; ++t) {
-            const float* src = sq + base + t * line_stride;
-            float* dst = blk.data() + t * kB;
-            uint32_t bits = 0;
-            for (int64_t b = 0; b < nb; ++b) {
-              dst[b] = src[b];
-              bits |= static_cast<uint32_t>(src[b] != 0.0f) << b;
-            }
-            nonzero[static_cast<size_t>(t)] = bits;
-            any |= bits;
-          }
-          if (!any) continue;  // every voxel is a site: nothing changes
-          bool changed = false;
-          for (int64_t b = 0; b < nb; ++b) {
-            if (!((any >> b) & 1u)) continue;
-            float* f = blk.data() + b;
-            const int64_t col = base + b;
-            for (int64_t a = 0; a < n_line;) {
-              if (!((nonzero[static_cast<size_t>(a)] >> b) & 1u)) {
-                ++a;
-                continue;
-              }
-              int64_t e = a + 1;
-              while (e < n_line && ((nonzero[static_cast<size_t>(e)] >> b) & 1u)) ++e;
-              if (envelope_run(f, kB, a, e, n_line, w, outside_site, env, fout.data(), site.data())) {
-                if constexpr (with_feat) {
-                  for (int64_t x = a; x < e; ++x) {
-                    const int64_t sx = site[static_cast<size_t>(x - a)];
-                    iout[static_cast<size_t>(x - a)] =
-                        (sx < 0 || sx >= n_line) ? OUT
-                        : (f[sx * kB] == 0.0f)   ? static_cast<Idx>(col + sx * line_stride)
-                                                 : feat[col + sx * line_stride];
-                  }
-                  for (int64_t x = a; x < e; ++x) feat[col + x * line_stride] = iout[static_cast<size_t>(x - a)];
-                }
-                for (int64_t x = a; x < e; ++x) f[x * kB] = fout[static_cast<size_t>(x - a)];
-                changed = true;
-              }
-              a = e;
-            }
-          }
-          if (!changed) continue;
-          for (int64_t t = 0; t < n_line; ++t)
-            std::memcpy(sq + base + t * line_stride, blk.data() + t * kB, static_cast<size_t>(nb) * sizeof(float));
-        }
-      }
-    });
-  };
-  if (ny > 1 || outside_site) column_pass(nz, ny, plane, nx, wy);
+  // ---- passes y and z: blocks of 16 adjacent columns gathered into contiguous line buffers.
+  if (ny > 1 || outside_site) edt_column_pass<Index>(sq, feat, nx, nz, ny, plane, nx, wy, outside_site, threads, interrupter);
   interrupter.check(2.0 / 3.0);
-  if (nz > 1 || outside_site) column_pass(ny, nz, nx, plane, wz);
+  if (nz > 1 || outside_site) edt_column_pass<Index>(sq, feat, nx, ny, nz, nx, plane, wz, outside_site, threads, interrupter);
   interrupter.check(1.0);
 }
 
@@ -816,6 +838,210 @@ VolumeF32 seeded(const VolumeU8& seeds, const SeededOptions& options) {
                        options.interrupter, out.data(), nullptr);
   finish_distances(out, iso, options.squared, options.threads);
   return out;
+}
+
+// ============================================================================ block-wise chamfer (ch. 5.1)
+namespace {
+
+struct Step {
+  int dx, dy, dz;
+  uint64_t w;
+};
+
+// The 13 steps of the forward mask (plane z-1, row y-1, voxel x-1) with their weights; the backward
+// mask is their mirror.
+std::array<Step, 13> forward_steps(const Weights64& w) {
+  auto weight = [&](int dx, int dy, int dz) -> uint64_t {
+    const int n = std::abs(dx) + std::abs(dy) + std::abs(dz);
+    if (n == 1) return dx ? w.fx : dy ? w.fy : w.fz;
+    if (n == 2) return dz == 0 ? w.exy : dy == 0 ? w.exz : w.eyz;
+    return w.v;
+  };
+  std::array<Step, 13> s{};
+  int k = 0;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) s[static_cast<size_t>(k++)] = {dx, dy, -1, weight(dx, dy, -1)};
+  for (int dx = -1; dx <= 1; ++dx) s[static_cast<size_t>(k++)] = {dx, -1, 0, weight(dx, -1, 0)};
+  s[static_cast<size_t>(k)] = {-1, 0, 0, w.fx};
+  return s;
+}
+
+// One chamfer raster scan (forward: z, y, x increasing over the forward mask; backward: the mirror)
+// of a box of the grid: d(p) = min(d(p), d(n) + w) over the mask's neighbours n of every object
+// voxel p. Neighbours outside the grid count as `B` (the ring outside the array); neighbours outside
+// the box but inside the grid are left to the block order of Algorithm 4. Values stay <= INF.
+template <class T>
+void scan_box(VolumeView<const uint8_t> m, VolumeView<T> d, const Dims& grid, const std::array<Step, 13>& steps,
+              bool forward, Acc<T> B) {
+  using A = Acc<T>;
+  const A INF = std::numeric_limits<T>::max();
+  const int64_t nx = d.dims[0], ny = d.dims[1], nz = d.dims[2];
+  const int sign = forward ? 1 : -1;
+  std::array<int64_t, 13> offset{};
+  for (size_t k = 0; k < steps.size(); ++k)
+    offset[k] = sign * (steps[k].dx * d.strides[0] + steps[k].dy * d.strides[1] + steps[k].dz * d.strides[2]);
+  for (int64_t zi = 0; zi < nz; ++zi) {
+    const int64_t z = forward ? zi : nz - 1 - zi;
+    for (int64_t yi = 0; yi < ny; ++yi) {
+      const int64_t y = forward ? yi : ny - 1 - yi;
+      for (int64_t xi = 0; xi < nx; ++xi) {
+        const int64_t x = forward ? xi : nx - 1 - xi;
+        if (!m(x, y, z)) continue;  // background stays 0
+        T* p = &d(x, y, z);
+        A c = *p;
+        if (x > 0 && y > 0 && z > 0 && x < nx - 1 && y < ny - 1 && z < nz - 1) {
+          for (size_t k = 0; k < steps.size(); ++k) c = std::min(c, static_cast<A>(p[offset[k]]) + static_cast<A>(steps[k].w));
+        } else {
+          for (const Step& s : steps) {
+            const int64_t lx = x + sign * s.dx, ly = y + sign * s.dy, lz = z + sign * s.dz;
+            const int64_t gx = d.offset[0] + lx, gy = d.offset[1] + ly, gz = d.offset[2] + lz;
+            if (gx < 0 || gy < 0 || gz < 0 || gx >= grid[0] || gy >= grid[1] || gz >= grid[2])
+              c = std::min(c, B + static_cast<A>(s.w));
+            else if (lx >= 0 && ly >= 0 && lz >= 0 && lx < nx && ly < ny && lz < nz)
+              c = std::min(c, static_cast<A>(d(lx, ly, lz)) + static_cast<A>(s.w));
+          }
+        }
+        *p = static_cast<T>(std::min(c, INF));
+      }
+    }
+  }
+}
+
+// The box [begin, begin + size) of an integer mask (in memory or on disk) as 0/1 bytes.
+VolumeU8 read_mask_box(const DataObject& mask, const Dims& begin, const Dims& size) {
+  return read_mask_block(mask, begin, size, "input 'mask'");
+}
+
+// Block order of Algorithm 4 along one axis: 0, 1, ..., n-1, n-2, ..., 0 (up) or its mirror.
+std::vector<int64_t> there_and_back(int64_t n, bool up) {
+  std::vector<int64_t> s;
+  for (int64_t i = 0; i < n; ++i) s.push_back(up ? i : n - 1 - i);
+  for (int64_t i = n - 2; i >= 0; --i) s.push_back(up ? i : n - 1 - i);
+  return s;
+}
+
+template <class T>
+void chamfer_blocks_t(const DataObject& mask, const ChunkedVolume& out, const Weights64& w, const ChamferOptions& o,
+                      const Dims& block) {
+  const Grid& g = out.grid();
+  const BlockLayout layout(g.dims, block, 1);
+  const Dims n = layout.count();
+  const int64_t total = layout.total() + 2 * n[2] * (2 * n[0] - 1) * (2 * n[1] - 1);
+  const T INF = std::numeric_limits<T>::max();
+  const Acc<T> B = o.border_is_object ? Acc<T>(INF) : Acc<T>(0);
+  const auto steps = forward_steps(w);
+  int64_t done = 0;
+  report_blocks(o.interrupter, "chamfer", 0, total);
+  // Start: 0 on background, INF on object.
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block b = layout.at(bx, by, bz);
+        const VolumeU8 m = read_mask_box(mask, b.begin, b.size);
+        Volume<T> d = Volume<T>::uninitialized(m.grid());
+        for (int64_t i = 0; i < m.size(); ++i) d[i] = m[i] ? INF : T(0);
+        out.write(d, b.begin);
+        report_blocks(o.interrupter, "chamfer", ++done, total);
+      }
+  // Eight block-wise scans: each block with a one-voxel overlap (its halo), visited there and back
+  // along x within each row of blocks, along y within each layer, layers in scan order.
+  auto visit = [&](int64_t bx, int64_t by, int64_t bz, bool forward) {
+    const Block b = layout.at(bx, by, bz);
+    const VolumeU8 m = read_mask_box(mask, b.outer_begin, b.outer_size);
+    Volume<T> d = out.read<T>(b.outer_begin, b.outer_size);
+    VolumeView<const uint8_t> mv = m.view();
+    VolumeView<T> dv = d.view();
+    mv.offset = dv.offset = b.outer_begin;
+    scan_box<T>(mv, dv, g.dims, steps, forward, B);
+    out.write(d, b.outer_begin);
+    report_blocks(o.interrupter, "chamfer", ++done, total);
+  };
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by : there_and_back(n[1], true))
+      for (int64_t bx : there_and_back(n[0], true)) visit(bx, by, bz, true);
+  for (int64_t bz = n[2] - 1; bz >= 0; --bz)
+    for (int64_t by : there_and_back(n[1], false))
+      for (int64_t bx : there_and_back(n[0], false)) visit(bx, by, bz, false);
+}
+
+}  // namespace
+
+const char* chamfer_output_type(const Grid& grid, const ChamferOptions& options) {
+  return chamfer_output_bits(grid, options) == 16 ? type_ids::volume_u16 : type_ids::volume_u32;
+}
+
+void chamfer_blocks(const DataObject& mask, const ChunkedVolume& out, const ChamferOptions& options, const Dims& block) {
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  if (out.grid().dims != g.dims) throw Error("chamfer_blocks: the output's grid differs from the mask's");
+  const Weights64 w = effective_weights(g, options);
+  if (out.type_id() != chamfer_output_type(g, options))
+    throw Error("chamfer_blocks: the output must be " + std::string(chamfer_output_type(g, options)));
+  if (out.type_id() == type_ids::volume_u16) chamfer_blocks_t<uint16_t>(mask, out, w, options, block);
+  else chamfer_blocks_t<uint32_t>(mask, out, w, options, block);
+}
+
+// ========================================================================== block-wise Euclidean DT
+void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const EuclideanOptions& o, const Dims& cross) {
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  if (out.grid().dims != g.dims || out.type_id() != type_ids::volume_f32)
+    throw Error("euclidean_blocks: the output must be float32 on the mask's grid");
+  const int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+  if (g.voxel_count() == 0) return;
+  const bool iso = is_isotropic(g);
+  const bool outside = !o.border_is_object;
+  const double wx = iso ? 1.0 : g.spacing[0] * g.spacing[0];
+  const double wy = iso ? 1.0 : g.spacing[1] * g.spacing[1];
+  const double wz = iso ? 1.0 : g.spacing[2] * g.spacing[2];
+  const Interrupter inner;  // progress and cancellation between slabs, below
+  // Slabs of whole lines along the pass's axis, `cross` voxels across it.
+  const BlockLayout sx({nx, ny, nz}, {nx, cross[1], cross[2]});
+  const BlockLayout sy({nx, ny, nz}, {cross[0], ny, cross[2]});
+  const BlockLayout sz({nx, ny, nz}, {cross[0], cross[1], nz});
+  const int64_t total = sx.total() + sy.total() + sz.total();
+  int64_t done = 0;
+  auto each = [&](const BlockLayout& l, auto&& f) {
+    const Dims c = l.count();
+    for (int64_t bz = 0; bz < c[2]; ++bz)
+      for (int64_t by = 0; by < c[1]; ++by)
+        for (int64_t bx = 0; bx < c[0]; ++bx) {
+          f(l.at(bx, by, bz));
+          report_blocks(o.interrupter, "euclidean", ++done, total);
+        }
+  };
+  report_blocks(o.interrupter, "euclidean", 0, total);
+  each(sx, [&](const Block& b) {
+    const VolumeU8 m = read_mask_box(mask, b.begin, b.size);
+    VolumeF32 f = VolumeF32::uninitialized(m.grid());
+    const uint8_t* mp = m.data();
+    edt_pass_x<NoIndex>(b.size, [mp](int64_t i) { return mp[i] == 0; }, outside, wx, o.threads, inner, f.data(), nullptr);
+    out.write(f, b.begin);
+  });
+  if (ny > 1 || outside)
+    each(sy, [&](const Block& b) {
+      VolumeF32 f = out.read<float>(b.begin, b.size);
+      edt_column_pass<NoIndex>(f.data(), nullptr, b.size[0], b.size[2], ny, b.size[0] * ny, b.size[0], wy, outside,
+                               o.threads, inner);
+      out.write(f, b.begin);
+    });
+  else
+    done += sy.total();
+  each(sz, [&](const Block& b) {
+    VolumeF32 f = out.read<float>(b.begin, b.size);
+    if (nz > 1 || outside)
+      edt_column_pass<NoIndex>(f.data(), nullptr, b.size[0], b.size[1], nz, b.size[0], b.size[0] * b.size[1], wz,
+                               outside, o.threads, inner);
+    finish_distances(f, iso, o.squared, o.threads);
+    out.write(f, b.begin);
+  });
+}
+
+Dims euclidean_cross_section(uint64_t budget, const Dims& grid_dims) {
+  const int64_t longest = std::max<int64_t>({grid_dims[0], grid_dims[1], grid_dims[2], 1});
+  // One slab of whole lines: 5 bytes per voxel (float32 distances, the mask), a quarter of the budget.
+  const double voxels = static_cast<double>(budget) / 4.0 / 5.0;
+  const auto side = static_cast<int64_t>(std::sqrt(voxels / static_cast<double>(longest)));
+  const int64_t s = std::max<int64_t>(1, side);
+  return {s, s, s};
 }
 
 }  // namespace skel::distance

@@ -22,6 +22,7 @@
 #include "skel/data.hpp"
 #include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/volume.hpp"
 
 namespace skel::distance {
@@ -85,6 +86,15 @@ struct ChamferNearest {
 };
 ChamferNearest chamfer_nearest(const VolumeU8& mask, const ChamferOptions& options = {});
 
+// Block-wise chamfer (out-of-core, thesis ch. 5.1, Algorithm 4): `mask` (any integer volume, in
+// memory or on disk) in blocks of `block` voxels with a one-voxel overlap, eight block-wise raster
+// scans (each layer of blocks row by row there and back, each row there and back), the distances
+// written into `out` (on disk, the mask's grid, of chamfer_output_type). Bit-identical to chamfer()
+// for weights obeying the chamfer-norm conditions (see distance.chamfer). Blocks visited:
+// n + 2·nz·(2nx-1)·(2ny-1) for n = nx·ny·nz blocks; progress "chamfer k/total blocks".
+const char* chamfer_output_type(const Grid& grid, const ChamferOptions& options);  // volume.u16 or volume.u32
+void chamfer_blocks(const DataObject& mask, const ChunkedVolume& out, const ChamferOptions& options, const Dims& block);
+
 struct EuclideanOptions : DistanceOptions {
   using OptionsBase = DistanceOptions;
   bool squared = false;  // output squared distances (physical units squared)
@@ -98,6 +108,16 @@ struct EuclideanOptions : DistanceOptions {
 // No background at all with border_is_object: +inf everywhere. Empty mask: all zeros.
 // Memory: 4 bytes per voxel (output) plus per-thread line buffers.
 VolumeF32 euclidean(const VolumeU8& mask, const EuclideanOptions& options = {});
+
+// Block-wise exact Euclidean DT (out-of-core): the three separable passes of euclidean(), each over
+// slabs of whole lines along its axis (`cross` voxels across: pass x reads slabs of nx x cross[1] x
+// cross[2], pass y cross[0] x ny x cross[2], pass z cross[0] x cross[1] x nz), from `mask` (any
+// integer volume, in memory or on disk) into `out` (float32 on disk, the mask's grid), which holds
+// the squared distances between passes. Bit-identical to euclidean(), anisotropic grids included.
+// Progress "euclidean k/n blocks" (slabs).
+void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const EuclideanOptions& options, const Dims& cross);
+// The slab cross-section for a budget: a quarter of it holds one slab along the longest axis.
+Dims euclidean_cross_section(uint64_t budget, const Dims& grid_dims);
 
 // Exact Euclidean feature transform: for every voxel the linear index of its nearest background voxel
 // (ties as described at the top); background voxels get their own index; kOutside* where the

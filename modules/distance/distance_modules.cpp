@@ -67,9 +67,23 @@ border_is_object a mask without any background voxel gives the type's maximum (6
 everywhere, above every real distance. An empty mask gives all zeros.
 
 The raster scans are sequential (each row depends on the previous one); `threads` is not used.
-Memory: the output, 2 (or 4) bytes per voxel, plus one row of scratch.)");
+Memory: the output, 2 (or 4) bytes per voxel, plus one row of scratch.
+
+Block-wise under a memory budget (thesis Algorithm 4): blocks with a one-voxel overlap, eight
+block-wise scans (2·nz·(2nx-1)·(2ny-1) block visits), bit-identical to the in-memory result for
+weights obeying the conditions above. Memory per block: 1 (mask) + 4 (distance) bytes per voxel.)")
+        .blockwise(1, 5);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      DataPtr mask = ctx.input_data("mask");
+      const auto options = ctx.options<ChamferOptions>();
+      const Grid& g = any_volume_grid(*mask, "input 'mask'");
+      auto out = ctx.scratch_volume("distance", chamfer_output_type(g, options), g);
+      chamfer_blocks(*mask, *out, options, blocks->block);
+      ctx.output("distance", DataPtr(std::move(out)));
+      return;
+    }
     auto mask = mask_input(ctx, "mask");
     ctx.output("distance", chamfer(*mask, ctx.options<ChamferOptions>()));
   }
@@ -95,9 +109,24 @@ Multi-threaded over rows and planes; identical results for any thread count.
 Voxels outside the array are background by default (the distance never exceeds the distance to the
 array's border); with border_is_object a mask without background gives +inf everywhere. An empty
 mask gives all zeros.
-Memory: the output, 4 bytes per voxel, plus per-thread line buffers (~40 bytes per voxel of one line).)");
+Memory: the output, 4 bytes per voxel, plus per-thread line buffers (~40 bytes per voxel of one line).
+
+Block-wise under a memory budget: the same three passes, each over slabs of whole lines along its
+axis (the squared distances on disk between passes), bit-identical to the in-memory result. A slab
+takes 5 bytes per voxel (mask + float32); its cross-section is chosen so that one slab along the
+longest axis fits a quarter of the budget, or is the `block` of the pipeline's `execution:`.)")
+        .blockwise(0, 5);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      DataPtr mask = ctx.input_data("mask");
+      const Grid& g = any_volume_grid(*mask, "input 'mask'");
+      auto out = ctx.scratch_volume("distance", type_ids::volume_f32, g);
+      const Dims cross = blocks->block_from_user ? blocks->block : euclidean_cross_section(blocks->memory_budget, g.dims);
+      euclidean_blocks(*mask, *out, ctx.options<EuclideanOptions>(), cross);
+      ctx.output("distance", DataPtr(std::move(out)));
+      return;
+    }
     auto mask = mask_input(ctx, "mask");
     ctx.output("distance", euclidean(*mask, ctx.options<EuclideanOptions>()));
   }

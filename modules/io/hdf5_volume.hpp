@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "skel/data.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/volume.hpp"
 
 namespace skel::io {
@@ -64,6 +65,14 @@ void create_volume_dataset(const std::filesystem::path& file, const std::string&
                            const Grid& grid, const WriteOptions& options = {});
 template <class T>
 void write_box(const std::filesystem::path& file, const std::string& dataset, const Volume<T>& block, Dims begin);
+
+// The on-disk store of out-of-core runs (skel/out_of_core.hpp): an uncompressed HDF5 file at `file`
+// with one dataset of `type_id` ("volume.u8", ...), chunked by `chunk` (x, y, z), every voxel 0 until
+// written, open while the store lives and removed when it is destroyed; each open store keeps a
+// 16 MiB chunk cache (a fixed overhead outside the memory budget). Registered at start-up as the
+// framework's VolumeStoreFactory.
+std::shared_ptr<VolumeStore> create_scratch_store(const std::filesystem::path& file, const std::string& type_id,
+                                                  const Grid& grid, const Dims& chunk);
 
 // One line per dataset of the file (name, shape (x, y, z), dtype, chunks, filters, spacing, origin).
 std::string describe_file(const std::filesystem::path& file);

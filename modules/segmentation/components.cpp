@@ -4,11 +4,15 @@
 // the final labels are canonical (size descending, ties by first voxel in raster order), so they do
 // not depend on the slab split or the thread count.
 #include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <functional>
 #include <numeric>
 #include <vector>
 
 #include "segmentation/segmentation.hpp"
 #include "skel/error.hpp"
+#include "skel/mask.hpp"
 #include "skel/units.hpp"
 #include "skel/parallel.hpp"
 #include "skel/union_find.hpp"
@@ -130,6 +134,79 @@ std::vector<int64_t> union_runs(const Runs& r, int64_t ny, int64_t nz, int conne
   return std::move(uf).release();
 }
 
+// Statistics of one component (integer sums: exact and independent of how the voxels were visited).
+struct ComponentInfo {
+  int64_t voxels = 0, lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0}, sum[3] = {0, 0, 0};
+  int64_t first = 0;  // linear index of its first voxel in raster order (block-wise ordering)
+};
+
+// Adds run [a, b] of row (y, z) to `c`.
+inline void add_run(ComponentInfo& c, int64_t a, int64_t b, int64_t y, int64_t z) {
+  const int64_t len = b - a + 1;
+  if (c.voxels == 0) {
+    c.lo[0] = a; c.hi[0] = b;
+    c.lo[1] = c.hi[1] = y;
+    c.lo[2] = c.hi[2] = z;
+  } else {
+    c.lo[0] = std::min(c.lo[0], a);
+    c.hi[0] = std::max(c.hi[0], b);
+    c.lo[1] = std::min(c.lo[1], y);
+    c.hi[1] = std::max(c.hi[1], y);
+    c.lo[2] = std::min(c.lo[2], z);
+    c.hi[2] = std::max(c.hi[2], z);
+  }
+  c.voxels += len;
+  c.sum[0] += (a + b) * len / 2;
+  c.sum[1] += y * len;
+  c.sum[2] += z * len;
+}
+
+// Labels of components given in raster order of their first voxels: size descending, ties in that
+// order; min_size and keep_largest applied. Fills `order` and `count`; returns label_of (0 = removed).
+std::vector<uint32_t> label_components(const std::vector<ComponentInfo>& comps, const ComponentOptions& o,
+                                       std::vector<size_t>& order, uint32_t& count) {
+  order.resize(comps.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].voxels > comps[b].voxels; });
+  std::vector<uint32_t> label_of(comps.size(), 0);
+  uint32_t next = 0;
+  for (size_t k : order) {
+    if (comps[k].voxels < o.min_size) continue;
+    if (o.keep_largest && next >= 1) continue;
+    if (next == UINT32_MAX) throw InputError("connected_components: more than 2^32 - 1 components");
+    label_of[k] = ++next;
+  }
+  count = next;
+  return label_of;
+}
+
+// The component table (label, voxels, volume, bounding box, centroid) of the kept components.
+Table component_table(const std::vector<ComponentInfo>& comps, const std::vector<size_t>& order,
+                      const std::vector<uint32_t>& label_of, const Grid& grid) {
+  const Vec3 sp = grid.spacing, org = grid.origin;
+  std::vector<int64_t> lab, vox, bb[6];
+  std::vector<double> vol, cen[3];
+  for (size_t k : order) {
+    const uint32_t l = label_of[k];
+    if (!l) continue;
+    const ComponentInfo& c = comps[k];
+    lab.push_back(l);
+    vox.push_back(c.voxels);
+    vol.push_back(static_cast<double>(c.voxels) * sp[0] * sp[1] * sp[2]);
+    for (int a = 0; a < 3; ++a) {
+      bb[a].push_back(c.lo[a]);
+      bb[3 + a].push_back(c.hi[a]);
+      cen[a].push_back(org[a] + sp[a] * static_cast<double>(c.sum[a]) / static_cast<double>(c.voxels));
+    }
+  }
+  Table table;
+  table.add("label", lab).add("voxels", vox).add("volume", vol, units::power(grid.unit, 3));
+  const char* names[6] = {"bbox_min_x", "bbox_min_y", "bbox_min_z", "bbox_max_x", "bbox_max_y", "bbox_max_z"};
+  for (int a = 0; a < 6; ++a) table.add(names[a], bb[a], "voxels");
+  table.add("centroid_x", cen[0], grid.unit).add("centroid_y", cen[1], grid.unit).add("centroid_z", cen[2], grid.unit);
+  return table;
+}
+
 void check_connectivity(int connectivity) {
   if (connectivity != 6 && connectivity != 18 && connectivity != 26)
     throw InputError("connectivity must be 6, 18 or 26, got " + std::to_string(connectivity));
@@ -148,10 +225,7 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   o.interrupter.check(0.5);
   // parent[i] <= i, so one forward pass resolves every run to its root (the component's first run).
   std::vector<int64_t> comp(static_cast<size_t>(nruns));
-  struct Info {
-    int64_t voxels = 0, lo[3], hi[3], sum[3] = {0, 0, 0};
-  };
-  std::vector<Info> comps;
+  std::vector<ComponentInfo> comps;
   for (int64_t i = 0; i < nruns; ++i) {
     const auto si = static_cast<size_t>(i);
     const int64_t p = parent[si];
@@ -168,37 +242,13 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
     const int64_t y = row % ny, z = row / ny;
     for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
       const auto si = static_cast<size_t>(i);
-      Info& c = comps[static_cast<size_t>(comp[si])];
-      const int64_t a = r.x0[si], b = r.x1[si] - 1, len = b - a + 1;
-      if (c.voxels == 0) {
-        c.lo[0] = a; c.hi[0] = b;
-        c.lo[1] = c.hi[1] = y;
-        c.lo[2] = c.hi[2] = z;
-      } else {
-        c.lo[0] = std::min(c.lo[0], a);
-        c.hi[0] = std::max(c.hi[0], b);
-        c.lo[1] = std::min(c.lo[1], y);
-        c.hi[1] = std::max(c.hi[1], y);
-        c.hi[2] = std::max(c.hi[2], z);
-      }
-      c.voxels += len;
-      c.sum[0] += (a + b) * len / 2;
-      c.sum[1] += y * len;
-      c.sum[2] += z * len;
+      add_run(comps[static_cast<size_t>(comp[si])], r.x0[si], r.x1[si] - 1, y, z);
     }
   }
   // Order: size descending, ties by first voxel in raster order (= order of the root runs).
-  std::vector<size_t> order(comps.size());
-  std::iota(order.begin(), order.end(), size_t{0});
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].voxels > comps[b].voxels; });
-  std::vector<uint32_t> label_of(comps.size(), 0);
+  std::vector<size_t> order;
   uint32_t next = 0;
-  for (size_t k : order) {
-    if (comps[k].voxels < o.min_size) continue;
-    if (o.keep_largest && next >= 1) continue;
-    if (next == UINT32_MAX) throw InputError("connected_components: more than 2^32 - 1 components");
-    label_of[k] = ++next;
-  }
+  const std::vector<uint32_t> label_of = label_components(comps, o, order, next);
   o.interrupter.check(0.7);
   ComponentsResult res;
   res.labels = VolumeU32::uninitialized(mask.grid());
@@ -220,27 +270,187 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
     }
   }, 64);
   res.count = next;
-  const Vec3 sp = mask.spacing(), org = mask.origin();
-  std::vector<int64_t> lab, vox, bb[6];
-  std::vector<double> vol, cen[3];
-  for (size_t k : order) {
-    const uint32_t l = label_of[k];
-    if (!l) continue;
-    const Info& c = comps[k];
-    lab.push_back(l);
-    vox.push_back(c.voxels);
-    vol.push_back(static_cast<double>(c.voxels) * sp[0] * sp[1] * sp[2]);
-    for (int a = 0; a < 3; ++a) {
-      bb[a].push_back(c.lo[a]);
-      bb[3 + a].push_back(c.hi[a]);
-      cen[a].push_back(org[a] + sp[a] * static_cast<double>(c.sum[a]) / static_cast<double>(c.voxels));
-    }
-  }
-  res.table.add("label", lab).add("voxels", vox).add("volume", vol, units::power(mask.unit(), 3));
-  const char* names[6] = {"bbox_min_x", "bbox_min_y", "bbox_min_z", "bbox_max_x", "bbox_max_y", "bbox_max_z"};
-  for (int a = 0; a < 6; ++a) res.table.add(names[a], bb[a], "voxels");
-  res.table.add("centroid_x", cen[0], mask.unit()).add("centroid_y", cen[1], mask.unit()).add("centroid_z", cen[2], mask.unit());
+  res.table = component_table(comps, order, label_of, mask.grid());
   o.interrupter.check(1.0);
+  return res;
+}
+
+// ---------------------------------------------------------------- block-wise (out-of-core)
+namespace {
+
+// Components of the object (or of the background) of a mask in memory or on disk, found block by
+// block: inside every block by union-find over runs as in memory, each piece with a provisional id
+// (1-based, written to `work`), its statistics in global coordinates and whether it touches a face
+// of the array; then the pieces that touch across block faces, edges and corners (per
+// connectivity) are united. Two passes over the blocks.
+struct Provisional {
+  std::vector<ComponentInfo> info;  // per piece
+  std::vector<uint8_t> border;      // per piece: a voxel on a face of the array
+  std::vector<int64_t> root;        // per piece: its component's smallest piece id
+};
+Provisional provisional_components(const DataObject& mask, const ChunkedVolume& work, int conn, bool background,
+                                   const BlockLayout& layout, int threads, const std::function<void()>& block_done) {
+  const Grid& g = work.grid();
+  const Dims n = layout.count();
+  auto each = [&](auto&& f) {
+    for (int64_t bz = 0; bz < n[2]; ++bz)
+      for (int64_t by = 0; by < n[1]; ++by)
+        for (int64_t bx = 0; bx < n[0]; ++bx) {
+          f(layout.at(bx, by, bz));
+          block_done();
+        }
+  };
+  Provisional pv;
+  std::vector<ComponentInfo>& info = pv.info;
+  each([&](const Block& b) {
+    const VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
+    const Runs r = extract_runs(m, threads, background);
+    std::vector<int64_t> parent = union_runs(r, b.size[1], b.size[2], conn, threads, Interrupter());
+    const auto nruns = static_cast<int64_t>(r.x0.size());
+    std::vector<int64_t> comp(static_cast<size_t>(nruns));
+    const auto base = static_cast<int64_t>(info.size());
+    VolumeU64 w(m.grid(), 0);
+    for (int64_t row = 0; row < b.size[1] * b.size[2]; ++row) {
+      const int64_t y = row % b.size[1], z = row / b.size[1];
+      const int64_t gy = b.begin[1] + y, gz = b.begin[2] + z;
+      const bool face_row = gy == 0 || gz == 0 || gy == g.dims[1] - 1 || gz == g.dims[2] - 1;
+      for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
+        const auto si = static_cast<size_t>(i);
+        const int64_t p = parent[si];
+        if (p == i) {
+          comp[si] = static_cast<int64_t>(info.size()) - base;
+          info.emplace_back();
+          info.back().first = g.index(b.begin[0] + r.x0[si], gy, gz);
+          pv.border.push_back(0);
+        } else {
+          comp[si] = comp[static_cast<size_t>(p)];
+        }
+        parent[si] = parent[static_cast<size_t>(p)];
+        const int64_t id = base + comp[si];
+        const int64_t x0 = b.begin[0] + r.x0[si], x1 = b.begin[0] + r.x1[si];
+        add_run(info[static_cast<size_t>(id)], x0, x1 - 1, gy, gz);
+        if (face_row || x0 == 0 || x1 == g.dims[0]) pv.border[static_cast<size_t>(id)] = 1;
+        std::fill(&w(r.x0[si], y, z), &w(r.x0[si], y, z) + (r.x1[si] - r.x0[si]), static_cast<uint64_t>(id + 1));
+      }
+    }
+    work.write(w, b.begin);
+  });
+  UnionFind uf(static_cast<int64_t>(info.size()));
+  std::vector<std::array<int, 3>> steps;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int k = std::abs(dx) + std::abs(dy) + std::abs(dz);
+        if (k > 0 && (k == 1 || (k == 2 && conn >= 18) || conn == 26)) steps.push_back({dx, dy, dz});
+      }
+  each([&](const Block& b) {
+    const VolumeU64 w = work.read<uint64_t>(b.outer_begin, b.outer_size);
+    const Dims lo{b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]};
+    const Dims hi{lo[0] + b.size[0], lo[1] + b.size[1], lo[2] + b.size[2]};
+    auto inside = [&](int64_t x, int64_t y, int64_t z) {
+      return x >= lo[0] && y >= lo[1] && z >= lo[2] && x < hi[0] && y < hi[1] && z < hi[2];
+    };
+    for (int64_t z = lo[2]; z < hi[2]; ++z)
+      for (int64_t y = lo[1]; y < hi[1]; ++y)
+        for (int64_t x = lo[0]; x < hi[0]; ++x) {
+          const bool shell = x == lo[0] || y == lo[1] || z == lo[2] || x == hi[0] - 1 || y == hi[1] - 1 || z == hi[2] - 1;
+          if (!shell) {
+            x = std::max(x, hi[0] - 2);  // on to the far face of this row
+            continue;
+          }
+          const uint64_t a = w(x, y, z);
+          if (!a) continue;
+          for (const auto& d : steps) {
+            const int64_t qx = x + d[0], qy = y + d[1], qz = z + d[2];
+            if (!w.grid().contains(qx, qy, qz) || inside(qx, qy, qz)) continue;
+            if (const uint64_t q = w(qx, qy, qz)) uf.unite(static_cast<int64_t>(a - 1), static_cast<int64_t>(q - 1));
+          }
+        }
+  });
+  uf.flatten();
+  pv.root = std::move(uf).release();
+  return pv;
+}
+
+void check_block_volume(const ChunkedVolume& v, const Grid& g, const char* type, const char* what) {
+  if (v.dims() != g.dims || v.type_id() != type)
+    throw Error(std::string(what) + ": an on-disk " + type + " volume with the mask's grid is needed");
+}
+
+}  // namespace
+
+BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
+                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
+                                                  const ComponentOptions& o, const Dims& block) {
+  const int conn = static_cast<int>(o.connectivity);
+  check_connectivity(conn);
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  check_block_volume(labels, g, type_ids::volume_u32, "connected_components_blocks: labels");
+  check_block_volume(kept, g, type_ids::volume_u8, "connected_components_blocks: mask");
+  check_block_volume(work, g, type_ids::volume_u64, "connected_components_blocks: work");
+  const BlockLayout layout(g.dims, block, 1);
+  const Dims n = layout.count();
+  const int64_t total = 3 * layout.total();
+  int64_t done = 0;
+  report_blocks(o.interrupter, "components", 0, total);
+  auto block_done = [&] { report_blocks(o.interrupter, "components", ++done, total); };
+  const Provisional pv = provisional_components(mask, work, conn, false, layout, o.threads, block_done);
+  const std::vector<ComponentInfo>& info = pv.info;
+  const std::vector<int64_t>& root = pv.root;
+  // Components = roots, statistics merged, ordered by first voxel, then labelled as in memory.
+  std::vector<int64_t> index_of_root(info.size(), -1);
+  std::vector<ComponentInfo> comps;
+  for (size_t i = 0; i < info.size(); ++i) {
+    const auto r = static_cast<size_t>(root[i]);
+    if (index_of_root[r] < 0) {
+      index_of_root[r] = static_cast<int64_t>(comps.size());
+      comps.push_back(info[i]);
+      continue;
+    }
+    ComponentInfo& c = comps[static_cast<size_t>(index_of_root[r])];
+    const ComponentInfo& e = info[i];
+    for (int a = 0; a < 3; ++a) {
+      c.lo[a] = std::min(c.lo[a], e.lo[a]);
+      c.hi[a] = std::max(c.hi[a], e.hi[a]);
+      c.sum[a] += e.sum[a];
+    }
+    c.voxels += e.voxels;
+    c.first = std::min(c.first, e.first);
+  }
+  std::vector<size_t> by_first(comps.size());
+  std::iota(by_first.begin(), by_first.end(), size_t{0});
+  std::sort(by_first.begin(), by_first.end(), [&](size_t a, size_t b) { return comps[a].first < comps[b].first; });
+  std::vector<ComponentInfo> ordered(comps.size());
+  std::vector<size_t> rank(comps.size());
+  for (size_t k = 0; k < by_first.size(); ++k) {
+    ordered[k] = comps[by_first[k]];
+    rank[by_first[k]] = k;
+  }
+  std::vector<size_t> order;
+  uint32_t count = 0;
+  const std::vector<uint32_t> label_of = label_components(ordered, o, order, count);
+  std::vector<uint32_t> label_of_provisional(info.size());
+  for (size_t i = 0; i < info.size(); ++i)
+    label_of_provisional[i] = label_of[rank[static_cast<size_t>(index_of_root[static_cast<size_t>(root[i])])]];
+  // Final labels and the mask of the kept components.
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block b = layout.at(bx, by, bz);
+        const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
+        VolumeU32 l = VolumeU32::uninitialized(w.grid());
+        VolumeU8 k = VolumeU8::uninitialized(w.grid());
+        for (int64_t i = 0; i < w.size(); ++i) {
+          l[i] = w[i] ? label_of_provisional[static_cast<size_t>(w[i] - 1)] : 0u;
+          k[i] = l[i] ? 1 : 0;
+        }
+        labels.write(l, b.begin);
+        kept.write(k, b.begin);
+        block_done();
+      }
+  BlockComponentsResult res;
+  res.count = count;
+  res.table = component_table(ordered, order, label_of, g);
   return res;
 }
 
@@ -320,6 +530,40 @@ VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled, int threads) {
     *filled = f;
   }
   return out;
+}
+
+int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const ChunkedVolume& work,
+                             const Dims& block, int threads, const Interrupter& interrupter) {
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  check_block_volume(out, g, type_ids::volume_u8, "fill_cavities_blocks: output");
+  check_block_volume(work, g, type_ids::volume_u64, "fill_cavities_blocks: work");
+  const BlockLayout layout(g.dims, block, 1);
+  const int64_t total = 3 * layout.total();
+  int64_t done = 0;
+  report_blocks(interrupter, "fill_cavities", 0, total);
+  auto block_done = [&] { report_blocks(interrupter, "fill_cavities", ++done, total); };
+  // Background 6-components (pieces united across blocks); a component touching a face is no cavity.
+  const Provisional pv = provisional_components(mask, work, 6, true, layout, threads, block_done);
+  std::vector<uint8_t> open(pv.info.size(), 0);
+  for (size_t i = 0; i < pv.info.size(); ++i)
+    if (pv.border[i]) open[static_cast<size_t>(pv.root[i])] = 1;
+  int64_t filled = 0;
+  const Dims n = layout.count();
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block b = layout.at(bx, by, bz);
+        const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
+        VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
+        for (int64_t i = 0; i < w.size(); ++i)
+          if (w[i] && !open[static_cast<size_t>(pv.root[static_cast<size_t>(w[i] - 1)])]) {
+            m[i] = 1;
+            ++filled;
+          }
+        out.write(m, b.begin);
+        block_done();
+      }
+  return filled;
 }
 
 }  // namespace skel::segmentation

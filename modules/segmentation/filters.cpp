@@ -308,4 +308,79 @@ IlluminationResult illumination_z(const DataObject& image, const IlluminationOpt
   return res;
 }
 
+// ---------------------------------------------------------------- block-wise Gaussian (out-of-core)
+namespace {
+// Sigma in voxels of gaussian(): an axis of one voxel is left as it is.
+Vec3 sigma_in_voxels(const Grid& g, const GaussianOptions& o) {
+  for (int a = 0; a < 3; ++a)
+    if (!(o.sigma[a] >= 0) || !std::isfinite(o.sigma[a]))
+      throw InputError("param 'sigma': expected finite values >= 0, got " + std::to_string(o.sigma[a]) + " on axis " + "xyz"[a]);
+  if (!(o.truncate > 0)) throw InputError("param 'truncate': expected > 0");
+  Vec3 s{0, 0, 0};
+  for (int a = 0; a < 3; ++a)
+    if (g.dims[a] > 1) s[a] = o.sigma[a] / g.spacing[a];
+  return s;
+}
+}  // namespace
+
+Dims gaussian_halo(const Grid& grid, const GaussianOptions& o) {
+  const Vec3 s = sigma_in_voxels(grid, o);
+  Dims h{0, 0, 0};
+  for (int a = 0; a < 3; ++a)
+    if (s[a] > 0) h[a] = static_cast<int64_t>(half_kernel(s[a], o.truncate, GaussianSum::paired).size()) - 1;
+  return h;
+}
+
+void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const GaussianOptions& o, const Dims& block) {
+  const Grid& g = any_volume_grid(image, "input 'image'");
+  if (out.dims() != g.dims || out.type_id() != type_ids::volume_f32)
+    throw Error("gaussian_blocks: the output must be float32 on the image's grid");
+  const Vec3 s = sigma_in_voxels(g, o);
+  const Dims halo = gaussian_halo(g, o);
+  const BlockLayout layout(g.dims, block);
+  const Interrupter inner;
+  visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
+    using T = decltype(tag);
+    for_each_block(layout, o.interrupter, "gaussian", [&](const Block& b) {
+      // The block with the kernel's radius around it (clipped to the grid, where the border value
+      // is replicated as in memory): every interior voxel sees the same taps as in memory.
+      Dims ob{}, os{};
+      for (int a = 0; a < 3; ++a) {
+        ob[a] = std::max<int64_t>(0, b.begin[a] - halo[a]);
+        os[a] = std::min(g.dims[a], b.begin[a] + b.size[a] + halo[a]) - ob[a];
+      }
+      const Volume<T> v = read_block<T>(image, ob, os, "input 'image'");
+      VolumeF32 f = VolumeF32::uninitialized(v.grid());
+      for (int64_t i = 0; i < v.size(); ++i) f[i] = static_cast<float>(v[i]);
+      if (f.size() > 0) gaussian_in_place(f, s, o.truncate, GaussianSum::paired, o.threads, inner);
+      VolumeF32 interior = read_block<float>(f, {b.begin[0] - ob[0], b.begin[1] - ob[1], b.begin[2] - ob[2]}, b.size, "block");
+      out.write(interior, b.begin);
+    });
+  });
+}
+
+// ---------------------------------------------------------------- block-wise median (out-of-core)
+void median_blocks(const DataObject& image, const ChunkedVolume& out, const MedianOptions& o, const Dims& block) {
+  const Grid& g = any_volume_grid(image, "input 'image'");
+  if (out.dims() != g.dims || out.type_id() != image.type_id())
+    throw Error("median_blocks: the output must have the image's type and grid");
+  const int64_t r = o.radius;
+  if (r < 0) throw InputError("param 'radius': expected >= 0");
+  const BlockLayout layout(g.dims, block, r);
+  MedianOptions inner = o;
+  inner.interrupter = Interrupter();
+  visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
+    using T = decltype(tag);
+    for_each_block(layout, o.interrupter, "median", [&](const Block& b) {
+      // The block with `radius` voxels around it (clipped to the grid, where the border value is
+      // replicated as in memory): every interior voxel sees the same cube as in memory.
+      const Volume<T> v = read_block<T>(image, b.outer_begin, b.outer_size, "input 'image'");
+      const Volume<T> m = median_as(v, inner);
+      out.write(read_block<T>(m, {b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]},
+                              b.size, "block"),
+                b.begin);
+    });
+  });
+}
+
 }  // namespace skel::segmentation

@@ -11,6 +11,52 @@
 
 namespace skel::segmentation {
 
+namespace {
+// The voxel rule of threshold(), shared by the in-memory and the block-wise path.
+template <class T>
+void threshold_span(const T* in, uint8_t* out, int64_t n, double low, double high) {
+  for (int64_t i = 0; i < n; ++i) {
+    const double x = static_cast<double>(in[i]);
+    out[i] = x >= low && x <= high ? 1 : 0;
+  }
+}
+
+// Otsu's bin of value x (x not NaN), shared by both paths.
+inline size_t otsu_bin(double x, double base, double scale, int bins) {
+  return static_cast<size_t>(std::clamp<int64_t>(static_cast<int64_t>((x - base) * scale), 0, bins - 1));
+}
+
+// Otsu's threshold from the 256-bin histogram of values in [lo, hi] (see otsu_threshold).
+double otsu_from_histogram(const std::vector<int64_t>& h, double base, double scale, bool byte) {
+  const int bins = static_cast<int>(h.size());
+  const double total = static_cast<double>(std::accumulate(h.begin(), h.end(), int64_t{0}));
+  double sum_all = 0;
+  for (int b = 0; b < bins; ++b) sum_all += b * static_cast<double>(h[b]);
+  double w0 = 0, sum0 = 0, best = -1;
+  int best_b = 0, best_last = 0;  // the plateau of maximal variance (empty bins between the modes)
+  for (int b = 0; b < bins - 1; ++b) {
+    w0 += static_cast<double>(h[b]);
+    sum0 += b * static_cast<double>(h[b]);
+    const double w1 = total - w0;
+    if (w0 == 0 || w1 == 0) continue;
+    const double m0 = sum0 / w0, m1 = (sum_all - sum0) / w1;
+    const double between = w0 * w1 * (m0 - m1) * (m0 - m1);
+    if (between > best * (1 + 1e-12)) {
+      best = between;
+      best_b = best_last = b;
+    } else if (between >= best * (1 - 1e-12)) {
+      best_last = b;
+    }
+  }
+  // Voxels of bins <= the chosen bin are background, the rest object (value > threshold, as in
+  // scikit-image); when several bins tie (an empty gap between the modes) the middle of the gap is
+  // taken. uint8: the bin is the grey value itself; otherwise the largest value below the next bin.
+  const int chosen = (best_b + best_last) / 2;
+  if (byte) return static_cast<double>(chosen);
+  return std::nextafter(base + (chosen + 1) / scale, -std::numeric_limits<double>::infinity());
+}
+}  // namespace
+
 double otsu_threshold(const DataObject& image, int threads) {
   return visit_volume(image, "image", [&](const auto& v) -> double {
     using T = typename std::decay_t<decltype(v)>::value_type;
@@ -34,37 +80,13 @@ double otsu_threshold(const DataObject& image, int threads) {
       for (int64_t i = b; i < e; ++i) {
         const double x = static_cast<double>(v[i]);
         if (std::isnan(x)) continue;
-        ++h[static_cast<size_t>(std::clamp<int64_t>(static_cast<int64_t>((x - base) * scale), 0, bins - 1))];
+        ++h[otsu_bin(x, base, scale, bins)];
       }
     });
     std::vector<int64_t> h(bins, 0);
     for (const auto& p : part)
       for (int b = 0; b < bins; ++b) h[b] += p[b];
-    const double total = static_cast<double>(std::accumulate(h.begin(), h.end(), int64_t{0}));
-    double sum_all = 0;
-    for (int b = 0; b < bins; ++b) sum_all += b * static_cast<double>(h[b]);
-    double w0 = 0, sum0 = 0, best = -1;
-    int best_b = 0, best_last = 0;  // the plateau of maximal variance (empty bins between the modes)
-    for (int b = 0; b < bins - 1; ++b) {
-      w0 += static_cast<double>(h[b]);
-      sum0 += b * static_cast<double>(h[b]);
-      const double w1 = total - w0;
-      if (w0 == 0 || w1 == 0) continue;
-      const double m0 = sum0 / w0, m1 = (sum_all - sum0) / w1;
-      const double between = w0 * w1 * (m0 - m1) * (m0 - m1);
-      if (between > best * (1 + 1e-12)) {
-        best = between;
-        best_b = best_last = b;
-      } else if (between >= best * (1 - 1e-12)) {
-        best_last = b;
-      }
-    }
-    // Voxels of bins <= the chosen bin are background, the rest object (value > threshold, as in
-    // scikit-image); when several bins tie (an empty gap between the modes) the middle of the gap is
-    // taken. uint8: the bin is the grey value itself; otherwise the largest value below the next bin.
-    const int chosen = (best_b + best_last) / 2;
-    if (byte) return static_cast<double>(chosen);
-    return std::nextafter(base + (chosen + 1) / scale, -std::numeric_limits<double>::infinity());
+    return otsu_from_histogram(h, base, scale, byte);
   });
 }
 
@@ -73,10 +95,7 @@ VolumeU8 threshold(const DataObject& image, double low, double high, int threads
   return visit_volume(image, "image", [&](const auto& v) {
     VolumeU8 m = VolumeU8::uninitialized(v.grid());
     parallel_for(0, v.size(), threads, [&](int64_t b, int64_t e) {
-      for (int64_t i = b; i < e; ++i) {
-        const double x = static_cast<double>(v[i]);
-        m[i] = x >= low && x <= high ? 1 : 0;
-      }
+      threshold_span(v.data() + b, m.data() + b, e - b, low, high);
     }, 1 << 16);
     return m;
   });
@@ -92,6 +111,63 @@ ThresholdResult threshold(const DataObject& image, const ThresholdOptions& optio
   }
   r.mask = threshold(image, r.low, r.high, options.threads);
   for (auto v : r.mask) r.object_voxels += v;
+  return r;
+}
+
+// ---------------------------------------------------------------- block-wise (out-of-core)
+BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolume& mask, const ThresholdOptions& options,
+                                      const Dims& block, const Interrupter& interrupter) {
+  const Grid& grid = any_volume_grid(image, "input 'image'");
+  if (mask.dims() != grid.dims) throw Error("threshold_blocks: the mask's grid differs from the image's");
+  const BlockLayout layout(grid.dims, block);
+  BlockThresholdResult r;
+  r.low = options.low;
+  r.high = options.high;
+  visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
+    using T = decltype(tag);
+    const bool otsu = options.method == ThresholdMethod::otsu;
+    const Interrupter work = otsu ? interrupter.sub(2.0 / 3.0, 1.0) : interrupter;
+    if (otsu) {
+      if (grid.voxel_count() == 0) throw InputError("input 'image' is empty");
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for_each_block(layout, interrupter.sub(0.0, 1.0 / 3.0), "threshold (range)", [&](const Block& b) {
+        const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
+        for (int64_t i = 0; i < v.size(); ++i) {
+          const double x = static_cast<double>(v[i]);
+          if (std::isnan(x)) continue;
+          lo = std::min(lo, x);
+          hi = std::max(hi, x);
+        }
+      });
+      if (!(hi > lo)) {
+        r.low = std::nextafter(lo, std::numeric_limits<double>::infinity());
+      } else {
+        const int bins = 256;
+        const bool byte = std::is_same_v<T, uint8_t>;
+        const double scale = byte ? 1.0 : (bins - 1) / (hi - lo);
+        const double base = byte ? 0.0 : lo;
+        std::vector<int64_t> h(bins, 0);
+        for_each_block(layout, interrupter.sub(1.0 / 3.0, 2.0 / 3.0), "threshold (histogram)", [&](const Block& b) {
+          const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
+          for (int64_t i = 0; i < v.size(); ++i) {
+            const double x = static_cast<double>(v[i]);
+            if (!std::isnan(x)) ++h[otsu_bin(x, base, scale, bins)];
+          }
+        });
+        r.low = std::nextafter(otsu_from_histogram(h, base, scale, byte), std::numeric_limits<double>::infinity());
+      }
+      r.high = std::numeric_limits<double>::infinity();
+    }
+    if (r.low > r.high)
+      throw InputError("threshold: low (" + std::to_string(r.low) + ") is above high (" + std::to_string(r.high) + ")");
+    for_each_block(layout, work, "threshold", [&](const Block& b) {
+      const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
+      VolumeU8 m = VolumeU8::uninitialized(v.grid());
+      threshold_span(v.data(), m.data(), v.size(), r.low, r.high);
+      for (uint8_t x : m) r.object_voxels += x;
+      mask.write(m, b.begin);
+    });
+  });
   return r;
 }
 

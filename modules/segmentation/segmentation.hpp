@@ -14,6 +14,7 @@
 #include "skel/enum_names.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/table.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/volume.hpp"
 
 namespace skel::segmentation {
@@ -42,6 +43,17 @@ struct ThresholdResult {
 };
 ThresholdResult threshold(const DataObject& image, const ThresholdOptions& options);
 
+// Block-wise threshold (out-of-core, docs/architecture.md): reads `image` (in memory or on disk)
+// in blocks of `block` voxels and writes the mask into `mask` (on disk, the image's grid); the
+// same voxels and thresholds as threshold() (Otsu: two more block passes, value range and
+// histogram). Progress "threshold k/n blocks".
+struct BlockThresholdResult {
+  double low = 0, high = 0;
+  int64_t object_voxels = 0;
+};
+BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolume& mask, const ThresholdOptions& options,
+                                      const Dims& block, const Interrupter& interrupter = {});
+
 struct GaussianOptions {
   Vec3 sigma{1, 1, 1};  // physical units per axis; 0 on an axis skips it
   double truncate = 3.5;  // kernel radius in sigmas
@@ -49,6 +61,12 @@ struct GaussianOptions {
   Interrupter interrupter;
 };
 VolumeF32 gaussian(const DataObject& image, const GaussianOptions& options = {});
+// Block-wise Gaussian (out-of-core): every block of `block` voxels is read with the kernel's radius
+// around it (gaussian_halo, per axis), smoothed as in memory and its interior written into `out`
+// (float32 on disk, the image's grid). The same values as gaussian(). Progress "gaussian k/n blocks".
+void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const GaussianOptions& options, const Dims& block);
+// Kernel radius in voxels per axis (0 where an axis is skipped) for this grid and these options.
+Dims gaussian_halo(const Grid& grid, const GaussianOptions& options);
 
 // How the sampled kernel is rounded and its taps summed: the same filter up to float rounding, each
 // kept because outputs made with it must stay bit-identical.
@@ -77,6 +95,21 @@ struct ComponentsResult {
 };
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
 
+// Block-wise connected components (out-of-core): components inside every block of `block` voxels
+// (union-find over runs, as in memory) get provisional ids in `work` (uint64, on disk); those
+// touching across block faces, edges and corners (per connectivity) are united; labels, mask and
+// table are then the same as connected_components() gives (size descending, ties by first voxel in
+// raster order). `labels` (uint32), `kept` (uint8) and `work` are on disk with the mask's grid.
+// Memory: one block (mask, runs, 8 bytes per voxel of provisional ids) plus ~100 bytes per
+// provisional component. Progress "components k/n blocks" (four passes).
+struct BlockComponentsResult {
+  Table table;
+  int64_t count = 0;
+};
+BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
+                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
+                                                  const ComponentOptions& options, const Dims& block);
+
 // Counts components without labelling: of the object (non-zero) voxels, or of the background (zero)
 // voxels when `background`; touching_border = those with a voxel on an array face. Union-find over
 // x-runs as connected_components; memory ~ 24 bytes per run, no label volume.
@@ -90,6 +123,12 @@ ComponentCount count_components(const VolumeU8& mask, int connectivity, bool bac
 // Background components not 6-connected to the volume border become object (thesis §6.2). Union-find
 // over background x-runs (as count_components); `filled` receives the number of filled voxels.
 VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr, int threads = 0);
+// Block-wise fill_cavities (out-of-core): background 6-components found per block of `block` voxels
+// (provisional ids in `work`, uint64 on disk) and united across block faces; those without a voxel
+// on an array face are written as object into `out` (uint8 on disk). The same mask as
+// fill_cavities(); returns the number of filled voxels. Progress "fill_cavities k/n blocks".
+int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const ChunkedVolume& work,
+                             const Dims& block, int threads = 0, const Interrupter& interrupter = {});
 
 // Median over the (2·radius+1)³ cube around each voxel; voxels outside the volume take the value of
 // the nearest border voxel (replicated border, SciPy mode "nearest"). Output has the input's type.
@@ -101,6 +140,10 @@ struct MedianOptions {
 };
 DataPtr median(const DataObject& image, const MedianOptions& options = {});
 template <class T> Volume<T> median_as(const Volume<T>& image, const MedianOptions& options = {});
+// Block-wise median (out-of-core): every block of `block` voxels is read with `radius` voxels around
+// it, filtered as in memory and its interior written into `out` (on disk, the image's type and
+// grid). The same values as median(). Progress "median k/n blocks".
+void median_blocks(const DataObject& image, const ChunkedVolume& out, const MedianOptions& options, const Dims& block);
 
 // Depth-attenuation correction of confocal stacks (thesis §6.1): every z-slice is multiplied by a
 // factor f(z). Given mode: f(z) = intercept + slope·z (z = slice index). Fitted mode: per slice the

@@ -35,9 +35,27 @@ public:
 the between-class variance of a 256-bin histogram between the image's minimum and maximum (exact bins
 for uint8); voxels above it become object. NaN voxels are background. The table reports the
 thresholds used and the object fraction, so a pipeline run documents itself. An empty result is
-allowed (a warning says so). Memory: 1 byte per voxel (output).)");
+allowed (a warning says so). Memory: 1 byte per voxel (output).
+
+Block-wise under a memory budget: blocks of the image in, blocks of the mask out (on disk); Otsu
+first reads the image twice more (value range, histogram). The same mask and table as in memory.)")
+        .blockwise(0, 9);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& image = *ctx.input_data("image");
+      auto mask = ctx.scratch_volume("mask", type_ids::volume_u8, any_volume_grid(image, "input 'image'"));
+      const BlockThresholdResult r =
+          threshold_blocks(image, *mask, ctx.options<ThresholdOptions>(), blocks->block, ctx.progress());
+      if (r.object_voxels == 0) ctx.warn("no voxel lies between the thresholds: the mask is empty");
+      const int64_t n = mask->grid().voxel_count();
+      Table t;
+      t.add("low", std::vector<double>{r.low}).add("high", std::vector<double>{r.high});
+      t.add("object_fraction", std::vector<double>{n ? static_cast<double>(r.object_voxels) / static_cast<double>(n) : 0.0});
+      ctx.output("mask", DataPtr(std::move(mask)));
+      ctx.output("table", std::move(t));
+      return;
+    }
     ThresholdResult r = threshold(*ctx.input_data("image"), ctx.options<ThresholdOptions>());
     if (r.object_voxels == 0) ctx.warn("no voxel lies between the thresholds: the mask is empty");
     Table t;
@@ -64,9 +82,22 @@ sampled Gaussian of radius max(1, ceil(truncate·sigma/spacing)) voxels; the bor
 (SciPy mode "nearest"). The x pass works on padded rows, the y and z passes combine whole x-rows
 (vectorised over x, one slice or one xz-plane copied per task). Parallel over rows/slices; the result
 does not depend on the thread count. Memory: 4 bytes per voxel (output, also the work buffer) plus one
-slice per thread.)");
+slice per thread.
+
+Block-wise under a memory budget: each block is read with the kernel radius around it (halo =
+max(1, ceil(truncate·sigma/spacing)) voxels per axis), smoothed as in memory and its interior
+written: the same values as in memory. Memory per block with halo: 8 (input) + 4 (float) bytes per
+voxel.)")
+        .blockwise(8, 12);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& image = *ctx.input_data("image");
+      auto out = ctx.scratch_volume("image", type_ids::volume_f32, any_volume_grid(image, "input 'image'"));
+      gaussian_blocks(image, *out, ctx.options<GaussianOptions>(), blocks->block);
+      ctx.output("image", DataPtr(std::move(out)));
+      return;
+    }
     ctx.output("image", gaussian(*ctx.input_data("image"), ctx.options<GaussianOptions>()));
   }
 };
@@ -91,9 +122,28 @@ then slab borders are merged. Labels are ordered by size, largest first; equal s
 their first voxel in raster order (x fastest), so labels do not depend on the thread count. An empty
 mask gives all-zero labels, an empty table and a warning; a full volume gives one component.
 Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run and 8 per row
-(typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).)");
+(typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).
+
+Block-wise under a memory budget: components per block, provisional ids on disk (8 bytes per voxel),
+united across block faces, edges and corners, then relabelled: the same labels, mask and table as in
+memory. Memory per block: 1 (mask) + 8 (ids) + 4 + 1 (outputs) bytes per voxel, plus ~100 bytes per
+component piece.)")
+        .blockwise(1, 14);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& mask = *ctx.input_data("mask");
+      const Grid& g = any_volume_grid(mask, "input 'mask'");
+      auto labels = ctx.scratch_volume("labels", type_ids::volume_u32, g);
+      auto kept = ctx.scratch_volume("mask", type_ids::volume_u8, g);
+      auto work = ctx.scratch_volume("work", type_ids::volume_u64, g);
+      auto r = connected_components_blocks(mask, *labels, *kept, *work, ctx.options<ComponentOptions>(), blocks->block);
+      if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
+      ctx.output("labels", DataPtr(std::move(labels)));
+      ctx.output("mask", DataPtr(std::move(kept)));
+      ctx.output("table", std::move(r.table));
+      return;
+    }
     auto r = connected_components(mask_input(ctx), ctx.options<ComponentOptions>());
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     ctx.output("labels", std::move(r.labels));
@@ -116,9 +166,21 @@ of the (2r+1)³ cube around it; voxels outside the volume take the value of the 
 minimum and maximum, add the next; about 400 min/max per voxel) vectorised over 64 voxels of a row;
 radius > 1: nth_element per voxel (O(r³) per voxel, slow for large radii). radius 0 copies. Parallel
 over rows; identical for any thread count. Memory: output of the input's type plus 9 padded rows per
-thread.)");
+thread.
+
+Block-wise under a memory budget: each block is read with `radius` voxels around it, filtered as in
+memory and its interior written: the same values as in memory. Memory per block with halo: twice
+the input's bytes per voxel.)")
+        .blockwise(1, 16);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& image = *ctx.input_data("image");
+      auto out = ctx.scratch_volume("image", image.type_id(), any_volume_grid(image, "input 'image'"));
+      median_blocks(image, *out, ctx.options<MedianOptions>(), blocks->block);
+      ctx.output("image", DataPtr(std::move(out)));
+      return;
+    }
     ctx.output("image", median(*ctx.input_data("image"), ctx.options<MedianOptions>()));
   }
 };
@@ -194,9 +256,24 @@ the border of the volume become object, so the object has no cavities (the outsi
 to the border). Mask rule: voxel > 0 is object for any integer volume; a float volume is an error
 naming the port. Empty mask: unchanged (all background touches the border); full volume: unchanged.
 Union-find over the x-runs of the background (6-connected), on the node's threads; memory: the output
-plus about 24 bytes per background run.)");
+plus about 24 bytes per background run.
+
+Block-wise under a memory budget: background components per block, provisional ids on disk (8 bytes
+per voxel), united across block faces; the same mask as in memory. Memory per block: 1 (mask) + 8
+(ids) + 1 (output) bytes per voxel, plus ~100 bytes per background piece.)")
+        .blockwise(1, 10);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& mask = *ctx.input_data("mask");
+      const Grid& g = any_volume_grid(mask, "input 'mask'");
+      auto out = ctx.scratch_volume("mask", type_ids::volume_u8, g);
+      auto work = ctx.scratch_volume("work", type_ids::volume_u64, g);
+      const int64_t filled = segmentation::fill_cavities_blocks(mask, *out, *work, blocks->block, ctx.threads(), ctx.progress());
+      if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
+      ctx.output("mask", DataPtr(std::move(out)));
+      return;
+    }
     int64_t filled = 0;
     VolumeU8 m = segmentation::fill_cavities(mask_input(ctx), &filled,
                                               ctx.threads());
