@@ -4,6 +4,7 @@
 // Exit codes: 0 done, 2 invalid pipeline or input, 1 failure while running, 130 interrupted.
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -248,21 +249,36 @@ int cmd_info(const std::vector<std::string>& args) {
     for (const auto& d : ds) std::cout << "  problem: " << d.format() << "\n";
     return ds.empty() ? kOk : kInvalid;
   }
-  // The inspector whose extension is the longest suffix of the name (".nii.gz" before ".gz").
+  // The inspectors whose extension is the longest suffix of the name (".nii.gz" before ".gz"); several
+  // kinds of data share some extensions (Amira `.am`: volumes and spatial graphs; `.vtp`: graphs and
+  // meshes), so each of them is tried in turn and the first that reads the file describes it.
   const std::string name = text::to_lower(f.filename().string());
-  const FileInspector* best = nullptr;
+  std::vector<const FileInspector*> candidates;
   size_t best_len = 0;
   for (const auto& ins : Registry::instance().inspectors())
     for (const auto& e : ins.extensions)
-      if (e.size() > best_len && name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) {
-        best = &ins;
+      if (e.size() >= best_len && name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) {
+        if (e.size() > best_len) candidates.clear();
         best_len = e.size();
+        if (std::find(candidates.begin(), candidates.end(), &ins) == candidates.end()) candidates.push_back(&ins);
       }
-  if (!best) best = claimed;
-  if (best) {
-    const std::string description = best->describe(f);  // first: a file it cannot read prints only the error
-    std::cout << f.string() << ": " << best->name << "\n" << description;
-    return kOk;
+  if (candidates.empty() && claimed) candidates.push_back(claimed);
+  std::vector<std::string> failures;
+  for (const FileInspector* ins : candidates) {
+    try {
+      std::string description = ins->describe(f);  // first: a file it cannot read prints only the error
+      if (!description.empty() && description.back() != '\n') description += '\n';
+      std::cout << f.string() << ": " << ins->name << "\n" << description;
+      return kOk;
+    } catch (const InputError& e) {
+      if (candidates.size() == 1) throw;
+      failures.push_back("as " + ins->name + ": " + e.what());
+    }
+  }
+  if (!failures.empty()) {
+    std::string msg = f.string() + ": cannot be read";
+    for (const auto& fl : failures) msg += "\n  " + fl;
+    throw InputError(msg);
   }
   std::string known;
   for (const auto& ins : Registry::instance().inspectors())

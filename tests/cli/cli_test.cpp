@@ -279,6 +279,32 @@ TEST(Cli, InfoOfAGraphFileNamesItsUnit) {
   EXPECT_EQ(i.out.back(), '\n');
 }
 
+// Amira `.am` holds volumes and spatial graphs: `info` describes either (before: the volume reader
+// claimed every .am and a graph file failed with "no 'define Lattice'"), and a file that is neither
+// says what each reader found.
+TEST(Cli, InfoOfAmiraFilesTellsVolumesFromGraphs) {
+  fs::path d = scratch("info_amira");
+  const std::string graph =
+      "# AmiraMesh 3D ASCII 2.0\n\ndefine VERTEX 2\ndefine EDGE 1\ndefine POINT 2\n\n"
+      "Parameters {\n  ContentType \"HxSpatialGraph\"\n}\n\n"
+      "VERTEX { float[3] VertexCoordinates } @1\nEDGE { int[2] EdgeConnectivity } @2\n"
+      "EDGE { int NumEdgePoints } @3\nPOINT { float[3] EdgePointCoordinates } @4\n\n"
+      "@1\n0 0 0\n3 0 0\n\n@2\n0 1\n\n@3\n2\n\n@4\n0 0 0\n3 0 0\n";
+  Result g = run(SKELFLOW_BIN, {"info", write(d / "g.am", graph).string()});
+  EXPECT_EQ(g.code, 0) << g.out;
+  EXPECT_NE(g.out.find("spatial graph"), std::string::npos) << g.out;
+  const std::string lattice =
+      "# AmiraMesh 3D ASCII 2.0\n\ndefine Lattice 2 2 1\n\nParameters {\n  BoundingBox 0 1 0 1 0 0,\n"
+      "  CoordType \"uniform\"\n}\n\nLattice { byte Data } @1\n\n@1\n1 2 3 4\n";
+  Result v = run(SKELFLOW_BIN, {"info", write(d / "v.am", lattice).string()});
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_NE(v.out.find("uint8 2x2x1"), std::string::npos) << v.out;
+  Result bad = run(SKELFLOW_BIN, {"info", write(d / "bad.am", "# AmiraMesh 3D ASCII 2.0\nhello\n").string()});
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("as volume file:"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("as spatial graph:"), std::string::npos) << bad.out;
+}
+
 // A closed terminal (SIGHUP) and Ctrl+\ (SIGQUIT) cancel as SIGTERM and Ctrl+C do: exit code 130,
 // no output and no temporary left (before: killed by the signal, the temporary stayed).
 TEST(Cli, HangupAndQuitCancelLikeTerm) {
