@@ -42,6 +42,9 @@ struct ExecOptions {
   std::function<void(const std::string& node, const std::string& message)> on_warning;
   // Run-level notes (not about one node), e.g. stale temporary files of dead runs removed.
   std::function<void(const std::string& message)> on_notice;
+  // Outputs of a node that ran (not of cached nodes), called once when it finishes; the CLI keeps
+  // the small summary tables from here without keep_outputs (which would keep every volume).
+  std::function<void(const std::string& node, const std::map<std::string, DataPtr>& outputs)> on_outputs;
 };
 
 struct NodeReport {

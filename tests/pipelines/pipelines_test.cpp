@@ -59,8 +59,12 @@ TEST(Pipelines, VesselPipelineRecoversTheGroundTruth) {
   ExecOptions o;
   o.keep_outputs = true;
   o.threads = 2;
-  o.targets = {"stats", "phantom"};  // no files
+  o.output_dir = scratch("vessels");
+  o.targets = {"stats", "phantom", "report"};  // the only file: the report
   ex.run(p, o);
+  const fs::path report = o.output_dir / "vessels/report.html";
+  ASSERT_TRUE(fs::exists(report));
+  EXPECT_GT(fs::file_size(report), 10000u);  // histograms and the embedded MIP
   auto truth = std::dynamic_pointer_cast<const SpatialGraph>(ex.output(p, "phantom", "truth"));
   auto summary = std::dynamic_pointer_cast<const Table>(ex.output(p, "stats", "summary"));
   ASSERT_TRUE(truth && summary);
@@ -106,6 +110,7 @@ TEST(Pipelines, BonePipelinesWriteMeshes) {
   const Mesh back = io::read_mesh(out / "bone/skeleton_mesh.ply", io::MeshFormat::ply);
   EXPECT_TRUE(back == *mesh);
   EXPECT_EQ(io::read_mesh(out / "bone/skeleton_mesh_2pct.vtp", io::MeshFormat::vtp).triangle_count(), small->triangle_count());
+  EXPECT_TRUE(fs::exists(out / "bone/report.html"));
 
   Pipeline curve = Pipeline::load_file(pipeline("bone_curve.yaml"));
   ASSERT_TRUE(ex.run(curve, o).ok);
