@@ -325,7 +325,8 @@ void print_summaries(const std::vector<std::pair<std::string, std::shared_ptr<co
         std::snprintf(buf, sizeof buf, "%.6g", (*d)[0]);
         v = buf;
       }
-      std::printf("  %-*s  %12s  %s\n", static_cast<int>(w), col.name.c_str(), v.c_str(), col.unit.c_str());
+      std::printf("  %-*s  %12s%s%s\n", static_cast<int>(w), col.name.c_str(), v.c_str(), col.unit.empty() ? "" : "  ",
+                  col.unit.c_str());
     }
   }
 }
