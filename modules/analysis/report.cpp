@@ -74,7 +74,8 @@ std::string svg_histogram(const Histogram& h, const std::string& id, const std::
     return s.str();
   }
   const int64_t maxc = std::max<int64_t>(1, *std::max_element(h.counts.begin(), h.counts.end()));
-  const double ystep = std::max(1.0, nice_step(static_cast<double>(maxc) / 5.0));
+  double ystep = std::max(1.0, nice_step(static_cast<double>(maxc) / 5.0));
+  if (ystep == 2.5) ystep = 2.0;  // counts are whole numbers
   const double ytop = std::ceil(static_cast<double>(maxc) / ystep) * ystep;
   const double x0 = h.edges.front(), x1 = h.edges.back();
   const double pw = W - L - R, ph = H - T - B;
