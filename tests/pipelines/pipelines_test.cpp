@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "io/mesh_io.hpp"
 #include "skel/executor.hpp"
@@ -135,8 +137,14 @@ TEST(Pipelines, VesselsFromTiffRunsInTheUnitOfTheFile) {
   o.keep_outputs = true;
   RunReport r = ex.run(p, o);
   ASSERT_TRUE(r.ok) << r.error;
-  for (const char* f : {"network.am", "network.vtp", "segments.csv", "summary.csv"})
+  for (const char* f : {"network.am", "network.vtp", "segments.csv", "summary.csv", "report.html"})
     EXPECT_TRUE(fs::exists(out / "vessels_from_tiff" / f)) << f;
+  {
+    std::ifstream in(out / "vessels_from_tiff" / "report.html");
+    std::stringstream html;
+    html << in.rdbuf();
+    EXPECT_NE(html.str().find("segment length [mm]"), std::string::npos);  // the report speaks the file's unit
+  }
   auto image = std::dynamic_pointer_cast<const VolumeU16>(ex.output(p, "image", "volume"));
   ASSERT_TRUE(image);
   EXPECT_EQ(image->unit(), "mm");
