@@ -23,6 +23,7 @@
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/pipeline.hpp"
+#include "skel/table.hpp"
 #include "skel/text.hpp"
 #include "cli.hpp"
 
@@ -337,6 +338,27 @@ void refuse_report_over_outputs(const std::string& report, const std::string& pi
                        o.param + "'); choose another file for the report");
 }
 
+// The one-row "summary" tables of a run (analysis.network_statistics and the like) as aligned
+// "name  value  unit" lines under a "node.summary:" heading.
+void print_summaries(const std::vector<std::pair<std::string, std::shared_ptr<const Table>>>& summaries) {
+  for (const auto& [node, t] : summaries) {
+    size_t w = 0;
+    for (const auto& c : t->columns()) w = std::max(w, c.name.size());
+    std::printf("%s.summary:\n", node.c_str());
+    for (size_t c = 0; c < t->columns().size(); ++c) {
+      const auto& col = t->columns()[c];
+      std::string v = t->cell(c, 0);
+      if (const auto* d = std::get_if<std::vector<double>>(&col.values)) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%.6g", (*d)[0]);
+        v = buf;
+      }
+      std::printf("  %-*s  %12s%s%s\n", static_cast<int>(w), col.name.c_str(), v.c_str(), col.unit.empty() ? "" : "  ",
+                  col.unit.c_str());
+    }
+  }
+}
+
 int cmd_run(const std::vector<std::string>& args) {
   std::string file, report_path;
   ExecOptions opt;
@@ -401,6 +423,16 @@ int cmd_run(const std::vector<std::string>& args) {
   opt.on_progress = [&](double f) { progress.overall(f); };
   opt.on_warning = [&](const std::string& n, const std::string& w) { progress.warning(n, w); };
   opt.on_notice = [&](const std::string& m) { progress.notice(m); };
+  std::mutex summaries_mutex;
+  std::vector<std::pair<std::string, std::shared_ptr<const Table>>> summaries;
+  opt.on_outputs = [&](const std::string& n, const std::map<std::string, DataPtr>& outs) {
+    auto it = outs.find("summary");
+    if (it == outs.end()) return;
+    auto t = std::dynamic_pointer_cast<const Table>(it->second);
+    if (!t || t->rows() != 1) return;
+    std::lock_guard lock(summaries_mutex);
+    summaries.emplace_back(n, std::move(t));
+  };
 
   auto write_report = [&](const RunReport& r) {
     if (report_path.empty()) return;
@@ -418,6 +450,8 @@ int cmd_run(const std::vector<std::string>& args) {
       std::fprintf(stderr, "done in %.2f s, peak memory %.0f MiB\n", r.seconds, r.peak_rss_mib);
       for (const auto& n : r.nodes)
         for (const auto& f : n.outputs_written) std::printf("wrote %s\n", f.c_str());
+      std::sort(summaries.begin(), summaries.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      print_summaries(summaries);
     }
     return kOk;
   } catch (...) {

@@ -560,6 +560,7 @@ void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> in
   intr.check();
   std::lock_guard lock(m_);
   results_[i] = std::move(ctx.outputs());
+  if (opt_.on_outputs) opt_.on_outputs(node.id, results_[i]);
   nr.warnings = ctx.warnings();
   nr.outputs_written = ctx.written();
 }

@@ -2,8 +2,10 @@
 // dangling ends.
 #include "analysis/names.hpp"
 #include "analysis/network_analysis.hpp"
+#include "analysis/report.hpp"
 #include "analysis/topology.hpp"
 #include "graph/editor.hpp"
+#include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 #include "skel/units.hpp"
@@ -250,6 +252,52 @@ ends without a partner last. A k-d tree (nanoflann) over all polyline points kee
   }
 };
 SKEL_REGISTER_MODULE(DanglingEnds);
+
+class ReportModule final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec(names::report, "Self-contained HTML report of a graph: summary, histograms, trees, picture over a MIP")
+        .input<SpatialGraph>("graph", "spatial graph (e.g. the graph output of analysis.network_statistics)")
+        .optional_input<Table>("summary", "summary table of analysis.network_statistics (shown with its units)")
+        .optional_input<Table>("segments", "per-edge table of analysis.network_statistics (its length, tortuosity, mean_radius are histogrammed)")
+        .optional_input<Table>("trees", "per-tree table of analysis.trees")
+        .optional_input<AnyVolume>("image", "image for the maximum-intensity projection under the network picture (same unit as the graph)")
+        .path("path", "", PathRole::Output, "HTML file to create; written to a temporary file and renamed when the run succeeds")
+        .extensions({".html", ".htm"})
+        .param("title", &ReportOptions::title, "heading and <title> of the page")
+        .param("bins", &ReportOptions::bins, "bins of the radius, length and tortuosity histograms (edges rounded to 1, 2, 2.5, 5 x 10^k)")
+        .min(1)
+        .max(200)
+        .param("radius", &ReportOptions::radius, "point attribute holding radii (edge attribute mean_radius wins when present)")
+        .param("max_image_size", &ReportOptions::max_image_size, "longer side of the embedded MIP in pixels (the projection is subsampled by an integer stride)")
+        .min(16)
+        .max(16384)
+        .details(
+            "One HTML file with everything embedded: no JavaScript, no external file, no network access when it "
+            "is opened. Sections: the graph (nodes, edges, total length in the graph's unit, branch and end "
+            "points), the summary table when connected (one row shown as quantity / value / unit), hand-written "
+            "SVG histograms of the length-weighted mean radius (when the graph has radii), the segment length, "
+            "the tortuosity (length / chord; loops excluded) and the inclination of each edge's chord to the z "
+            "axis (0..90° in 10° bins); each bar carries its count and the counts of a histogram sum to the "
+            "number of edges with a defined value. Per-tree tables come from the trees input, else from the "
+            "graph's edge label `tree` (analysis.trees). The picture shows the edges projected along z as SVG "
+            "polylines in physical coordinates, over the maximum-intensity projection of the image (any voxel "
+            "type, scaled min..max to 8 bits) embedded as a greyscale PNG data URI; direction cosines are not "
+            "applied. Memory: 8 bytes per pixel of the projection (nx × ny / stride²) plus the page text "
+            "(about 100 bytes per polyline point); the volume is read once, not copied. Written atomically.");
+  }
+  void run(RunContext& ctx) override {
+    auto g = ctx.input<SpatialGraph>("graph");
+    auto summary = ctx.optional_input<Table>("summary");
+    auto segments = ctx.optional_input<Table>("segments");
+    auto trees = ctx.optional_input<Table>("trees");
+    DataPtr image = ctx.input_data("image");
+    ReportInputs in{.graph = g.get(), .summary = summary.get(), .segments = segments.get(), .trees = trees.get(), .image = image.get()};
+    const std::string html = make_report_html(in, ctx.options<ReportOptions>());
+    write_file_atomically(ctx.output_path("path"), html);
+  }
+};
+SKEL_REGISTER_MODULE(ReportModule);
 
 }  // namespace
 }  // namespace skel::analysis

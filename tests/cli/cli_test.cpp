@@ -596,3 +596,38 @@ TEST(Cli, OutputsConfinedToOutputDir) {
   EXPECT_EQ(ok.code, 0) << ok.out;
   EXPECT_TRUE(fs::exists(out / "b" / "sum.txt"));
 }
+
+// The summary table of a statistics node is printed at the end of a run, one aligned line per column
+// with its unit; --quiet leaves it out.
+TEST(Cli, RunPrintsStatisticsSummary) {
+  fs::path d = scratch("summary");
+  fs::path p = write(d / "p.yaml", R"(skelflow: 1
+nodes:
+  phantom: {module: synthetic.vessel_tree, params: {size: [32, 32, 32], seed: 1, roots: 2}}
+  stats: {module: analysis.network_statistics, inputs: {graph: phantom.truth}}
+)");
+  Result r = run(SKELFLOW_BIN, {"run", p.string(), "--threads", "1"});
+  ASSERT_EQ(r.code, 0) << r.out;
+  const size_t h = r.out.find("stats.summary:\n");
+  ASSERT_NE(h, std::string::npos) << r.out;
+  const std::string rest = r.out.substr(h);
+  std::regex line(R"(\n  total_length +[0-9.e+-]+  µm\n)");
+  EXPECT_TRUE(std::regex_search(rest, line)) << rest;
+  // the value column is aligned: every value ends in the same column
+  std::istringstream in(rest);
+  std::string l;
+  std::getline(in, l);
+  size_t end_col = 0;
+  int lines = 0;
+  while (std::getline(in, l) && l.rfind("  ", 0) == 0) {
+    const size_t num_end = l.find_first_of(' ', l.find_first_not_of(' ', l.find_first_of(' ', 2)));
+    const size_t e = num_end == std::string::npos ? l.size() : num_end;
+    if (end_col == 0) end_col = e;
+    EXPECT_EQ(e, end_col) << l;
+    ++lines;
+  }
+  EXPECT_GE(lines, 10);
+  Result q = run(SKELFLOW_BIN, {"run", p.string(), "--threads", "1", "-q"});
+  EXPECT_EQ(q.code, 0);
+  EXPECT_EQ(q.out.find("stats.summary"), std::string::npos) << q.out;
+}

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "io/mesh_io.hpp"
 #include "skel/executor.hpp"
@@ -59,8 +61,12 @@ TEST(Pipelines, VesselPipelineRecoversTheGroundTruth) {
   ExecOptions o;
   o.keep_outputs = true;
   o.threads = 2;
-  o.targets = {"stats", "phantom"};  // no files
+  o.output_dir = scratch("vessels");
+  o.targets = {"stats", "phantom", "report"};  // the only file: the report
   ex.run(p, o);
+  const fs::path report = o.output_dir / "vessels/report.html";
+  ASSERT_TRUE(fs::exists(report));
+  EXPECT_GT(fs::file_size(report), 10000u);  // histograms and the embedded MIP
   auto truth = std::dynamic_pointer_cast<const SpatialGraph>(ex.output(p, "phantom", "truth"));
   auto summary = std::dynamic_pointer_cast<const Table>(ex.output(p, "stats", "summary"));
   ASSERT_TRUE(truth && summary);
@@ -106,6 +112,7 @@ TEST(Pipelines, BonePipelinesWriteMeshes) {
   const Mesh back = io::read_mesh(out / "bone/skeleton_mesh.ply", io::MeshFormat::ply);
   EXPECT_TRUE(back == *mesh);
   EXPECT_EQ(io::read_mesh(out / "bone/skeleton_mesh_2pct.vtp", io::MeshFormat::vtp).triangle_count(), small->triangle_count());
+  EXPECT_TRUE(fs::exists(out / "bone/report.html"));
 
   Pipeline curve = Pipeline::load_file(pipeline("bone_curve.yaml"));
   ASSERT_TRUE(ex.run(curve, o).ok);
@@ -130,8 +137,14 @@ TEST(Pipelines, VesselsFromTiffRunsInTheUnitOfTheFile) {
   o.keep_outputs = true;
   RunReport r = ex.run(p, o);
   ASSERT_TRUE(r.ok) << r.error;
-  for (const char* f : {"network.am", "network.vtp", "segments.csv", "summary.csv"})
+  for (const char* f : {"network.am", "network.vtp", "segments.csv", "summary.csv", "report.html"})
     EXPECT_TRUE(fs::exists(out / "vessels_from_tiff" / f)) << f;
+  {
+    std::ifstream in(out / "vessels_from_tiff" / "report.html");
+    std::stringstream html;
+    html << in.rdbuf();
+    EXPECT_NE(html.str().find("segment length [mm]"), std::string::npos);  // the report speaks the file's unit
+  }
   auto image = std::dynamic_pointer_cast<const VolumeU16>(ex.output(p, "image", "volume"));
   ASSERT_TRUE(image);
   EXPECT_EQ(image->unit(), "mm");
