@@ -37,4 +37,12 @@ inline void append_double(std::string& out, double v, int significant_digits) {
 }
 std::string format_double(double v, int significant_digits);
 
+// Base64 (RFC 4648, padded) of any bytes.
+std::string base64_encode(std::string_view bytes);
+// Bytes of base64 text. White space is skipped; '=' ends a stream, so several padded streams back to
+// back decode to their concatenated bytes (VTK writes a compression header and its blocks so).
+// Throws InputError "WHAT: 'c' at character N is not base64" or "... ends in the middle of a group
+// (truncated)".
+std::string base64_decode(std::string_view text, const std::string& what);
+
 }  // namespace skel::text

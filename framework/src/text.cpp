@@ -1,6 +1,10 @@
 #include "skel/text.hpp"
 
+#include "skel/error.hpp"
+
+#include <array>
 #include <cctype>
+#include <cstdint>
 #include <charconv>
 #include <sstream>
 
@@ -60,6 +64,65 @@ std::string format_double(double v, int significant_digits) {
   std::string s;
   append_double(s, v, significant_digits);
   return s;
+}
+
+namespace {
+constexpr const char* kBase64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+}
+
+std::string base64_encode(std::string_view bytes) {
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  const size_t n = bytes.size();
+  size_t i = 0;
+  for (; i + 3 <= n; i += 3) {
+    const uint32_t v = (uint32_t{p[i]} << 16) | (uint32_t{p[i + 1]} << 8) | p[i + 2];
+    out += kBase64[(v >> 18) & 63], out += kBase64[(v >> 12) & 63], out += kBase64[(v >> 6) & 63], out += kBase64[v & 63];
+  }
+  if (n - i == 1) {
+    const uint32_t v = uint32_t{p[i]} << 16;
+    out += kBase64[(v >> 18) & 63], out += kBase64[(v >> 12) & 63], out += "==";
+  } else if (n - i == 2) {
+    const uint32_t v = (uint32_t{p[i]} << 16) | (uint32_t{p[i + 1]} << 8);
+    out += kBase64[(v >> 18) & 63], out += kBase64[(v >> 12) & 63], out += kBase64[(v >> 6) & 63], out += '=';
+  }
+  return out;
+}
+
+std::string base64_decode(std::string_view text, const std::string& what) {
+  static const std::array<int8_t, 256> table = [] {
+    std::array<int8_t, 256> t{};
+    t.fill(-1);
+    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(kBase64[i])] = static_cast<int8_t>(i);
+    return t;
+  }();
+  std::string out;
+  out.reserve(text.size() / 4 * 3);
+  uint32_t acc = 0;
+  int bits = 0;  // 0, 6, 4 or 2 after 0, 1, 2 or 3 characters of a group
+  for (size_t i = 0; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
+    if (c == '=') {  // padding: the end of one stream, its partial group is complete
+      if (bits == 6) throw InputError(what + ": misplaced base64 padding at character " + std::to_string(i));
+      acc = 0;
+      bits = 0;
+      continue;
+    }
+    const int v = table[c];
+    if (v < 0)
+      throw InputError(what + ": '" + std::string(1, static_cast<char>(c)) + "' at character " + std::to_string(i) +
+                       " is not base64");
+    acc = ((acc << 6) | static_cast<uint32_t>(v)) & 0xFFFFFF;
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((acc >> bits) & 0xFF);
+    }
+  }
+  if (bits != 0) throw InputError(what + ": base64 text ends in the middle of a group (truncated)");
+  return out;
 }
 
 }  // namespace skel::text

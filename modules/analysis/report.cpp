@@ -1,5 +1,7 @@
 #include "analysis/report.hpp"
 
+#include "skel/text.hpp"
+
 #include <zlib.h>
 
 #include <algorithm>
@@ -202,7 +204,7 @@ std::string svg_network(const SpatialGraph& g, const DataObject* image, const Re
     const double ih = static_cast<double>(m.h * m.stride) * gr.spacing[1];
     img = "<image class=\"mip\" x=\"" + num(xa, 10) + "\" y=\"" + num(ya, 10) + "\" width=\"" + num(iw, 10) +
           "\" height=\"" + num(ih, 10) + "\" preserveAspectRatio=\"none\" style=\"image-rendering:pixelated\" href=\"data:image/png;base64," +
-          base64_encode(encode_png_gray8(m.w, m.h, m.pixels)) + "\"/>\n";
+          text::base64_encode(encode_png_gray8(m.w, m.h, m.pixels)) + "\"/>\n";
   } else {
     xa = ya = std::numeric_limits<double>::infinity();
     xb = yb = -xa;
@@ -344,24 +346,6 @@ std::string encode_png_gray8(int64_t width, int64_t height, const std::vector<ui
   return png;
 }
 
-std::string base64_encode(const std::string& in) {
-  static const char* tbl = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((in.size() + 2) / 3 * 4);
-  size_t i = 0;
-  for (; i + 2 < in.size(); i += 3) {
-    const uint32_t v = (uint32_t(uint8_t(in[i])) << 16) | (uint32_t(uint8_t(in[i + 1])) << 8) | uint8_t(in[i + 2]);
-    out += tbl[(v >> 18) & 63], out += tbl[(v >> 12) & 63], out += tbl[(v >> 6) & 63], out += tbl[v & 63];
-  }
-  if (i + 1 == in.size()) {
-    const uint32_t v = uint32_t(uint8_t(in[i])) << 16;
-    out += tbl[(v >> 18) & 63], out += tbl[(v >> 12) & 63], out += "==";
-  } else if (i + 2 == in.size()) {
-    const uint32_t v = (uint32_t(uint8_t(in[i])) << 16) | (uint32_t(uint8_t(in[i + 1])) << 8);
-    out += tbl[(v >> 18) & 63], out += tbl[(v >> 12) & 63], out += tbl[(v >> 6) & 63], out += '=';
-  }
-  return out;
-}
 
 std::string make_report_html(const ReportInputs& in, const ReportOptions& o) {
   if (!in.graph) throw Error("make_report_html: no graph");

@@ -50,7 +50,6 @@ EdgeValues report_edge_values(const SpatialGraph& graph, const std::string& radi
 
 // 8-bit greyscale PNG (colour type 0, filter 0 on every row, one zlib IDAT chunk).
 std::string encode_png_gray8(int64_t width, int64_t height, const std::vector<uint8_t>& pixels);
-std::string base64_encode(const std::string& bytes);
 
 // The HTML text of the report.
 std::string make_report_html(const ReportInputs& inputs, const ReportOptions& options = {});

@@ -304,61 +304,6 @@ bool split_axes(const std::array<Vec3, 3>& axes, Vec3& spacing, Direction& direc
   return true;
 }
 
-std::string base64_encode(const char* src, uint64_t n) {
-  static const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve(static_cast<size_t>((n + 2) / 3 * 4));
-  const auto* p = reinterpret_cast<const unsigned char*>(src);
-  uint64_t i = 0;
-  for (; i + 3 <= n; i += 3) {
-    const uint32_t v = (uint32_t{p[i]} << 16) | (uint32_t{p[i + 1]} << 8) | p[i + 2];
-    out += table[(v >> 18) & 63], out += table[(v >> 12) & 63], out += table[(v >> 6) & 63], out += table[v & 63];
-  }
-  if (n - i == 1) {
-    const uint32_t v = uint32_t{p[i]} << 16;
-    out += table[(v >> 18) & 63], out += table[(v >> 12) & 63], out += "==";
-  } else if (n - i == 2) {
-    const uint32_t v = (uint32_t{p[i]} << 16) | (uint32_t{p[i + 1]} << 8);
-    out += table[(v >> 18) & 63], out += table[(v >> 12) & 63], out += table[(v >> 6) & 63], out += '=';
-  }
-  return out;
-}
-
-std::string base64_decode(std::string_view text, const std::string& file, const std::string& what) {
-  auto value = [](char c) -> int {
-    if (c >= 'A' && c <= 'Z') return c - 'A';
-    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-    if (c >= '0' && c <= '9') return c - '0' + 52;
-    if (c == '+') return 62;
-    if (c == '/') return 63;
-    if (c == '=') return 64;
-    return -1;
-  };
-  std::string out;
-  out.reserve(text.size() / 4 * 3);
-  int group[4];
-  int k = 0;
-  for (size_t i = 0; i < text.size(); ++i) {
-    const char c = text[i];
-    if (std::isspace(static_cast<unsigned char>(c))) continue;
-    const int v = value(c);
-    if (v < 0)
-      throw InputError(file + ": " + what + ": '" + std::string(1, c) + "' at character " + std::to_string(i) +
-                       " is not base64");
-    group[k++] = v;
-    if (k < 4) continue;
-    k = 0;
-    if (group[0] == 64 || group[1] == 64) throw InputError(file + ": " + what + ": misplaced base64 padding");
-    out += static_cast<char>((group[0] << 2) | (group[1] >> 4));
-    if (group[2] == 64) continue;
-    out += static_cast<char>(((group[1] & 15) << 4) | (group[2] >> 2));
-    if (group[3] == 64) continue;
-    out += static_cast<char>(((group[2] & 3) << 6) | group[3]);
-  }
-  if (k != 0) throw InputError(file + ": " + what + ": base64 text ends in the middle of a group (truncated)");
-  return out;
-}
-
 std::string join_numbers(const double* v, int n, const char* sep) {
   std::string s;
   for (int i = 0; i < n; ++i) {

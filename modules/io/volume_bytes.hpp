@@ -68,12 +68,6 @@ std::string normalize_unit(const std::string& unit);
 // k). False when a vector has length 0.
 bool split_axes(const std::array<Vec3, 3>& axes, Vec3& spacing, Direction& direction);
 
-// Base64 (RFC 4648) of `n` bytes, padded.
-std::string base64_encode(const char* src, uint64_t n);
-// Decodes base64 text, skipping white space; padded streams may follow each other (VTK encodes a
-// compressed array's header and its blocks as two streams). InputError "FILE: WHAT: ..." on a
-// character outside the alphabet.
-std::string base64_decode(std::string_view text, const std::string& file, const std::string& what);
 
 // "a b c" with 17 significant digits each.
 std::string join_numbers(const double* v, int n, const char* sep = " ");

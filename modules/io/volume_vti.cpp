@@ -345,13 +345,13 @@ DataPtr read_vti(const fs::path& path, const VolumeReadOptions&) {
       const uint64_t b = d.appended_begin + static_cast<uint64_t>(o);
       if (b > whole.size()) throw InputError(d.file + ": the appended array's offset is past the end of the file");
       size_t e = whole.find('<', b);
-      bytes = volbytes::base64_decode(std::string_view(whole).substr(b, e == std::string::npos ? std::string::npos : e - b),
-                                      d.file, "appended data");
+      bytes = text::base64_decode(std::string_view(whole).substr(b, e == std::string::npos ? std::string::npos : e - b),
+                                  d.file + ": appended data");
     } else {
       throw InputError(d.file + ": unsupported AppendedData encoding '" + d.appended_encoding + "' (raw, base64)");
     }
   } else if (format == "binary") {
-    bytes = volbytes::base64_decode(d.array_text, d.file, "inline binary data");
+    bytes = text::base64_decode(d.array_text, d.file + ": inline binary data");
   } else if (format == "ascii") {
     const uint64_t count = static_cast<uint64_t>(d.header.grid.voxel_count());
     volbytes::check_available(d.file, d.array_text.size() + 1, 2 * count, "the ascii voxel data");

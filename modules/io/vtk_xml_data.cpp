@@ -1,5 +1,7 @@
 #include "io/vtk_xml_data.hpp"
 
+#include "skel/text.hpp"
+
 #include <zlib.h>
 
 #include <algorithm>
@@ -15,40 +17,6 @@ namespace skel::io::vtk {
 namespace {
 
 constexpr uint64_t kBlock = 32768;  // VTK's default compression block size
-
-// Base64 of concatenated streams: VTK encodes a compression header and the blocks as separate
-// streams (each padded with '='), an uncompressed header and its data as one; padding anywhere ends
-// a quantum, so both decode to the concatenated bytes. White space is skipped.
-std::string base64_decode(const char* p, const char* end, uint64_t max_bytes, const std::string& what) {
-  static const std::array<int8_t, 256> table = [] {
-    std::array<int8_t, 256> t{};
-    t.fill(-1);
-    const char* a = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    for (int i = 0; i < 64; ++i) t[static_cast<unsigned char>(a[i])] = static_cast<int8_t>(i);
-    return t;
-  }();
-  std::string out;
-  uint32_t acc = 0;
-  int bits = 0;
-  for (; p < end && out.size() < max_bytes; ++p) {
-    const auto c = static_cast<unsigned char>(*p);
-    if (c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
-    if (c == '=') {  // end of one stream: drop the partial quantum
-      acc = 0;
-      bits = 0;
-      continue;
-    }
-    const int v = table[c];
-    if (v < 0) throw InputError(what + ": invalid base64 character '" + std::string(1, static_cast<char>(c)) + "'");
-    acc = (acc << 6) | static_cast<uint32_t>(v);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out += static_cast<char>((acc >> bits) & 0xFF);
-    }
-  }
-  return out;
-}
 
 uint64_t read_uint(const std::string& b, size_t pos, const Encoding& enc) {
   const size_t n = enc.header64 ? 8 : 4;
@@ -156,7 +124,7 @@ SplitFile split_appended(const std::string& text, const std::string& src) {
 }
 
 std::string decode_inline(const std::string& t, const Encoding& enc, const std::string& what) {
-  return payload(base64_decode(t.data(), t.data() + t.size(), std::numeric_limits<uint64_t>::max(), what), enc, what);
+  return payload(text::base64_decode(t, what), enc, what);
 }
 
 std::string decode_appended(const std::string& a, bool base64, uint64_t offset, uint64_t end, const Encoding& enc,
@@ -165,7 +133,7 @@ std::string decode_appended(const std::string& a, bool base64, uint64_t offset, 
     throw InputError(what + ": offset " + std::to_string(offset) + " is past the end of the appended data (" +
                      std::to_string(a.size()) + (base64 ? " characters)" : " bytes)"));
   end = std::min<uint64_t>(std::max(end, offset), a.size());
-  if (base64) return payload(base64_decode(a.data() + offset, a.data() + end, std::numeric_limits<uint64_t>::max(), what), enc, what);
+  if (base64) return payload(text::base64_decode(std::string_view(a).substr(offset, end - offset), what), enc, what);
   return payload(a.substr(offset, end - offset), enc, what);
 }
 

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/error.hpp"
 #include "skel/text.hpp"
 
 namespace skel::text {
@@ -78,3 +79,29 @@ TEST(Text, FormatAsPrintfG) {
 
 }  // namespace
 }  // namespace skel::text
+
+// Base64 exists once (skel/text.hpp), for VTK XML data of graphs and volumes and for the report's
+// embedded PNG: round trips of every length, two padded streams back to back (VTK's compressed
+// header, then its blocks) with white space, and clear errors.
+TEST(Text, Base64RoundTripsAndConcatenatedStreams) {
+  const std::string all = std::string("\x00\x01\xfe\xff", 4) + "Skelflow volumes";
+  for (size_t n = 0; n <= all.size(); ++n) {
+    const std::string e = skel::text::base64_encode(std::string_view(all).substr(0, n));
+    EXPECT_EQ(e.size() % 4, 0u);
+    EXPECT_EQ(skel::text::base64_decode(e, "w"), all.substr(0, n)) << n;
+  }
+  EXPECT_EQ(skel::text::base64_encode("Ma"), "TWE=");
+  EXPECT_EQ(skel::text::base64_encode("abcd"), "YWJjZA==");
+  EXPECT_EQ(skel::text::base64_decode("TWE=\n  TQ==", "w"), "MaM");
+  auto error_of = [](std::string_view t) {
+    try {
+      (void)skel::text::base64_decode(t, "file.vti: inline data");
+    } catch (const skel::InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_EQ(error_of("TW!="), "file.vti: inline data: '!' at character 2 is not base64");
+  EXPECT_EQ(error_of("TWE"), "file.vti: inline data: base64 text ends in the middle of a group (truncated)");
+  EXPECT_EQ(error_of("T==="), "file.vti: inline data: misplaced base64 padding at character 1");
+}

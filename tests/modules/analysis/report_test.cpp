@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "analysis/report.hpp"
+#include "skel/text.hpp"
 #include "skel/run_module.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/volume.hpp"
@@ -70,31 +71,6 @@ SvgInfo parse_svg(const std::string& svg) {
   return info;
 }
 
-std::string base64_decode(const std::string& s) {
-  auto val = [](char c) -> int {
-    if (c >= 'A' && c <= 'Z') return c - 'A';
-    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-    if (c >= '0' && c <= '9') return c - '0' + 52;
-    if (c == '+') return 62;
-    if (c == '/') return 63;
-    return -1;
-  };
-  std::string out;
-  uint32_t buf = 0;
-  int bits = 0;
-  for (char c : s) {
-    if (c == '=') break;
-    const int v = val(c);
-    EXPECT_GE(v, 0) << "bad base64 character";
-    buf = (buf << 6) | static_cast<uint32_t>(v);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out.push_back(static_cast<char>((buf >> bits) & 0xff));
-    }
-  }
-  return out;
-}
 
 uint32_t be32(const std::string& s, size_t at) {
   return (uint32_t(uint8_t(s[at])) << 24) | (uint32_t(uint8_t(s[at + 1])) << 16) | (uint32_t(uint8_t(s[at + 2])) << 8) |
@@ -176,8 +152,6 @@ TEST(ReportPng, EncodesAndDecodesGreyscale) {
   EXPECT_EQ(p.w, 7u);
   EXPECT_EQ(p.h, 5u);
   EXPECT_EQ(p.pixels, px);
-  EXPECT_EQ(base64_decode(base64_encode("ab")), "ab");
-  EXPECT_EQ(base64_encode("abcd"), "YWJjZA==");
   EXPECT_THROW(encode_png_gray8(3, 3, px), Error);
 }
 
@@ -239,7 +213,7 @@ TEST(Report, NumbersSelfContainedSvgAndPng) {
   const size_t p = html.find(key);
   ASSERT_NE(p, std::string::npos);
   const size_t e = html.find('"', p);
-  const Png png = decode_png(base64_decode(html.substr(p + key.size(), e - p - key.size())));
+  const Png png = decode_png(text::base64_decode(html.substr(p + key.size(), e - p - key.size()), "report image"));
   ASSERT_EQ(png.w, 8u);
   ASSERT_EQ(png.h, 6u);
   for (uint32_t y = 0; y < 6; ++y)

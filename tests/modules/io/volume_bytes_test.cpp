@@ -1,4 +1,4 @@
-// The helpers shared by the raw-block volume formats (volume_bytes.hpp): base64, zlib/gzip with
+// The helpers shared by the raw-block volume formats (volume_bytes.hpp): zlib/gzip with
 // exact sizes, byte order, type widening, unit names, size checks.
 #include <gtest/gtest.h>
 
@@ -8,22 +8,6 @@
 using namespace skel;
 using namespace skel::test;
 namespace vb = skel::io::volbytes;
-
-TEST(VolumeBytes, Base64RoundTripsAndConcatenatedStreams) {
-  const std::string all = std::string("\x00\x01\xfe\xff", 4) + "Skelflow volumes";
-  for (size_t n = 0; n <= all.size(); ++n) {
-    const std::string e = vb::base64_encode(all.data(), n);
-    EXPECT_EQ(e.size() % 4, 0u);
-    EXPECT_EQ(vb::base64_decode(e, "f", "w"), all.substr(0, n)) << n;
-  }
-  EXPECT_EQ(vb::base64_encode("Ma", 2), "TWE=");
-  // Two padded streams back to back (VTK's compressed header, then its blocks), with white space.
-  EXPECT_EQ(vb::base64_decode("TWE=\n  TQ==", "f", "w"), "MaM");
-  std::string e = error_of([] { vb::base64_decode("TW!=", "file.vti", "inline data"); });
-  EXPECT_NE(e.find("file.vti: inline data: '!' at character 2 is not base64"), std::string::npos) << e;
-  e = error_of([] { vb::base64_decode("TWE", "file.vti", "inline data"); });
-  EXPECT_NE(e.find("ends in the middle of a group"), std::string::npos) << e;
-}
 
 TEST(VolumeBytes, InflateChecksTheExactSize) {
   const std::string data(1000, 'a');
