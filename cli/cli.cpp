@@ -37,38 +37,135 @@ extern "C" void on_sigint(int) { g_interrupted.store(true); }
 
 constexpr int kOk = 0, kFailed = 1, kInvalid = 2, kInterrupted = 130;
 
-const char* kUsage = R"(usage: skelflow <command> [options]
+#ifndef SKELFLOW_VERSION
+#define SKELFLOW_VERSION "unknown"
+#endif
 
-commands:
-  run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]
-               [--target NODE]... [--quiet] [--allow-outside-output-dir]
-               [--memory-budget SIZE] [--scratch DIR]
-      Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths
-      resolve against --output-dir when given. Outputs appear only when the whole run succeeds.
-      With --output-dir, every output must lie inside D: absolute paths, '..' and symbolic links
-      that lead out of D are refused before anything runs, unless --allow-outside-output-dir.
-      --memory-budget 2GiB runs the block-wise stages block by block with their volumes in scratch
-      files (in DIR, else next to the first output) and stops a stage that would load more than
-      the budget; the pipeline's `execution: {memory_budget: ...}` does the same.
-  validate PIPELINE [--output-dir D] [--allow-outside-output-dir]
-      Checks a pipeline without running it: modules, parameters, connections, types, cycles, input
-      files that do not exist, output extensions, two outputs into one file, outputs outside D.
-      Lists the stages that run block-wise under a memory budget.
-  modules [--markdown] [NAME]
-      Lists the modules, or documents one (or all, with --markdown) in full.
-  info FILE
-      Describes what a volume, graph or pipeline file holds.
-  help
-      Shows this text.
+// One entry per command: `skelflow COMMAND --help` prints its usage, options and an example; the
+// overview (`skelflow --help`) is made of the same texts.
+struct Command {
+  const char* name;
+  const char* usage;    // the synopsis line(s)
+  const char* text;     // what it does and its options
+  const char* example;  // one command line
+  std::vector<std::string> options;  // for "unknown option" suggestions and completion
+};
 
-exit codes: 0 done, 2 invalid pipeline or input (an unwritable output included: found before
-anything runs), 1 failure while running, 130 interrupted (SIGINT, SIGTERM, SIGHUP, SIGQUIT).
-)";
+const std::vector<Command>& commands() {
+  static const std::vector<Command> cs = {
+      {"run",
+       "run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]\n"
+       "               [--target NODE]... [--quiet] [--allow-outside-output-dir]\n"
+       "               [--memory-budget SIZE] [--scratch DIR]",
+       "Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths\n"
+       "resolve against --output-dir when given. Outputs appear only when the whole run succeeds.\n"
+       "With --output-dir, every output must lie inside D: absolute paths, '..' and symbolic links\n"
+       "that lead out of D are refused before anything runs, unless --allow-outside-output-dir.\n"
+       "options:\n"
+       "  --set node.param=value      override a parameter of a node (repeatable)\n"
+       "  --threads N                 worker threads, 0 = all cores\n"
+       "  --output-dir D              write outputs below D\n"
+       "  --allow-outside-output-dir  allow outputs outside --output-dir\n"
+       "  --report FILE               write a JSON report of the run (also when it fails)\n"
+       "  --target NODE               run only what NODE needs (repeatable)\n"
+       "  --quiet, -q                 no progress line and no summary\n"
+       "  --memory-budget SIZE        run the block-wise stages block by block with their volumes in\n"
+       "                              scratch files (512MiB, 2GiB, ...); a stage that would load more\n"
+       "                              than SIZE stops the run; as `execution: {memory_budget: ...}`\n"
+       "  --scratch DIR               folder of the scratch files (default: next to the first output)",
+       "skelflow run pipelines/vessel_network.yaml --set phantom.seed=7 --threads 4 --output-dir out",
+       {"--set", "--threads", "--output-dir", "--allow-outside-output-dir", "--report", "--target", "--quiet", "-q",
+        "--memory-budget", "--scratch", "--help", "-h"}},
+      {"validate", "validate PIPELINE [--output-dir D] [--allow-outside-output-dir]",
+       "Checks a pipeline without running it: modules, parameters, connections, types, cycles, input\n"
+       "files that do not exist, output extensions, two outputs into one file, outputs outside D.\n"
+       "Lists the stages that run block-wise under a memory budget.\n"
+       "options:\n"
+       "  --output-dir D              check outputs as `run --output-dir D` would write them\n"
+       "  --allow-outside-output-dir  allow outputs outside --output-dir",
+       "skelflow validate pipelines/vessel_network.yaml", {"--output-dir", "--allow-outside-output-dir", "--help", "-h"}},
+      {"modules", "modules [--markdown | --names] [NAME]",
+       "Lists the modules, or documents one (or all, with --markdown) in full.\n"
+       "options:\n"
+       "  --markdown  document every module in Markdown (docs/modules.md)\n"
+       "  --names     only the module names, one a line (for shell completion)",
+       "skelflow modules thinning.doht", {"--markdown", "--names", "--help", "-h"}},
+      {"info", "info FILE", "Describes what a volume, graph or pipeline file holds.", "skelflow info out/vessels/network.am",
+       {"--help", "-h"}},
+      {"help", "help [COMMAND]", "Shows the overview, or the help of one command.", "skelflow help run", {}},
+  };
+  return cs;
+}
+
+const Command* find_command(const std::string& name) {
+  for (const auto& c : commands())
+    if (name == c.name) return &c;
+  return nullptr;
+}
+
+std::vector<std::string> command_names() {
+  std::vector<std::string> v;
+  for (const auto& c : commands()) v.emplace_back(c.name);
+  return v;
+}
+
+std::string indent(const std::string& text, const std::string& pad) {
+  std::string out = pad;
+  for (char ch : text) {
+    out += ch;
+    if (ch == '\n') out += pad;
+  }
+  return out;
+}
+
+std::string usage_text() {
+  std::string s = "usage: skelflow <command> [options]\n       skelflow --version\n\ncommands:\n";
+  for (const auto& c : commands()) {
+    s += "  " + std::string(c.usage) + "\n";
+    std::string t = c.text;
+    if (auto o = t.find("options:\n"); o != std::string::npos) t = t.substr(0, o ? o - 1 : 0);
+    s += indent(t, "      ") + "\n";
+  }
+  s += "\n'skelflow COMMAND --help' shows a command's options and an example.\n\n"
+       "exit codes: 0 done, 2 invalid pipeline or input (an unwritable output included: found before\n"
+       "anything runs), 1 failure while running, 130 interrupted (SIGINT, SIGTERM, SIGHUP, SIGQUIT).\n";
+  return s;
+}
+
+std::string command_help(const Command& c) {
+  return "usage: skelflow " + std::string(c.usage) + "\n\n" + c.text + "\n\nexample:\n  " + c.example + "\n";
+}
+
+bool is_help(const std::string& a) { return a == "--help" || a == "-h"; }
+
+// "run: unknown option '--thread' (did you mean '--threads'?); see 'skelflow run --help'"
+[[noreturn]] void unknown_option(const std::string& cmd, const std::string& a) {
+  const Command* c = find_command(cmd);
+  std::vector<std::string> opts = c ? c->options : std::vector<std::string>{};
+  const std::string option = a.substr(0, a.find('='));
+  throw InputError(cmd + ": unknown option '" + option + "'" + did_you_mean(option, opts) + "; see 'skelflow " + cmd +
+                   " --help'");
+}
 
 // ---------------------------------------------------------------- progress display
+}  // namespace
+
+// Short durations for the progress line: "7s", "3m05s", "2h04m".
+std::string format_duration(double seconds) {
+  if (!(seconds >= 0)) seconds = 0;
+  const auto s = static_cast<long long>(seconds + 0.5);
+  char buf[32];
+  if (s < 60) std::snprintf(buf, sizeof buf, "%llds", s);
+  else if (s < 3600) std::snprintf(buf, sizeof buf, "%lldm%02llds", s / 60, s % 60);
+  else std::snprintf(buf, sizeof buf, "%lldh%02lldm", s / 3600, (s % 3600) / 60);
+  return buf;
+}
+
+namespace {
 class Progress {
 public:
-  explicit Progress(bool quiet) : quiet_(quiet), tty_(isatty(STDERR_FILENO) != 0) {}
+  explicit Progress(bool quiet)
+      : quiet_(quiet), tty_(isatty(STDERR_FILENO) != 0), start_(std::chrono::steady_clock::now()) {}
 
   void status(const std::string& node, const NodeStatus& s) {
     std::lock_guard lock(m_);
@@ -95,7 +192,7 @@ public:
       draw();
     } else if (now - last_ >= std::chrono::seconds(5)) {  // plain lines for logs, not too many
       last_ = now;
-      std::fprintf(stderr, "progress %3.0f%% (%s)\n", f * 100.0, current_.c_str());
+      std::fprintf(stderr, "progress %3.0f%% %s (%s)\n", f * 100.0, times(now).c_str(), current_.c_str());
     }
   }
   void warning(const std::string& node, const std::string& msg) {
@@ -126,12 +223,22 @@ private:
     int filled = static_cast<int>(fraction_ * width + 0.5);
     std::string bar(static_cast<size_t>(filled), '#');
     bar.resize(width, '-');
-    std::fprintf(stderr, "\r\033[K[%s] %3.0f%% %s", bar.c_str(), fraction_ * 100.0, current_.c_str());
+    std::fprintf(stderr, "\r\033[K[%s] %3.0f%% %s %s", bar.c_str(), fraction_ * 100.0,
+                 times(std::chrono::steady_clock::now()).c_str(), current_.c_str());
     std::fflush(stderr);
     drawn_ = true;
   }
+  // "12s" or "12s, ~40s left": the estimate only once the run reports a fraction worth extrapolating.
+  std::string times(std::chrono::steady_clock::time_point now) const {
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    std::string t = format_duration(elapsed);
+    if (fraction_ >= 0.01 && fraction_ < 1.0 && elapsed >= 1.0)
+      t += ", ~" + format_duration(elapsed * (1.0 - fraction_) / fraction_) + " left";
+    return t;
+  }
   std::mutex m_;
   bool quiet_, tty_;
+  std::chrono::steady_clock::time_point start_;
   bool drawn_ = false;
   double fraction_ = 0;
   std::string current_;
@@ -197,17 +304,27 @@ void print_markdown(const ModuleSpec& m, std::ostream& o) {
 }
 
 int cmd_modules(const std::vector<std::string>& args) {
-  bool markdown = false;
+  bool markdown = false, names_only = false;
   std::string name;
   for (const auto& a : args) {
     if (a == "--markdown") markdown = true;
-    else if (!a.empty() && a[0] == '-') throw InputError("modules: unknown option " + a);
+    else if (a == "--names") names_only = true;
+    else if (!a.empty() && a[0] == '-') unknown_option("modules", a);
     else name = a;
   }
   const auto& reg = Registry::instance();
+  if (names_only) {
+    for (const auto* m : reg.specs()) std::printf("%s\n", m->name().c_str());
+    return kOk;
+  }
   if (!name.empty()) {
     const ModuleSpec* m = reg.find(name);
-    if (!m) throw InputError("unknown module '" + name + "'");
+    if (!m) {
+      std::vector<std::string> known;
+      for (const auto* s : reg.specs()) known.push_back(s->name());
+      throw InputError("unknown module '" + name + "'" + did_you_mean(name, known) +
+                       "; 'skelflow modules' lists them");
+    }
     print_markdown(*m, std::cout);
     return kOk;
   }
@@ -230,6 +347,7 @@ int cmd_modules(const std::vector<std::string>& args) {
 
 // ---------------------------------------------------------------- info
 int cmd_info(const std::vector<std::string>& args) {
+  if (args.size() == 1 && args[0].size() > 1 && args[0][0] == '-' && !fs::exists(args[0])) unknown_option("info", args[0]);
   if (args.size() != 1) throw InputError("info: expected one FILE");
   fs::path f = args[0];
   std::error_code ec;
@@ -300,7 +418,7 @@ int cmd_validate(const std::vector<std::string>& args) {
     } else if (a == "--allow-outside-output-dir") {
       paths.allow_outside = true;
     } else if (!a.empty() && a[0] == '-') {
-      throw InputError("validate: unknown option " + a);
+      unknown_option("validate", a);
     } else if (file.empty()) {
       file = a;
     } else {
@@ -402,7 +520,7 @@ int cmd_run(const std::vector<std::string>& args) {
     } else if (a == "--quiet" || a == "-q") {
       quiet = true;
     } else if (!a.empty() && a[0] == '-') {
-      throw InputError("run: unknown option " + a);
+      unknown_option("run", a);
     } else if (file.empty()) {
       file = a;
     } else {
@@ -472,9 +590,29 @@ int cmd_run(const std::vector<std::string>& args) {
 
 int skelflow_main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
-    std::fputs(kUsage, args.empty() ? stderr : stdout);
+  if (args.empty() || args[0] == "--help" || args[0] == "-h" || (args[0] == "help" && args.size() == 1)) {
+    std::fputs(usage_text().c_str(), args.empty() ? stderr : stdout);
     return args.empty() ? kInvalid : kOk;
+  }
+  if (args[0] == "--version" || args[0] == "-V") {
+    std::printf("skelflow %s\n", SKELFLOW_VERSION);
+    return kOk;
+  }
+  {  // `skelflow help COMMAND` and `skelflow COMMAND --help`
+    const bool help_cmd = args[0] == "help";
+    const std::string name = help_cmd ? args[1] : args[0];
+    const Command* c = find_command(name);
+    if (c && (help_cmd || std::any_of(args.begin() + 1, args.end(), is_help))) {
+      std::fputs(command_help(*c).c_str(), stdout);
+      return kOk;
+    }
+    if (!c) {
+      std::fprintf(stderr, "skelflow: unknown %s '%s'%s; 'skelflow --help' lists the commands\n",
+                   (!name.empty() && name[0] == '-') ? "option" : "command", name.c_str(),
+                   did_you_mean(name, (!name.empty() && name[0] == '-') ? std::vector<std::string>{"--help", "--version"}
+                                                     : command_names()).c_str());
+      return kInvalid;
+    }
   }
   struct sigaction sa {};
   sa.sa_handler = on_sigint;
@@ -490,8 +628,8 @@ int skelflow_main(int argc, char** argv) {
     if (cmd == "validate") return cmd_validate(rest);
     if (cmd == "modules") return cmd_modules(rest);
     if (cmd == "info") return cmd_info(rest);
-    std::fprintf(stderr, "skelflow: unknown command '%s'\n\n%s", cmd.c_str(), kUsage);
-    return kInvalid;
+    std::fputs(usage_text().c_str(), stdout);  // "help" with more than one word
+    return kOk;
   } catch (const Cancelled&) {
     std::fprintf(stderr, "skelflow: interrupted; no partial outputs were left\n");
     return kInterrupted;

@@ -777,6 +777,17 @@ size_t edit_distance(const std::string& a, const std::string& b) {
   }
   return prev[b.size()];
 }
+// "a, b, c": the names an error lists (a module's ports).
+std::string join_names(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) { if (!s.empty()) s += ", "; s += n; }
+  return s;
+}
+std::vector<std::string> pipeline_node_ids(const Pipeline& p) {
+  std::vector<std::string> ids;
+  for (const auto& n : p.nodes()) ids.push_back(n.id);
+  return ids;
+}
 // Port types as users read them: the common sets by name (as `skelflow modules` shows them).
 std::string join_types(const std::vector<std::string>& ts) {
   if (ts == all_volume_types()) return "any volume";
@@ -942,12 +953,13 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
       SourcePos pos = n.input_pos.count(port) ? n.input_pos.at(port) : n.pos;
       const PortSpec* ip = spec->find_input(port);
       if (!ip) {
-        add(n, pos, "unknown input port '" + port + "' of " + n.module + did_you_mean(port, inames));
+        add(n, pos, "unknown input port '" + port + "' of " + n.module + did_you_mean(port, inames) + "; its inputs: " +
+                        (inames.empty() ? std::string("none") : join_names(inames)));
         continue;
       }
       const PipelineNode* src = p.find(ref.node);
       if (!src) {
-        add(n, pos, "input '" + port + "': no node '" + ref.node + "'");
+        add(n, pos, "input '" + port + "': no node '" + ref.node + "'" + did_you_mean(ref.node, pipeline_node_ids(p)));
         continue;
       }
       const ModuleSpec* ss = registry.find(src->module);
@@ -957,7 +969,8 @@ std::vector<Diagnostic> validate(const Pipeline& p, const Registry& registry, co
         std::vector<std::string> onames;
         for (const auto& o : ss->outputs()) onames.push_back(o.name);
         add(n, pos, "input '" + port + "': node '" + ref.node + "' (" + src->module + ") has no output '" +
-                        ref.port + "'" + did_you_mean(ref.port, onames));
+                        ref.port + "'" + did_you_mean(ref.port, onames) + "; its outputs: " +
+                        (onames.empty() ? std::string("none") : join_names(onames)));
         continue;
       }
       const std::vector<std::string>* gives = &op->types;

@@ -7,12 +7,16 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <regex>
 #include <sstream>
 #include <thread>
+
+#include "cli.hpp"
 
 namespace fs = std::filesystem;
 
@@ -630,4 +634,140 @@ nodes:
   Result q = run(SKELFLOW_BIN, {"run", p.string(), "--threads", "1", "-q"});
   EXPECT_EQ(q.code, 0);
   EXPECT_EQ(q.out.find("stats.summary"), std::string::npos) << q.out;
+}
+
+// ---------------------------------------------------------------- the command line as people expect it
+namespace {
+bool has(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+}  // namespace
+
+TEST(Cli, VersionAndHelpOfEveryCommand) {
+  Result v = run(SKELFLOW_TESTCLI, {"--version"});
+  EXPECT_EQ(v.code, 0) << v.out;
+  EXPECT_EQ(v.out.rfind("skelflow 0.", 0), 0u) << v.out;
+  EXPECT_EQ(v.out.back(), '\n');
+  for (const std::string cmd : {"run", "validate", "modules", "info"}) {
+    for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+             {cmd, "--help"}, {cmd, "-h"}, {"help", cmd}, {cmd, "some.yaml", "--help"}}) {
+      Result h = run(SKELFLOW_TESTCLI, args);
+      EXPECT_EQ(h.code, 0) << cmd << ": " << h.out;
+      EXPECT_EQ(h.out.rfind("usage: skelflow " + cmd + " ", 0), 0u) << h.out;
+      EXPECT_TRUE(has(h.out, "\nexample:\n  skelflow " + cmd + " ")) << h.out;
+    }
+  }
+  Result run_help = run(SKELFLOW_TESTCLI, {"run", "--help"});
+  for (const char* opt : {"--set", "--threads", "--output-dir", "--report", "--target", "--quiet"})
+    EXPECT_TRUE(has(run_help.out, std::string("\n  ") + opt)) << opt << " missing in\n" << run_help.out;
+  Result overview = run(SKELFLOW_TESTCLI, {"--help"});
+  EXPECT_EQ(overview.code, 0);
+  for (const char* cmd : {"run PIPELINE", "validate PIPELINE", "modules [", "info FILE"})
+    EXPECT_TRUE(has(overview.out, std::string("\n  ") + cmd)) << overview.out;
+  EXPECT_FALSE(has(overview.out, "options:")) << "the overview lists commands, each --help their options";
+}
+
+TEST(Cli, UnknownOptionsAndCommandsAreNamedWithTheClosest) {
+  fs::path d = scratch("unknown_option");
+  fs::path p = write(d / "p.yaml", kGood);
+  Result r = run(SKELFLOW_TESTCLI, {"run", p.string(), "--thread", "2"});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(has(r.out, "skelflow: run: unknown option '--thread' (did you mean '--threads'?); see 'skelflow run --help'"))
+      << r.out;
+  Result eq = run(SKELFLOW_TESTCLI, {"validate", p.string(), "--output-dri=x"});
+  EXPECT_TRUE(has(eq.out, "validate: unknown option '--output-dri' (did you mean '--output-dir'?)")) << eq.out;
+  Result m = run(SKELFLOW_TESTCLI, {"modules", "--markdwn"});
+  EXPECT_EQ(m.code, 2);
+  EXPECT_TRUE(has(m.out, "modules: unknown option '--markdwn' (did you mean '--markdown'?)")) << m.out;
+  Result far = run(SKELFLOW_TESTCLI, {"info", "--frobnicate"});
+  EXPECT_EQ(far.code, 2);
+  EXPECT_TRUE(has(far.out, "info: unknown option '--frobnicate'; see 'skelflow info --help'")) << far.out;
+  Result c = run(SKELFLOW_TESTCLI, {"valdate", p.string()});
+  EXPECT_EQ(c.code, 2);
+  EXPECT_TRUE(has(c.out, "skelflow: unknown command 'valdate' (did you mean 'validate'?)")) << c.out;
+  Result v = run(SKELFLOW_TESTCLI, {"--verison"});
+  EXPECT_EQ(v.code, 2);
+  EXPECT_TRUE(has(v.out, "skelflow: unknown option '--verison' (did you mean '--version'?)")) << v.out;
+}
+
+TEST(Cli, ModulesNodesAndPortsAreSuggested) {
+  Result m = run(SKELFLOW_TESTCLI, {"modules", "test.scal"});
+  EXPECT_EQ(m.code, 2);
+  EXPECT_TRUE(has(m.out, "unknown module 'test.scal' (did you mean 'test.scale'?)")) << m.out;
+  Result names = run(SKELFLOW_TESTCLI, {"modules", "--names"});
+  EXPECT_EQ(names.code, 0);
+  EXPECT_TRUE(has(names.out, "\ntest.scale\n")) << names.out;
+  EXPECT_FALSE(has(names.out, " ")) << "one bare name a line";
+
+  fs::path d = scratch("suggest");
+  fs::path p = write(d / "p.yaml", R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [4, 4, 4]}}
+  x: {module: test.scale, inputs: {volume: srcc.volume}}
+  y: {module: test.scale, inputs: {volume: src.volme}}
+  z: {module: test.scale, inputs: {volum: src.volume}}
+)");
+  Result r = run(SKELFLOW_TESTCLI, {"validate", p.string()});
+  EXPECT_EQ(r.code, 2);
+  EXPECT_TRUE(has(r.out, ":4:44: node 'x': input 'volume': no node 'srcc' (did you mean 'src'?)")) << r.out;
+  EXPECT_TRUE(has(r.out, "node 'y': input 'volume': node 'src' (test.source) has no output 'volme' (did you mean "
+                         "'volume'?); its outputs: volume")) << r.out;
+  EXPECT_TRUE(has(r.out, "node 'z': unknown input port 'volum' of test.scale (did you mean 'volume'?); its inputs: volume"))
+      << r.out;
+}
+
+TEST(Cli, SetErrorsPointAtTheCommandLine) {
+  fs::path d = scratch("set_errors");
+  fs::path p = write(d / "p.yaml", kGood);
+  Result param = run(SKELFLOW_TESTCLI, {"run", p.string(), "--set", "x.factr=3"});
+  EXPECT_EQ(param.code, 2);
+  EXPECT_TRUE(has(param.out, "skelflow: --set x.factr=3: node 'x': unknown parameter 'factr' of test.scale (did you mean "
+                             "'factor'?)")) << param.out;
+  EXPECT_FALSE(has(param.out, p.string() + ":")) << "the error is on the command line, not in the file";
+  Result node = run(SKELFLOW_TESTCLI, {"run", p.string(), "--set", "xx.factor=3"});
+  EXPECT_EQ(node.code, 2);
+  EXPECT_TRUE(has(node.out, "skelflow: --set xx.factor=3: no node 'xx' in ")) << node.out;
+  EXPECT_TRUE(has(node.out, "(did you mean 'x'?)")) << node.out;
+}
+
+TEST(Cli, DurationsOnTheProgressLine) {
+  EXPECT_EQ(format_duration(0), "0s");
+  EXPECT_EQ(format_duration(7.4), "7s");
+  EXPECT_EQ(format_duration(59.4), "59s");
+  EXPECT_EQ(format_duration(185), "3m05s");
+  EXPECT_EQ(format_duration(3600 * 2 + 4 * 60 + 10), "2h04m");
+  EXPECT_EQ(format_duration(-3), "0s");
+  EXPECT_EQ(format_duration(std::nan("")), "0s");
+}
+
+TEST(Cli, PlainProgressLinesShowElapsedAndTimeLeft) {
+  fs::path d = scratch("progress_times");
+  fs::path p = write(d / "p.yaml", R"(skelflow: 1
+nodes:
+  s: {module: test.slow, params: {seconds: 6}}
+)");
+  Result r = run(SKELFLOW_TESTCLI, {"run", p.string(), "--threads", "1"});  // stderr is a file: plain lines
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::smatch m;
+  EXPECT_TRUE(std::regex_search(r.out, m, std::regex(R"(progress +\d+% \d+s, ~\d+s left \(s\))"))) << r.out;
+}
+
+TEST(Cli, BashCompletionOffersCommandsOptionsModulesAndNodes) {
+  if (std::system("command -v bash >/dev/null 2>&1") != 0) GTEST_SKIP() << "no bash";
+  fs::path d = scratch("completion");
+  fs::path p = write(d / "p.yaml", kGood);
+  auto complete = [&](const std::string& words) {
+    fs::path out = d / "reply.txt";
+    const std::string script = "source '" + std::string(SKEL_SOURCE_DIR) + "/scripts/skelflow-completion.bash'; "
+                               "COMP_WORDS=(" + words + "); COMP_CWORD=$((${#COMP_WORDS[@]}-1)); _skelflow; "
+                               "printf '%s\\n' \"${COMPREPLY[@]}\" > '" + out.string() + "'";
+    fs::path sh = d / "complete.sh";
+    std::ofstream(sh) << script << "\n";
+    EXPECT_EQ(std::system(("cd '" + d.string() + "' && bash '" + sh.string() + "'").c_str()), 0);
+    return read_text(out);
+  };
+  const std::string bin = std::string("'") + SKELFLOW_TESTCLI + "'";
+  EXPECT_EQ(complete(bin + " va"), "validate\n");
+  EXPECT_EQ(complete(bin + " run p.yaml --thr"), "--threads\n");
+  EXPECT_EQ(complete(bin + " modules test.sc"), "test.scale\n");
+  EXPECT_EQ(complete(bin + " run p.yaml --set x"), "x.\n");
+  EXPECT_EQ(complete(bin + " run ''"), "p.yaml\n");
 }
