@@ -92,7 +92,7 @@ def test_the_gil_is_released_while_a_module_runs():
 CHILD = textwrap.dedent("""
     import sys, time, skelflow
     p = skelflow.Pipeline()
-    p.add_node("phantom", "synthetic.vessel_tree", size=[320, 320, 320], seed=1, roots=6)
+    p.add_node("phantom", "synthetic.vessel_tree", size=[448, 448, 448], seed=1, roots=6)
     p.add_node("smooth", "segmentation.gaussian", sigma=[2.0, 2.0, 2.0])
     p.add_node("dist", "distance.euclidean")
     p.add_node("skel", "thinning.doht")
@@ -102,9 +102,9 @@ CHILD = textwrap.dedent("""
     p.connect("phantom.mask", "skel.mask")
     p.connect("dist.distance", "skel.priority")
     p.connect("skel.skeleton", "save.volume")
-    print("started", flush=True)
     t = time.monotonic()
     try:
+        print("started", flush=True)
         p.run(threads=1, output_dir=sys.argv[1])
         print("finished", flush=True)
     except KeyboardInterrupt:
@@ -116,7 +116,9 @@ def test_ctrl_c_cancels_a_run_and_leaves_no_output(tmp_path):
     env = dict(os.environ)
     proc = subprocess.Popen([sys.executable, "-c", CHILD, str(tmp_path)], stdout=subprocess.PIPE, text=True, env=env)
     assert proc.stdout.readline().strip() == "started"
-    time.sleep(1.5)
+    # The run takes ~3 s on an idle 2-core machine (single-threaded); interrupt it early. (At 320³
+    # and 1.5 s it could finish first on an idle machine.)
+    time.sleep(0.5)
     t = time.monotonic()
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=120)
@@ -128,9 +130,9 @@ def test_ctrl_c_cancels_a_run_and_leaves_no_output(tmp_path):
 
 CHILD_MODULE = textwrap.dedent("""
     import time, skelflow
-    print("started", flush=True)
     t = time.monotonic()
     try:
+        print("started", flush=True)
         skelflow.modules.synthetic.network(shape="rods", size=[640, 640, 640], sigma=2.0, threads=1)
         print("finished", flush=True)
     except KeyboardInterrupt:
@@ -141,7 +143,7 @@ CHILD_MODULE = textwrap.dedent("""
 def test_ctrl_c_cancels_a_module_function():
     proc = subprocess.Popen([sys.executable, "-c", CHILD_MODULE], stdout=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "started"
-    time.sleep(1.0)
+    time.sleep(0.5)  # the module takes ~2.3 s on an idle machine
     t = time.monotonic()
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=120)
