@@ -162,19 +162,48 @@ inline void add_run(ComponentInfo& c, int64_t a, int64_t b, int64_t y, int64_t z
 }
 
 // Labels of components given in raster order of their first voxels: size descending, ties in that
-// order; min_size and keep_largest applied. Fills `order` and `count`; returns label_of (0 = removed).
+// order; min_size, min_fraction and keep_largest applied. Fills `order` and `count`; returns label_of
+// (0 = removed). `warning` names the largest removed component when it holds at least a tenth of the
+// largest one's voxels: a network cut in two by the threshold loses half of itself silently otherwise.
 std::vector<uint32_t> label_components(const std::vector<ComponentInfo>& comps, const ComponentOptions& o,
-                                       std::vector<size_t>& order, uint32_t& count) {
+                                       std::vector<size_t>& order, uint32_t& count, std::string& warning) {
   order.resize(comps.size());
   std::iota(order.begin(), order.end(), size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return comps[a].voxels > comps[b].voxels; });
   std::vector<uint32_t> label_of(comps.size(), 0);
+  const int64_t largest = comps.empty() ? 0 : comps[order.front()].voxels;
+  const double fraction_floor = o.min_fraction * static_cast<double>(largest);
   uint32_t next = 0;
+  int64_t dropped = 0, dropped_large = 0, dropped_voxels = 0;
   for (size_t k : order) {
-    if (comps[k].voxels < o.min_size) continue;
-    if (o.keep_largest && next >= 1) continue;
+    const int64_t v = comps[k].voxels;
+    const bool keep = v >= o.min_size && static_cast<double>(v) >= fraction_floor && !(o.keep_largest && next >= 1);
+    if (!keep) {
+      ++dropped;
+      dropped_voxels += v;
+      if (10 * v >= largest && largest > 0) {
+        if (dropped_large == 0) {
+          warning = "removed a component of " + std::to_string(v) + " voxels, " +
+                    std::to_string(static_cast<int>(100.0 * static_cast<double>(v) / static_cast<double>(largest) + 0.5)) +
+                    " % of the largest (" + std::to_string(largest) + " voxels)";
+        }
+        ++dropped_large;
+      }
+      continue;
+    }
     if (next == UINT32_MAX) throw InputError("connected_components: more than 2^32 - 1 components");
     label_of[k] = ++next;
+  }
+  if (dropped_large > 0) {
+    if (dropped_large > 1) warning += " and " + std::to_string(dropped_large - 1) + " more of at least a tenth of it";
+    auto count_of = [](int64_t n, const char* what) {
+      return std::to_string(n) + " " + what + (n == 1 ? "" : "s");
+    };
+    warning += "; " + count_of(dropped, "component") + " with " + count_of(dropped_voxels, "voxel") +
+               " removed in all by " +
+               (o.keep_largest ? std::string("keep_largest") : o.min_fraction > 0 ? "min_fraction" : "min_size") +
+               ". If they are parts of the network (cut apart by the threshold or the volume's border), keep them "
+               "with min_fraction (e.g. 0.05) instead of keep_largest";
   }
   count = next;
   return label_of;
@@ -248,7 +277,8 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   // Order: size descending, ties by first voxel in raster order (= order of the root runs).
   std::vector<size_t> order;
   uint32_t next = 0;
-  const std::vector<uint32_t> label_of = label_components(comps, o, order, next);
+  std::string warning;
+  const std::vector<uint32_t> label_of = label_components(comps, o, order, next, warning);
   o.interrupter.check(0.7);
   ComponentsResult res;
   res.labels = VolumeU32::uninitialized(mask.grid());
@@ -270,6 +300,7 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
     }
   }, 64);
   res.count = next;
+  res.warning = std::move(warning);
   res.table = component_table(comps, order, label_of, mask.grid());
   o.interrupter.check(1.0);
   return res;
@@ -428,7 +459,8 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
   }
   std::vector<size_t> order;
   uint32_t count = 0;
-  const std::vector<uint32_t> label_of = label_components(ordered, o, order, count);
+  std::string warning;
+  const std::vector<uint32_t> label_of = label_components(ordered, o, order, count, warning);
   std::vector<uint32_t> label_of_provisional(info.size());
   for (size_t i = 0; i < info.size(); ++i)
     label_of_provisional[i] = label_of[rank[static_cast<size_t>(index_of_root[static_cast<size_t>(root[i])])]];
@@ -450,6 +482,7 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
       }
   BlockComponentsResult res;
   res.count = count;
+  res.warning = std::move(warning);
   res.table = component_table(ordered, order, label_of, g);
   return res;
 }

@@ -82,7 +82,8 @@ void gaussian_in_place(VolumeF32& image, const Vec3& sigma, double truncate, Gau
 
 struct ComponentOptions {
   Connectivity connectivity = Connectivity::c26;
-  int64_t min_size = 0;    // smaller components are removed (voxels)
+  int64_t min_size = 0;       // smaller components are removed (voxels)
+  double min_fraction = 0.0;  // components smaller than this fraction of the largest are removed
   bool keep_largest = false;
   int threads = 0;
   Interrupter interrupter;
@@ -92,6 +93,7 @@ struct ComponentsResult {
   VolumeU8 mask;     // kept components
   Table table;       // label, voxels, volume, bbox, centroid
   int64_t count = 0; // kept components
+  std::string warning;  // non-empty when the selection removed a large component (see selection_warning)
 };
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
 
@@ -105,6 +107,7 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
 struct BlockComponentsResult {
   Table table;
   int64_t count = 0;
+  std::string warning;  // as ComponentsResult::warning
 };
 BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
                                                   const ChunkedVolume& kept, const ChunkedVolume& work,

@@ -76,6 +76,7 @@ void expect_same_components(const VolumeU8& m, const ComponentOptions& o, const 
   EXPECT_TRUE(whole<uint32_t>(*labels) == in_core.labels) << what;
   EXPECT_TRUE(whole<uint8_t>(*kept) == in_core.mask) << what;
   EXPECT_EQ(r.table.to_csv(), in_core.table.to_csv()) << what;
+  EXPECT_EQ(r.warning, in_core.warning) << what;
 }
 
 TEST(ComponentsBlocks, RandomMasksSameLabelsAndTable) {
@@ -112,6 +113,9 @@ TEST(ComponentsBlocks, DiagonalChainsThroughBlockCornersAndFilters) {
   expect_same_components(m, o, {3, 5, 4}, "min_size");
   o.keep_largest = true;
   expect_same_components(m, o, {3, 5, 4}, "keep_largest");
+  ComponentOptions f;
+  f.min_fraction = 0.5;  // the 10-voxel chain is more than half of the 16-voxel one
+  expect_same_components(m, f, {3, 5, 4}, "min_fraction");
   expect_same_components(VolumeU8({9, 8, 7}), {}, {4, 4, 4}, "empty");
   expect_same_components(VolumeU8({9, 8, 7}, 1), {}, {4, 4, 4}, "full");
 }

@@ -131,6 +131,52 @@ TEST(ConnectedComponents, KeepLargestAndMinSize) {
   o2.min_size = 2;
   EXPECT_EQ(connected_components(m, o2).count, 2);
   EXPECT_EQ(connected_components(VolumeU8(Dims{4, 4, 4}, 0)).count, 0);
+  // keep_largest removed the 3-voxel component, 60 % of the largest: the warning says so.
+  EXPECT_NE(r.warning.find("removed a component of 3 voxels, 60 % of the largest (5 voxels)"), std::string::npos)
+      << r.warning;
+  EXPECT_NE(r.warning.find("2 components with 4 voxels removed in all by keep_largest"), std::string::npos) << r.warning;
+  // min_size removed the 1-voxel one: 20 % of the largest here, so it is named too.
+  EXPECT_NE(connected_components(m, o2).warning.find("1 component with 1 voxel removed in all by min_size"),
+            std::string::npos);
+  ComponentOptions o3;
+  o3.min_size = 4;  // the 3-voxel one (60 %) and the 1-voxel one (20 %): the larger is named
+  EXPECT_NE(connected_components(m, o3).warning.find("removed a component of 3 voxels, 60 % of the largest (5 voxels) and 1 more"),
+            std::string::npos) << connected_components(m, o3).warning;
+}
+
+// A network cut in two halves by the threshold (what the 1024³ vessel benchmark did): keep_largest
+// keeps one half and warns with its size; min_fraction keeps both halves and removes the noise.
+TEST(ConnectedComponents, MinFractionKeepsLargePiecesAndRemovesNoise) {
+  VolumeU8 m(Dims{40, 20, 20}, 0);
+  for (int x = 0; x < 18; ++x)
+    for (int y = 5; y < 9; ++y)
+      for (int z = 5; z < 9; ++z) m(x, y, z) = 1;  // 288 voxels
+  for (int x = 21; x < 38; ++x)
+    for (int y = 5; y < 9; ++y)
+      for (int z = 5; z < 9; ++z) m(x, y, z) = 1;  // 272 voxels
+  m(2, 15, 15) = 1;                               // noise
+  m(30, 15, 15) = m(31, 15, 15) = 1;
+  ComponentOptions largest;
+  largest.keep_largest = true;
+  const auto a = connected_components(m, largest);
+  EXPECT_EQ(a.count, 1);
+  EXPECT_NE(a.warning.find("removed a component of 272 voxels, 94 % of the largest (288 voxels)"), std::string::npos)
+      << a.warning;
+  EXPECT_NE(a.warning.find("min_fraction"), std::string::npos) << a.warning;
+  ComponentOptions fraction;
+  fraction.min_fraction = 0.05;
+  const auto b = connected_components(m, fraction);
+  EXPECT_EQ(b.count, 2);
+  EXPECT_TRUE(b.warning.empty()) << b.warning;
+  EXPECT_EQ(b.mask(0, 5, 5), 1);
+  EXPECT_EQ(b.mask(37, 8, 8), 1);
+  EXPECT_EQ(b.mask(2, 15, 15), 0);
+  EXPECT_EQ(b.mask(30, 15, 15), 0);
+  // min_fraction 1 keeps the largest only (and ties with it); 0 keeps everything.
+  fraction.min_fraction = 1.0;
+  EXPECT_EQ(connected_components(m, fraction).count, 1);
+  fraction.min_fraction = 0.0;
+  EXPECT_EQ(connected_components(m, fraction).count, 4);
 }
 
 TEST(FillCavities, FillsEnclosedBackgroundOnly) {
