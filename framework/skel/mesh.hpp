@@ -49,6 +49,12 @@ public:
   MeshAttributes triangle_attributes;  // values[t]
   MeshAttributes line_attributes;      // values[l]
   std::string unit = kDefaultUnit;
+  // Where the source volume lies: points are in its axis-aligned frame (origin + index·spacing, like
+  // its voxels, which the GUI and the algorithms use); mesh files hold world coordinates,
+  // world_position(p, frame_origin, frame_direction) (io::write_mesh), so that the mesh overlays the
+  // image in Slicer or ParaView. A mesh read from a file is in world coordinates (identity).
+  Vec3 frame_origin{0.0, 0.0, 0.0};
+  Direction frame_direction{kIdentityDirection};
 
   [[nodiscard]] int64_t vertex_count() const { return static_cast<int64_t>(points.size()); }
   [[nodiscard]] int64_t triangle_count() const { return static_cast<int64_t>(triangles.size()); }

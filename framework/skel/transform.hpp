@@ -82,4 +82,13 @@ private:
   TransformKind kind_ = TransformKind::Rigid;
 };
 
+// World coordinates of a point p of a volume's axis-aligned frame (origin + index·spacing, where
+// the algorithms work): origin + direction·(p − origin). What graph and mesh files hold, so that
+// they overlay the image in other tools (io/graph_io.cpp, io/mesh_io.cpp).
+inline Vec3 world_position(const Vec3& p, const Vec3& origin, const Direction& d) {
+  const Vec3 q{p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]};
+  return {origin[0] + d[0] * q[0] + d[1] * q[1] + d[2] * q[2], origin[1] + d[3] * q[0] + d[4] * q[1] + d[5] * q[2],
+          origin[2] + d[6] * q[0] + d[7] * q[1] + d[8] * q[2]};
+}
+
 }  // namespace skel

@@ -83,7 +83,7 @@ bool operator==(const Mesh& a, const Mesh& b) {
   return a.points == b.points && a.triangles == b.triangles && a.line_offsets == b.line_offsets &&
          a.line_vertices == b.line_vertices && a.vertex_attributes == b.vertex_attributes &&
          a.triangle_attributes == b.triangle_attributes && a.line_attributes == b.line_attributes &&
-         a.unit == b.unit;
+         a.unit == b.unit && a.frame_origin == b.frame_origin && a.frame_direction == b.frame_direction;
 }
 
 }  // namespace skel

@@ -111,6 +111,8 @@ Mesh mesh_decimate(const Mesh& mesh, const MeshDecimateOptions& o) {
   auto poly = io::mesh_to_vtk(tri);
   Mesh out;
   out.unit = mesh.unit;
+  out.frame_origin = mesh.frame_origin;
+  out.frame_direction = mesh.frame_direction;
   if (mesh.triangle_count() > 0) {
     auto d = vtkSmartPointer<vtkQuadricDecimation>::New();
     d->SetInputData(poly);
@@ -228,6 +230,8 @@ Mesh isosurface(const DataObject& volume, const IsosurfaceOptions& o) {
     fe->Update();
     Mesh m = io::mesh_from_vtk(*fe->GetOutput(), "isosurface");
     m.unit = v.unit();
+    m.frame_origin = v.origin();
+    m.frame_direction = v.grid().direction;
     m.vertex_attributes.clear();
     m.triangle_attributes.clear();
     return m;

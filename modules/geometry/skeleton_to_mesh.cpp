@@ -307,6 +307,8 @@ Mesh skeleton_to_mesh(const VolumeU8& skeleton, const SkeletonToMeshOptions& opt
   face_keys.erase(std::unique(face_keys.begin(), face_keys.end()), face_keys.end());
   Mesh mesh;
   mesh.unit = grid.unit;  // coordinates are in the skeleton's physical unit
+  mesh.frame_origin = grid.origin;  // and its axis-aligned frame; files get the direction applied
+  mesh.frame_direction = grid.direction;
   std::vector<int32_t> vclass;
   for (int64_t i = 0; i < n; ++i) {
     if (voxel_vertex[i] < 0) continue;

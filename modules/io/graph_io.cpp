@@ -21,6 +21,7 @@
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/text.hpp"
+#include "skel/transform.hpp"
 #include "io/vtk_xml_data.hpp"
 
 #include <expat.h>
@@ -248,6 +249,31 @@ XmlDoc parse_xml(const std::string& s, const std::string& source) {
 // Whether the graph knows where its source volume lies (origin, direction): then the files say so.
 bool has_placement(const Grid& g) {
   return g.voxel_count() > 0 || g.origin != Vec3{0.0, 0.0, 0.0} || g.direction != kIdentityDirection;
+}
+
+// Graph files hold world coordinates, origin + D·(p − origin) with the source volume's direction D,
+// so that a centerline overlays its image in Slicer or ParaView. In memory, positions stay in the
+// volume's axis-aligned frame (origin + index·spacing), which every algorithm that maps graph points
+// back to voxels assumes (label propagation, densities, skeleton distances); graph_to_text maps them
+// out and graph_from_text maps a file that states a direction back in: this is the one place.
+SpatialGraph with_direction_applied(const SpatialGraph& g, bool to_world) {
+  const Direction& d = g.source_grid.direction;
+  const Vec3& o = g.source_grid.origin;
+  SpatialGraph out = g;
+  if (to_world) {
+    for (auto& p : out.positions) p = world_position(p, o, d);
+    for (auto& e : out.edges)
+      for (auto& p : e.points) p = world_position(p, o, d);
+    return out;
+  }
+  const Matrix3 m{{{d[0], d[1], d[2]}, {d[3], d[4], d[5]}, {d[6], d[7], d[8]}}};
+  Vec3 t{};
+  for (size_t r = 0; r < 3; ++r) t[r] = o[r] - (m[r][0] * o[0] + m[r][1] * o[1] + m[r][2] * o[2]);
+  const Transform back = Transform(m, t).inverse();
+  for (auto& p : out.positions) p = back.apply(p);
+  for (auto& e : out.edges)
+    for (auto& p : e.points) p = back.apply(p);
+  return out;
 }
 
 // ---------------------------------------------------------------- Amira
@@ -1506,9 +1532,12 @@ GraphFormat graph_format_from_path(const std::filesystem::path& path, const std:
                    "'; expected .am, .vtp, .swc, .graphml or .csv");
 }
 
-std::string graph_to_text(const SpatialGraph& g, GraphFormat f, std::string* nodes_text, const GraphWriteOptions& o) {
-  const auto problems = g.check_invariants();
+std::string graph_to_text(const SpatialGraph& in, GraphFormat f, std::string* nodes_text, const GraphWriteOptions& o) {
+  const auto problems = in.check_invariants();
   if (!problems.empty()) throw InputError("input 'graph': inconsistent graph: " + problems.front());
+  SpatialGraph world;
+  if (in.source_grid.direction != kIdentityDirection) world = with_direction_applied(in, true);
+  const SpatialGraph& g = in.source_grid.direction != kIdentityDirection ? world : in;
   switch (f) {
     case GraphFormat::amira: return amira_write(g);
     case GraphFormat::vtp: return vtp_write(g, o.encoding == VtpEncoding::binary);
@@ -1530,6 +1559,7 @@ SpatialGraph graph_from_text(const std::string& text, GraphFormat f, const std::
     case GraphFormat::graphml: g = graphml_read(text, src); break;
     case GraphFormat::csv: g = csv_read(text, nodes_text, src); break;
   }
+  if (g.source_grid.direction != kIdentityDirection) g = with_direction_applied(g, false);
   const auto problems = g.check_invariants();
   if (!problems.empty()) throw InputError(src + ": inconsistent graph: " + problems.front());
   return g;

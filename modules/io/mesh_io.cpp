@@ -17,6 +17,7 @@
 #include <vtkXMLPolyDataWriter.h>
 
 #include "io/mesh_vtk.hpp"
+#include "skel/transform.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/text.hpp"
@@ -692,8 +693,21 @@ MeshFormat mesh_format_from_path(const std::filesystem::path& path, const std::s
                    "'; expected .vtp, .ply, .stl, .obj or .surf");
 }
 
-void write_mesh(const Mesh& mesh, const std::filesystem::path& path, MeshFormat format) {
-  check_writable(mesh);
+void write_mesh(const Mesh& in, const std::filesystem::path& path, MeshFormat format) {
+  check_writable(in);
+  // Files hold world coordinates (Mesh::frame_direction): the one place where the direction of the
+  // source volume is applied to mesh points.
+  Mesh world;
+  const bool rotated = in.frame_direction != kIdentityDirection;
+  if (rotated) {
+    world = in;
+    for (auto& p : world.points) {
+      const Vec3 w = world_position({p[0], p[1], p[2]}, in.frame_origin, in.frame_direction);
+      p = {static_cast<float>(w[0]), static_cast<float>(w[1]), static_cast<float>(w[2])};
+    }
+    world.frame_direction = kIdentityDirection;
+  }
+  const Mesh& mesh = rotated ? world : in;
   switch (format) {
     case MeshFormat::vtp: vtp_write(mesh, path); return;
     case MeshFormat::ply: write_file_atomically(path, ply_write(mesh)); return;

@@ -18,6 +18,7 @@
 
 #include "io/volume_bytes.hpp"
 #include "io/volume_format.hpp"
+#include "io/vtk_xml_data.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/text.hpp"
@@ -273,57 +274,14 @@ VtiDoc parse(const fs::path& path, std::string* whole = nullptr) {
   return d;
 }
 
-uint64_t get_uint(const std::string& b, uint64_t off, size_t width, bool big_endian) {
-  const auto* p = reinterpret_cast<const unsigned char*>(b.data() + off);
-  uint64_t v = 0;
-  for (size_t i = 0; i < width; ++i) v = (v << 8) | p[big_endian ? i : width - 1 - i];
-  return v;
-}
-
-// The voxel bytes of a binary block (header + data or header + compressed blocks) at `b[off..]`.
-// With dst == nullptr: checks the block's header against `need` and the bytes present (before the
-// volume is allocated), copies nothing.
+// The voxel bytes of a binary block (header + data or header + compressed blocks) at `b[off..]`,
+// decoded by the one VTK block decoder (io/vtk_xml_data.hpp). With dst == nullptr: checks the
+// block's header against `need` and the bytes present (before the volume is allocated), copies nothing.
 void unpack_block(const VtiDoc& d, const std::string& b, uint64_t off, char* dst, uint64_t need) {
-  const size_t hs = d.header_bytes;
-  const uint64_t avail = b.size() > off ? b.size() - off : 0;
-  if (!d.compressed) {
-    volbytes::check_available(d.file, avail, hs, "the data array's header");
-    const uint64_t n = get_uint(b, off, hs, d.big_endian);
-    if (n != need)
-      throw InputError(d.file + ": the data array holds " + std::to_string(n) + " bytes but WholeExtent and type need " +
-                       std::to_string(need));
-    volbytes::check_available(d.file, avail - hs, need, "the voxel data");
-    if (dst) std::memcpy(dst, b.data() + off + hs, need);
-    return;
-  }
-  volbytes::check_available(d.file, avail, 3 * hs, "the compressed array's header");
-  const uint64_t nb = get_uint(b, off, hs, d.big_endian);
-  const uint64_t bs = get_uint(b, off + hs, hs, d.big_endian);
-  uint64_t last = get_uint(b, off + 2 * hs, hs, d.big_endian);
-  if (nb > avail / hs) throw InputError(d.file + ": the compressed array's header claims " + std::to_string(nb) +
-                                        " blocks, more than the file can hold (truncated or corrupt)");
-  volbytes::check_available(d.file, avail, (nb + 3) * hs, "the compressed array's block table");
-  if (last == 0) last = bs;
-  bool consistent = nb == 0 ? need == 0 : bs > 0 && last <= bs && nb - 1 <= need / bs && (nb - 1) * bs + last == need;
-  if (!consistent)
-    throw InputError(d.file + ": the compressed array's header (" + std::to_string(nb) + " blocks of " + std::to_string(bs) +
-                     " bytes, last " + std::to_string(last) + ") does not give the " + std::to_string(need) +
-                     " bytes WholeExtent and type need");
-  uint64_t pos = off + (nb + 3) * hs, out = 0, total = 0;
-  for (uint64_t i = 0; i < nb; ++i) {
-    const uint64_t cs = get_uint(b, off + (3 + i) * hs, hs, d.big_endian);
-    volbytes::check_available(d.file, b.size() > pos ? b.size() - pos : 0, cs, "compressed block " + std::to_string(i));
-    total += cs;  // each <= the file's size: no overflow
-  }
-  volbytes::check_available(d.file, b.size() > pos ? b.size() - pos : 0, total, "the compressed blocks");
-  volbytes::check_compressed(d.file, total, need, "the compressed data array");
-  for (uint64_t i = 0; dst && i < nb; ++i) {
-    const uint64_t cs = get_uint(b, off + (3 + i) * hs, hs, d.big_endian);
-    const uint64_t us = i + 1 == nb ? last : bs;
-    volbytes::inflate_into(d.file, "compressed block " + std::to_string(i), b.data() + pos, cs, dst + out, us);
-    pos += cs;
-    out += us;
-  }
+  const vtk::Encoding enc{d.header_bytes == 8, d.big_endian, d.compressed};
+  const vtk::BlockMessages m{d.file, "the voxel data", "WholeExtent and type"};
+  if (dst) vtk::decode_block(b, off, enc, m, dst, need);
+  else vtk::check_block(b, off, enc, m, need);
 }
 
 DataPtr read_vti(const fs::path& path, const VolumeReadOptions&) {

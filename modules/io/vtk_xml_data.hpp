@@ -5,7 +5,9 @@
 // The XML around them is parsed by the caller (expat); raw appended data is cut off first
 // (split_appended), since its bytes are not XML.
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace skel::io::vtk {
@@ -29,6 +31,25 @@ struct SplitFile {
   bool has_appended = false;
 };
 SplitFile split_appended(const std::string& text, const std::string& src);
+
+// One binary array block as VTK stores it, at b[off..]: a size header and the payload, or (zlib) a
+// compression header — number of blocks, block size, size of the last block (0: a full block), the
+// compressed size of every block — followed by the zlib blocks. The one decoder of such blocks, for
+// graphs (.vtp) and volumes (.vti).
+struct BlockMessages {
+  std::string src;                        // start of every message: the file, or "f.vtp: DataArray 'Points'"
+  std::string data = "the array's data";  // what the payload is called ("the voxel data")
+  std::string need_by = "the caller";     // with a required size: what requires it ("WholeExtent and type")
+};
+// Checks the block's headers against the bytes present (and the payload size against `need`, when
+// given) without allocating or inflating anything; returns the payload size. InputError starting
+// with m.src for a truncated block, an inconsistent header, a size other than `need`, or a header
+// that claims more than zlib can expand from the compressed bytes.
+uint64_t check_block(std::string_view b, uint64_t off, const Encoding& enc, const BlockMessages& m,
+                     std::optional<uint64_t> need = std::nullopt);
+// Checks the block as check_block(…, bytes) and decodes its payload into `dst` (exactly `bytes`
+// bytes; a zlib block that inflates to another size is an InputError naming the block).
+void decode_block(std::string_view b, uint64_t off, const Encoding& enc, const BlockMessages& m, char* dst, uint64_t bytes);
 
 // The payload bytes of one array (size header removed, blocks decompressed), checked against the
 // sizes the headers declare. `what` starts error messages ("file: DataArray 'Points'").

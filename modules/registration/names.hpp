@@ -6,5 +6,6 @@ namespace skel::registration::names {
 inline constexpr const char* landmarks = "registration.landmarks";
 inline constexpr const char* refine = "registration.refine";
 inline constexpr const char* apply_transform = "registration.apply_transform";
+inline constexpr const char* stitch_tiles = "registration.stitch_tiles";
 
 }  // namespace skel::registration::names

@@ -1,12 +1,17 @@
 // Registration modules (thesis §6.2): landmark fit, ICP refinement, applying transforms, and the
 // landmark / transform file modules io.read_landmarks, io.write_landmarks, io.read_transform,
 // io.write_transform (with `skelflow info` inspectors for .landmarkAscii, .fcsv and .tfm).
+#include <fstream>
 #include <sstream>
 
 #include "io/landmark_io.hpp"
+#include "io/volume_format.hpp"
 #include "registration/names.hpp"
 #include "registration/registration.hpp"
+#include "registration/stitch.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/module.hpp"
+#include "skel/text.hpp"
 #include "skel/units.hpp"
 
 namespace skel::registration {
@@ -213,6 +218,155 @@ produced. `inverse` applies T⁻¹ instead (a singular affine transform is an er
   }
 };
 SKEL_REGISTER_MODULE(ApplyTransform);
+
+enum class PositionUnit { physical, voxels };
+constexpr auto enum_names(PositionUnit) {
+  return std::to_array<EnumName<PositionUnit>>({{PositionUnit::physical, "physical"}, {PositionUnit::voxels, "voxels"}});
+}
+
+std::string read_text_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::error_code ec;
+  if (!in) throw InputError(path.string() + (std::filesystem::exists(path, ec) ? ": cannot open the file for reading" : ": file not found"));
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// The tiles of a tile list: headers read (not the voxels), positions converted to voxels, box readers
+// through the volume format registry. Errors name the list's line and the tile.
+std::vector<StitchTile> load_tile_list(const std::filesystem::path& list, PositionUnit unit) {
+  const std::filesystem::path shown = list.filename();
+  std::vector<StitchTile> tiles;
+  for (const auto& e : parse_tile_list(read_text_file(list), list)) {
+    StitchTile t;
+    t.name = e.name;
+    t.where = shown.string() + ":" + std::to_string(e.line);
+    io::VolumeHeader h;
+    try {
+      h = io::read_volume_header(e.file);
+    } catch (const InputError& err) {
+      throw InputError(t.where + ": tile '" + e.name + "': " + err.what());
+    }
+    t.grid = h.grid;
+    t.type_id = io::volume_type_for_dtype(h.dtype);
+    for (size_t k = 0; k < 3; ++k) t.position[k] = unit == PositionUnit::voxels ? e.position[k] : e.position[k] / h.grid.spacing[k];
+    t.read_box = [file = e.file](const Dims& begin, const Dims& size) {
+      return io::read_any_volume_box(file, io::VolumeReadOptions{}, begin, size);
+    };
+    tiles.push_back(std::move(t));
+  }
+  return tiles;
+}
+
+class StitchTiles final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec(names::stitch_tiles, "Align overlapping tiles by cross-correlation and merge them into one volume")
+        .path("tile_list", "", PathRole::Input,
+              "tile list (CSV): one line file,x,y,z per tile; files relative to the list's folder")
+        .extensions({".csv", ".txt"}, "tile list")
+        .add_output("volume", all_volume_types(), "the merged volume (voxel type, spacing and unit of the tiles)")
+        .output<Table>("tiles", "per tile: nominal and refined position, placement in the merged volume, pairs used")
+        .output<Table>("pairs", "per overlapping pair: NCC peak, measured offset, residual after the global fit, status")
+        .param("position_unit", PositionUnit::physical,
+               "physical: the list's x, y, z are stage positions in the tiles' unit; voxels: in voxels")
+        .param("search_radius", &StitchOptions::search_radius,
+               "offsets searched around the nominal offset of each pair, per axis (cover twice the stage error)")
+        .range(0, 256).unit("voxels")
+        .param("min_correlation", &StitchOptions::min_correlation,
+               "pairs whose NCC peak is lower are dropped from the global fit (and listed as low_correlation)")
+        .range(-1.0, 1.0)
+        .param("min_overlap", &StitchOptions::min_overlap,
+               "nominal overlap along every axis that makes two tiles a pair").min(2).unit("voxels")
+        .param("fixed_tile", &StitchOptions::fixed_tile, "tile (0-based, in the order of the list) that keeps its nominal position").min(0)
+        .output_type_from("volume", [](const OutputTypeQuery& q) {
+          const auto list = q.input_path("tile_list");
+          const auto entries = parse_tile_list(read_text_file(list), list);
+          const auto& e = entries.front();
+          io::VolumeHeader h;
+          try {
+            h = io::read_volume_header(e.file);
+          } catch (const InputError& err) {
+            throw InputError(list.filename().string() + ":" + std::to_string(e.line) + ": tile '" + e.name + "': " + err.what());
+          }
+          return DeducedOutput{{io::volume_type_for_dtype(h.dtype)}, "tile '" + e.name + "' holds " + h.dtype + " voxels"};
+        })
+        .details(R"(Stitching of overlapping tiles as for the confocal vessel mosaics of thesis §6.1: the
+imprecise stage positions of the blocks are corrected by searching for the shift that maximises the
+correlation of the grey values in their overlap, and the blocks are sampled onto one large grid.
+
+Tile list (CSV, `.csv` or `.txt`): one line `file,x,y,z` per tile; `file` relative to the list's
+folder (or absolute), any volume format the registry reads (a TIFF stack, a folder of TIFF slices, a
+`.zarr` folder, NRRD, HDF5, ...); x, y, z the stage position of the tile's voxel (0, 0, 0) in the
+tiles' unit (`position_unit: physical`, divided by the spacing) or in voxels (`position_unit:
+voxels`). An optional header line (`file,x,y,z`), blank lines and `#` comments are skipped; fields
+may be quoted. All tiles need one voxel type, one spacing and one unit; every tile must overlap
+another by `min_overlap` voxels along every axis. Errors name the list's line and the tile.
+
+1. Pairs: tiles whose nominal boxes overlap by at least `min_overlap` voxels along every axis.
+2. Pairwise alignment: normalised cross-correlation (NCC) of the two tiles over their overlap, for
+   every offset within ±`search_radius` voxels (per axis) of the nominal one, first with the overlap
+   sampled every 2 or 4 voxels per axis (so that at least 4096 voxels are compared), then the 8 best
+   offsets and hill climbing over the 26 neighbours at full resolution; the sub-voxel part is the
+   vertex of a parabola through the peak and its two neighbours along each axis. The fine texture is
+   kept at every stage, so the position along an elongated structure (a vessel crossing the
+   overlap) is still found. Only the overlaps (plus the search radius) are read. Cost per pair:
+   (2·search_radius + 1)³ NCC evaluations on the sampled overlap. Progress: "pair k/n".
+3. Pairs whose peak NCC is below `min_correlation` are dropped (status low_correlation in `pairs`;
+   a warning names them).
+4. Global refinement: positions P minimising Σ ncc · |P_b − P_a − measured_ab|² over the kept pairs
+   (sparse normal equations, Eigen's LDLT), `fixed_tile` kept at its nominal position (and the first
+   tile of any group of tiles not connected to it by kept pairs; tiles without any kept pair keep
+   their nominal positions, with a warning). Inconsistent pairwise errors are averaged instead of
+   accumulated along a chain.
+5. Merge: tiles placed at their refined positions rounded to whole voxels (no interpolation of
+   voxel values, so masks and labels stay exact; the sub-voxel positions are in `tiles`), each
+   voxel the weighted mean of the tiles covering it with weights Π min(i + 1, n − i) falling
+   linearly towards each tile's borders (linear blending), rounded for integer types; 0 where no
+   tile lies. The merged grid has the tiles' spacing and unit, and its origin at the lowest position.
+
+Memory: alignment holds the overlap regions of one pair as float32 (4 bytes per voxel, plus 1/7 for
+the coarse levels). The merge works in blocks: 16 bytes per voxel of a block (double sum and
+weight) plus the tile boxes read for it (their voxel size) and the output. In memory the output is
+the merged volume (its voxel size in bytes per voxel; blocks are z-slabs of 16 M voxels). Under a
+memory budget (`--memory-budget`) a merged volume larger than the budget is written block by block
+onto disk (a chunked scratch volume), never held in memory; each block reads only the tile boxes it
+touches (formats with box reading, e.g. TIFF, HDF5, Zarr, read only those; the others read the tile
+file and cut).
+
+Tables: `tiles` (tile, file, nominal_x/y/z and refined x/y/z in the unit, placed_x/y/z in voxels of
+the merged volume, pairs used); `pairs` (tile_a, tile_b, file_a, file_b, overlap_voxels, correlation,
+dx/dy/dz = measured offset of b relative to a in the unit, residual after the global fit, status).)")
+        .blockwise(0, 24);
+  }
+  void run(RunContext& ctx) override {
+    auto o = ctx.options<StitchOptions>();
+    const auto tiles = load_tile_list(ctx.input_path("tile_list"), ctx.param<PositionUnit>("position_unit"));
+    const StitchLayout layout = align_tiles(tiles, o);
+    std::string low;
+    for (const auto& p : layout.pairs)
+      if (p.status == PairStatus::low_correlation)
+        low += (low.empty() ? "" : ", ") + tiles[static_cast<size_t>(p.a)].name + " / " + tiles[static_cast<size_t>(p.b)].name +
+               " (" + text::format_double(p.correlation, 3) + ")";
+    if (!low.empty()) ctx.warn("pairs dropped for a correlation below min_correlation: " + low);
+    std::string lonely;
+    for (const int64_t i : layout.unconnected) lonely += (lonely.empty() ? "" : ", ") + tiles[static_cast<size_t>(i)].where + " " + tiles[static_cast<size_t>(i)].name;
+    if (!lonely.empty()) ctx.warn("tiles without any kept pair keep their nominal positions: " + lonely);
+    const uint64_t bytes = static_cast<uint64_t>(layout.grid.voxel_count()) * static_cast<uint64_t>(voxel_bytes(layout.type_id));
+    const BlockPlan* blocks = ctx.blocks();
+    if (blocks && bytes > blocks->memory_budget) {
+      auto out = ctx.scratch_volume("volume", layout.type_id, layout.grid);
+      merge_tiles_into(tiles, layout, *out, blocks->block, o);
+      ctx.output("volume", DataPtr(std::move(out)));
+    } else {
+      ctx.output("volume", merge_tiles_in_memory(tiles, layout, o));
+    }
+    ctx.output("tiles", tile_table(tiles, layout));
+    ctx.output("pairs", pair_table(tiles, layout));
+  }
+};
+SKEL_REGISTER_MODULE(StitchTiles);
 
 }  // namespace
 }  // namespace skel::registration

@@ -15,6 +15,10 @@
 
 #include "geometry/names.hpp"
 #include "geometry/skeleton_to_graph.hpp"
+#include "io/graph_io.hpp"
+#include "io/mesh_io.hpp"
+#include "io/volume_format.hpp"
+#include "skel/transform.hpp"
 #include "skel/run_module.hpp"
 #include "skel/union_find.hpp"
 
@@ -370,4 +374,64 @@ TEST(SkeletonToMesh, Module) {
     for (int64_t x = 1; x < 7; ++x) (*v)(x, y, 1) = 1;
   auto r = run_module(names::skeleton_to_mesh, {{"skeleton", v}}, {{"improved", false}}, {.threads = 1});
   EXPECT_EQ(r.get<Mesh>("mesh")->triangle_count(), 5 * 5 * 4);
+}
+
+// Issue 19: a volume's origin and direction (here from a NRRD file) carried to the coordinates of the
+// graph and mesh files, so that a centerline overlays the image in Slicer: a graph node and a mesh
+// vertex at a skeleton voxel land, in the files, at that voxel's world coordinate origin +
+// D·(index·spacing); in memory they stay in the axis-aligned frame, and the graph formats that store
+// the direction (.vtp, .am) read back into it.
+TEST(WorldCoordinates, GraphAndMeshFilesOverlayARotatedNrrdVolume) {
+  VolumeU8 sk(Dims{12, 10, 8}, 0, {0.5, 1.0, 2.0}, {10.0, 20.0, 30.0});
+  for (int64_t x = 2; x <= 9; ++x) sk(x, 3, 4) = 1;
+  for (int64_t y = 3; y <= 8; ++y) sk(9, y, 4) = 1;
+  const Direction d{0, 1, 0, 0, 0, 1, 1, 0, 0};  // voxel x → world z, y → world x, z → world y
+  sk.set_direction(d);
+  sk.set_unit("mm");
+  const auto dir = std::filesystem::path(SKEL_BINARY_DIR) / "test_scratch" / "world_coordinates";
+  std::filesystem::create_directories(dir);
+  io::write_any_volume(dir / "skeleton.nrrd", sk);
+  const auto read = std::dynamic_pointer_cast<const VolumeU8>(io::read_any_volume(dir / "skeleton.nrrd"));
+  ASSERT_TRUE(read);
+  ASSERT_EQ(read->grid().direction, d);
+  const Vec3 end_voxel_world{10.0 + 3.0, 20.0 + 8.0, 30.0 + 1.0};  // voxel (2, 3, 4): D·(1, 3, 8) + origin
+  EXPECT_EQ(world_position(read->grid().position(2, 3, 4), read->origin(), d), end_voxel_world);
+
+  const SpatialGraph g = geometry::skeleton_to_graph(*read, nullptr).graph;
+  auto has = [](const std::vector<Vec3>& points, const Vec3& p) {
+    return std::any_of(points.begin(), points.end(), [&](const Vec3& q) {
+      return std::abs(q[0] - p[0]) + std::abs(q[1] - p[1]) + std::abs(q[2] - p[2]) < 1e-5;
+    });
+  };
+  ASSERT_TRUE(has(g.positions, read->grid().position(2, 3, 4)));  // in memory: the axis-aligned frame
+  io::write_graph(g, dir / "g.swc", io::GraphFormat::swc);
+  const SpatialGraph swc = io::read_graph(dir / "g.swc", io::GraphFormat::swc);
+  EXPECT_TRUE(has(swc.positions, end_voxel_world));  // in the file: world coordinates
+  EXPECT_TRUE(has(swc.positions, world_position(read->grid().position(9, 8, 4), read->origin(), d)));
+  EXPECT_FALSE(has(swc.positions, read->grid().position(2, 3, 4)));
+  for (const auto format : {io::GraphFormat::vtp, io::GraphFormat::amira}) {
+    const auto file = dir / (format == io::GraphFormat::vtp ? "g.vtp" : "g.am");
+    io::write_graph(g, file, format);
+    const SpatialGraph back = io::read_graph(file, format);
+    EXPECT_EQ(back.source_grid.direction, d);
+    ASSERT_EQ(back.positions.size(), g.positions.size());
+    for (size_t i = 0; i < g.positions.size(); ++i)
+      for (size_t k = 0; k < 3; ++k) EXPECT_NEAR(back.positions[i][k], g.positions[i][k], 1e-5) << file;
+  }
+
+  const Mesh mesh = geometry::skeleton_to_mesh(*read);
+  ASSERT_GT(mesh.vertex_count(), 0);
+  io::write_mesh(mesh, dir / "m.ply", io::MeshFormat::ply);
+  const Mesh ply = io::read_mesh(dir / "m.ply", io::MeshFormat::ply);
+  ASSERT_EQ(ply.vertex_count(), mesh.vertex_count());
+  bool end_seen = false;
+  for (int64_t i = 0; i < ply.vertex_count(); ++i) {
+    const auto& p = mesh.points[static_cast<size_t>(i)];
+    const Vec3 w = world_position({p[0], p[1], p[2]}, read->origin(), d);
+    for (size_t k = 0; k < 3; ++k) EXPECT_NEAR(ply.points[static_cast<size_t>(i)][k], w[k], 1e-4);
+    end_seen = end_seen || std::abs(ply.points[static_cast<size_t>(i)][0] - end_voxel_world[0]) +
+                                   std::abs(ply.points[static_cast<size_t>(i)][1] - end_voxel_world[1]) +
+                                   std::abs(ply.points[static_cast<size_t>(i)][2] - end_voxel_world[2]) < 1e-4;
+  }
+  EXPECT_TRUE(end_seen);
 }

@@ -4,7 +4,10 @@
 // VTK; bad files.
 #include <gtest/gtest.h>
 
+#include <cstring>
+
 #include "io/volume_bytes.hpp"
+#include "io/vtk_xml_data.hpp"
 #include "volume_test_util.hpp"
 
 using namespace skel;
@@ -152,4 +155,52 @@ TEST(VolumeVti, BadFilesNameTheFileAndTheProblem) {
                                "Extent=\"0 3 0 3 0 3\"", "Extent=\"" + huge_ext + "\""));
   EXPECT_NE(e.find("hugez.vti: the compressed array's header (1 blocks of 1048576 bytes, last 128) does not give the 2000000000000 bytes"),
             std::string::npos) << e;
+}
+
+// The one decoder of VTK binary blocks (io/vtk_xml_data.hpp), used by .vti volumes and .vtp graphs:
+// an encoded array (several zlib blocks, and raw) decodes into a caller's buffer with its size
+// checked first; the graph path (decode_appended) gives the same bytes; a short buffer size, a
+// truncated block and a header promising more than zlib can expand are input errors naming `src`.
+TEST(VtkBlocks, OneDecoderIntoTheCallersBufferWithSizeChecks) {
+  std::vector<uint16_t> values(40000);
+  for (size_t i = 0; i < values.size(); ++i) values[i] = static_cast<uint16_t>((i * 2654435761u) >> 7);
+  const uint64_t bytes = values.size() * sizeof(uint16_t);
+  for (bool compress : {false, true}) {
+    const std::string block = io::vtk::encode_array(values.data(), bytes, compress);
+    const io::vtk::Encoding enc{true, false, compress};
+    const io::vtk::BlockMessages m{"b.vtp: DataArray 'a'", "the array's data", "the caller"};
+    EXPECT_EQ(io::vtk::check_block(block, 0, enc, m), bytes);
+    std::vector<uint16_t> out(values.size());
+    io::vtk::decode_block(block, 0, enc, m, reinterpret_cast<char*>(out.data()), bytes);
+    EXPECT_EQ(out, values);
+    const std::string via_graph = io::vtk::decode_appended(block, false, 0, block.size(), enc, "b.vtp: DataArray 'a'");
+    ASSERT_EQ(via_graph.size(), bytes);
+    EXPECT_EQ(std::memcmp(via_graph.data(), values.data(), bytes), 0);
+    auto error = [&](const std::string& b, std::optional<uint64_t> need) {
+      try {
+        io::vtk::check_block(b, 0, enc, m, need);
+      } catch (const InputError& e) {
+        return std::string(e.what());
+      }
+      return std::string("no error");
+    };
+    const std::string e = error(block, bytes - 2);
+    EXPECT_NE(e.find(compress ? "b.vtp: DataArray 'a': the compressed array's header (" : "b.vtp: DataArray 'a': the data array holds 80000 bytes but the caller need 79998"),
+              std::string::npos) << e;
+    const std::string t = error(block.substr(0, block.size() - 10), std::nullopt);
+    EXPECT_NE(t.find("b.vtp: DataArray 'a': "), std::string::npos) << t;
+    EXPECT_NE(t.find("but the file has only"), std::string::npos) << t;
+  }
+  // One compressed block of 10 bytes claiming 2^40 bytes: refused before anything is inflated.
+  std::string huge;
+  auto put = [&](uint64_t v) { huge.append(reinterpret_cast<const char*>(&v), 8); };
+  put(1); put(uint64_t{1} << 40); put(uint64_t{1} << 40); put(10);
+  huge += std::string(10, 'x');
+  try {
+    io::vtk::check_block(huge, 0, io::vtk::Encoding{true, false, true}, {"h.vti"});
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("h.vti: the compressed data array claims 1099511627776 bytes but its compressed data is only 10 bytes"),
+              std::string::npos) << e.what();
+  }
 }
