@@ -110,16 +110,20 @@ TEST(OutOfCore, BudgetFromThePipelineFileAndScratchFolder) {
 }
 
 TEST(OutOfCore, InMemoryStageOverTheBudgetFailsNamingTheNodeAndCleansUp) {
-  const std::string without_edt = std::string(kPipeline).substr(0, std::string(kPipeline).find("  edt:"));
+  std::string without_edt = std::string(kPipeline).substr(0, std::string(kPipeline).find("  edt:"));
+  // save_dist writes the distance map through an in-memory stage (io.write_volume is block-wise).
+  const std::string save_dist = "  save_dist: {module: io.write_volume, inputs: {volume: dist.distance}, params: {path: out/dist.h5}}\n";
+  without_edt.replace(without_edt.find(save_dist), save_dist.size(),
+                      "  save_dist: {module: volume.convert, inputs: {input: dist.distance}, params: {dtype: uint16}}\n");
   const Pipeline p = Pipeline::parse(without_edt, "ooc.yaml");
   const fs::path b = scratch("over_budget");
-  // 30 KiB: the blocks and the mask fit, but io.write_volume (in memory) cannot load the distance map.
+  // 30 KiB: the blocks and the mask fit, but volume.convert (in memory) cannot load the distance map.
   try {
     run_into(p, b, 30 << 10, {8, 8, 8});
     FAIL() << "no error";
   } catch (const InputError& e) {
     const std::string msg = e.what();
-    EXPECT_NE(msg.find("ooc.yaml:9:3: node 'save_dist' (io.write_volume): input 'volume': the volume on disk (volume.u16 "
+    EXPECT_NE(msg.find("ooc.yaml:9:3: node 'save_dist' (volume.convert): input 'input': the volume on disk (volume.u16 "
                        "37x29x23, 48.2 KiB) does not fit the memory budget of 30 KiB"),
               std::string::npos)
         << msg;
