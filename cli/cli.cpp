@@ -56,7 +56,7 @@ const std::vector<Command>& commands() {
       {"run",
        "run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]\n"
        "               [--target NODE]... [--quiet] [--allow-outside-output-dir]\n"
-       "               [--memory-budget SIZE] [--scratch DIR]",
+       "               [--memory-budget SIZE] [--scratch DIR] [--resume]",
        "Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths\n"
        "resolve against --output-dir when given. Outputs appear only when the whole run succeeds.\n"
        "With --output-dir, every output must lie inside D: absolute paths, '..' and symbolic links\n"
@@ -72,10 +72,13 @@ const std::vector<Command>& commands() {
        "  --memory-budget SIZE        run the block-wise stages block by block with their volumes in\n"
        "                              scratch files (512MiB, 2GiB, ...); a stage that would load more\n"
        "                              than SIZE stops the run; as `execution: {memory_budget: ...}`\n"
-       "  --scratch DIR               folder of the scratch files (default: next to the first output)",
+       "  --scratch DIR               folder of the scratch files (default: next to the first output)\n"
+       "  --resume                    continue a run under a memory budget that was killed, from the\n"
+       "                              stages it finished (refused when the pipeline, a parameter, an\n"
+       "                              input file, the budget or the block shape changed)",
        "skelflow run pipelines/vessel_network.yaml --set phantom.seed=7 --threads 4 --output-dir out",
        {"--set", "--threads", "--output-dir", "--allow-outside-output-dir", "--report", "--target", "--quiet", "-q",
-        "--memory-budget", "--scratch", "--help", "-h"}},
+        "--memory-budget", "--scratch", "--resume", "--help", "-h"}},
       {"validate", "validate PIPELINE [--output-dir D] [--allow-outside-output-dir]",
        "Checks a pipeline without running it: modules, parameters, connections, types, cycles, input\n"
        "files that do not exist, output extensions, two outputs into one file, outputs outside D.\n"
@@ -517,6 +520,8 @@ int cmd_run(const std::vector<std::string>& args) {
       opt.memory_budget = parse_byte_size(need(i, "--memory-budget"), "--memory-budget");
     } else if (a == "--scratch") {
       opt.scratch_dir = need(i, "--scratch");
+    } else if (a == "--resume") {
+      opt.resume = true;
     } else if (a == "--quiet" || a == "-q") {
       quiet = true;
     } else if (!a.empty() && a[0] == '-') {

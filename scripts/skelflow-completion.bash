@@ -34,7 +34,7 @@ _skelflow() {
   case "$cmd" in
     run)
       if [[ $cur == -* ]]; then
-        COMPREPLY=($(compgen -W "--set --threads --output-dir --allow-outside-output-dir --report --target --quiet --memory-budget --scratch --help" -- "$cur"))
+        COMPREPLY=($(compgen -W "--set --threads --output-dir --allow-outside-output-dir --report --target --quiet --memory-budget --scratch --resume --help" -- "$cur"))
       else
         COMPREPLY=($(compgen -f -X '!*.@(yaml|yml)' -- "$cur") $(compgen -d -- "$cur"))
       fi ;;

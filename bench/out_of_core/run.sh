@@ -60,3 +60,8 @@ echo "| run | wall s | peak RSS MiB | seconds per stage |"
 echo "|---|---|---|---|"
 run in-memory
 run "budget-$budget" --memory-budget "$budget"
+# The 2 GiB TIFF stack of issue 19 (about 15 min and 6.5 GB of temporary disk): on request.
+if [ "${SKEL_BENCH_TIFF_STREAM:-0}" = 1 ]; then
+  echo
+  bash "$(dirname "$0")/tiff_stream.sh" "$build"
+fi

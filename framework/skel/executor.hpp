@@ -48,6 +48,10 @@ struct ExecOptions {
   uint64_t memory_budget = 0;
   Dims block{0, 0, 0};
   std::filesystem::path scratch_dir;
+  // --resume: continue a run of this pipeline that was killed, from the stages it finished (their
+  // volumes and tables kept in the scratch folder); refused when the pipeline, its parameters, its
+  // input files, the budget or the block shape changed. Without it such leftovers are removed.
+  bool resume = false;
   // Outputs of a node that ran (not of cached nodes), called once when it finishes; the CLI keeps
   // the small summary tables from here without keep_outputs (which would keep every volume).
   std::function<void(const std::string& node, const std::map<std::string, DataPtr>& outputs)> on_outputs;

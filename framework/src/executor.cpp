@@ -4,6 +4,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
+#include <optional>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -16,9 +17,11 @@
 #include <cstring>
 
 #include "context.hpp"
+#include "resume.hpp"
 #include "skel/fs.hpp"
 #include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
+#include "skel/resume_io.hpp"
 #include "skel/text.hpp"
 
 namespace fs = std::filesystem;
@@ -139,6 +142,12 @@ struct Executor::Impl {
 
   ExecutionPlan make_plan(const Pipeline& pipeline, const ExecOptions& options) const;
   std::vector<std::map<std::string, DataPtr>> lookup_cache(ExecutionPlan& plan) const;
+  // Out-of-core runs: the resume folder (`dir`) and its manifest; with --resume, the finished stages
+  // of a killed run loaded into `results` and marked cached (and the stages only they needed). Adds
+  // notes; throws InputError when --resume cannot continue (saying why).
+  detail::ResumeManifest prepare_resume(ExecutionPlan& plan, const ExecOptions& opt,
+                                        std::vector<std::map<std::string, DataPtr>>& results,
+                                        std::vector<std::string>& notes, fs::path& dir) const;
 
   // Cache keys of every node (module + effective params + upstream keys), in topological order.
   std::map<std::string, uint64_t> keys(const Pipeline& p, const std::vector<std::string>& order,
@@ -404,6 +413,153 @@ std::vector<std::map<std::string, DataPtr>> Executor::Impl::lookup_cache(Executi
   return results;
 }
 
+// ---------------------------------------------------------------- phase 2b: resume state
+namespace {
+std::string hex8(uint64_t v) {
+  char b[24];
+  std::snprintf(b, sizeof b, "%08llx", static_cast<unsigned long long>(v & 0xffffffffull));
+  return b;
+}
+std::string budget_text(uint64_t budget, const Dims& block) {
+  return format_byte_size(budget) + ", " +
+         (block == Dims{0, 0, 0} ? std::string("blocks from the budget")
+                                 : "blocks " + std::to_string(block[0]) + "x" + std::to_string(block[1]) + "x" +
+                                       std::to_string(block[2]));
+}
+}  // namespace
+
+detail::ResumeManifest Executor::Impl::prepare_resume(ExecutionPlan& plan, const ExecOptions& opt,
+                                                      std::vector<std::map<std::string, DataPtr>>& results,
+                                                      std::vector<std::string>& notes, fs::path& dir) const {
+  dir.clear();
+  if (plan.memory_budget == 0) {
+    if (opt.resume)
+      throw InputError("--resume: only runs under a memory budget (--memory-budget SIZE, or execution: {memory_budget: "
+                       "SIZE} in the pipeline) keep what they finished");
+    return {};
+  }
+  if (opt.keep_outputs) {  // the GUI keeps volumes in its cache; it has nothing to resume
+    if (opt.resume) throw InputError("--resume: not available while outputs are kept for viewing");
+    return {};
+  }
+  const Pipeline& p = plan.pipeline;
+  const std::string file = fs::absolute(p.file()).lexically_normal().string();
+  std::string stem = fs::path(p.file()).stem().string();
+  if (stem.empty()) stem = "pipeline";
+  dir = plan.scratch_dir / (".skelflow-resume-" + stem + "-" + hex8(fnv1a(file + "\n" + plan.output_base.string())));
+
+  detail::ResumeManifest m;
+  m.pid = static_cast<int64_t>(::getpid());
+  std::string structure;
+  for (const auto& n : p.nodes()) {
+    structure += n.id + " " + n.module + "\n";
+    for (const auto& [port, ref] : n.inputs) structure += "  " + port + " <- " + ref.node + "." + ref.port + "\n";
+  }
+  m.pipeline_hash = fnv1a(structure);
+  m.keys = keys(p, p.topological_order(), nullptr);
+  for (const auto& pn : plan.nodes) {
+    const PipelineNode& node = *p.find(pn.id);
+    const ModuleSpec& spec = *registry.find(node.module);
+    const ParamMap eff = effective_params(node, spec);
+    for (const auto& ps : spec.params()) {
+      if (ps.type != ParamType::Path || ps.path_role != PathRole::Input) continue;
+      auto it = eff.find(ps.name);
+      const auto* value = it == eff.end() ? nullptr : std::get_if<std::string>(&it->second);
+      if (!value || value->empty()) continue;
+      const fs::path in = detail::resolve_path(plan.input_base, *value);
+      m.inputs[in.string()] = detail::file_stamp(in);
+    }
+  }
+  std::string params;
+  for (const auto& [id, k] : m.keys) params += id + "=" + std::to_string(k) + "\n";
+  for (const auto& [f, stamp] : m.inputs) params += f + "@" + stamp + "\n";
+  m.params_hash = fnv1a(params);
+  m.memory_budget = plan.memory_budget;
+  m.block = plan.block;
+
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    std::optional<detail::ResumeManifest> old;
+    std::string damaged;
+    try {
+      old = detail::parse_manifest(dir / detail::kResumeManifest);
+    } catch (const Error& e) {
+      damaged = e.what();
+    }
+    if (old && detail::other_process_alive(old->pid))
+      throw InputError("scratch folder " + plan.scratch_dir.string() + ": a running skelflow (pid " + std::to_string(old->pid) +
+                       ") keeps its resume state of this pipeline in " + dir.string() +
+                       "; wait for it to end, or give another --scratch");
+    if (!opt.resume) {
+      fs::remove_all(dir, ec);
+      notes.push_back("removed the resume state of a run of this pipeline that did not finish (" + dir.string() +
+                      (old ? ", " + std::to_string(old->done.size()) + " finished stage(s)" : std::string()) +
+                      "); `skelflow run --resume` continues such a run instead");
+    } else {
+      const std::string head = "--resume: cannot continue the run kept in " + dir.string() + ": ";
+      const std::string tail = "; run without --resume to start over (that removes it)";
+      if (!old) throw InputError(head + damaged + tail);
+      if (old->pipeline_hash != m.pipeline_hash)
+        throw InputError(head + "the pipeline's nodes or connections changed since that run" + tail);
+      if (old->memory_budget != m.memory_budget || old->block != m.block)
+        throw InputError(head + "the memory budget or block shape changed (that run: " +
+                         budget_text(old->memory_budget, old->block) + "; now: " + budget_text(m.memory_budget, m.block) +
+                         ")" + tail);
+      for (const auto& id : p.topological_order()) {
+        auto a = old->keys.find(id);
+        if (a == old->keys.end() || a->second != m.keys.at(id))
+          throw InputError(head + "the parameters of node '" + id + "' changed since that run" + tail);
+      }
+      for (const auto& [f, stamp] : m.inputs) {
+        auto a = old->inputs.find(f);
+        if (a == old->inputs.end() || a->second != stamp)
+          throw InputError(head + "the input file " + f + " changed since that run" + tail);
+      }
+      if (old->params_hash != m.params_hash) throw InputError(head + "the parameters changed since that run" + tail);
+      // Which stages run: a stage runs when it is not kept and its outputs are wanted (it ends the
+      // pipeline, or a stage that runs reads them); a kept stage is loaded when they are wanted.
+      const ResumeVolumeIo* io = resume_volume_io();
+      const size_t n = plan.nodes.size();
+      std::vector<char> kept(n, 0), runs(n, 0), wanted(n, 0);
+      for (size_t i = 0; i < n; ++i) {
+        auto d = old->done.find(plan.nodes[i].id);
+        if (d == old->done.end() || d->second.key != plan.nodes[i].cache_key || !io) continue;
+        kept[i] = std::all_of(d->second.outputs.begin(), d->second.outputs.end(),
+                              [&](const detail::ResumeOutput& o) { return fs::exists(dir / o.file, ec); });
+      }
+      for (size_t i = n; i-- > 0;) {
+        wanted[i] = plan.nodes[i].users.empty() ||
+                    std::any_of(plan.nodes[i].users.begin(), plan.nodes[i].users.end(), [&](size_t u) { return runs[u] != 0; });
+        runs[i] = wanted[i] && !kept[i] && !plan.nodes[i].cached;
+      }
+      size_t loaded = 0;
+      for (size_t i = 0; i < n; ++i) {
+        if (runs[i] || plan.nodes[i].cached) continue;
+        plan.nodes[i].cached = true;  // not run: loaded, or not needed by any stage that runs
+        if (!kept[i] || !wanted[i]) continue;
+        const auto& d = old->done.at(plan.nodes[i].id);
+        for (const auto& o : d.outputs) {
+          try {
+            if (o.kind == "volume") results[i][o.port] = io->open(dir / o.file, o.type_id, o.grid);
+            else results[i][o.port] = std::make_shared<Table>(detail::load_table(dir / o.file));
+          } catch (const Error& e) {
+            throw InputError(head + "the output '" + o.port + "' of node '" + plan.nodes[i].id + "' is damaged: " + e.what() + tail);
+          }
+        }
+        m.done[plan.nodes[i].id] = d;
+        ++loaded;
+      }
+      notes.push_back("resumed from " + dir.string() + ": " + std::to_string(loaded) + " finished stage(s) loaded, " +
+                      std::to_string(std::count(runs.begin(), runs.end(), 1)) + " to run");
+    }
+  } else if (opt.resume) {
+    notes.push_back("--resume: no interrupted run of this pipeline in " + plan.scratch_dir.string() + "; running from the start");
+  }
+  fs::create_directories(dir, ec);
+  write_file_atomically(dir / detail::kResumeManifest, detail::manifest_text(m));
+  return m;
+}
+
 // ---------------------------------------------------------------- phases 3 and 4: run nodes, schedule
 // The state of one run: nodes waiting, ready, running, their results, the first error, the output
 // files written so far. Worker threads share it under `m_`.
@@ -445,6 +601,8 @@ private:
   std::shared_ptr<ChunkedVolume> make_scratch(size_t i, const std::string& port, const std::string& type_id,
                                               const Grid& grid, const Dims& chunk);
   void remove_scratch(bool keep_live);
+  void checkpoint(size_t i, const NodeReport& nr);
+  void remove_resume_dir();
 
   void status(size_t i, NodeState s, double prog, const std::string& msg) const {
     if (opt_.on_status) opt_.on_status(plan_.nodes[i].id, NodeStatus{s, prog, msg});
@@ -479,6 +637,17 @@ private:
   std::mutex scratch_m_;
   std::vector<fs::path> scratch_files_;  // every scratch file of this run (out-of-core)
   std::map<std::string, int> scratch_names_;
+  // Resume state (resume.hpp): the folder holding the scratch files and the manifest; empty when
+  // the run keeps none (no budget, or the GUI).
+  fs::path resume_dir_;
+  detail::ResumeManifest manifest_;
+  std::mutex manifest_m_;
+
+public:
+  void set_resume(fs::path dir, detail::ResumeManifest m) {
+    resume_dir_ = std::move(dir);
+    manifest_ = std::move(m);
+  }
 };
 
 // The inputs of node i from its upstream results, checked against the port's types.
@@ -572,11 +741,15 @@ void Executor::Scheduler::run_node(size_t i) {
   nr.module = node.module;
   const auto t0 = std::chrono::steady_clock::now();
   try {
-    auto inputs = gather_inputs(i);
-    if (plan_.memory_budget > 0 && !plan_.nodes[i].blockwise && !plan_.nodes[i].cached)
-      inputs = load_for_in_memory_module(std::move(inputs), plan_.memory_budget, node.module);
-    if (plan_.nodes[i].cached) nr.cached = true;
-    else run_module(i, std::move(inputs), nr);
+    if (plan_.nodes[i].cached) {
+      nr.cached = true;
+    } else {
+      auto inputs = gather_inputs(i);
+      if (plan_.memory_budget > 0 && !plan_.nodes[i].blockwise)
+        inputs = load_for_in_memory_module(std::move(inputs), plan_.memory_budget, node.module);
+      run_module(i, std::move(inputs), nr);
+      if (!resume_dir_.empty()) checkpoint(i, nr);
+    }
     nr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     nr.peak_rss_mib = peak_rss_mib();
     // Reading /proc costs ~10 µs: skip it for nodes too short to change the resident set much.
@@ -719,7 +892,8 @@ std::shared_ptr<ChunkedVolume> Executor::Scheduler::make_scratch(size_t i, const
     if (n > 0) stem += "." + std::to_string(n);
     std::error_code ec;
     fs::create_directories(plan_.scratch_dir, ec);
-    file = temp_sibling(plan_.scratch_dir / (stem + ".scratch.h5"), files_.run_id());
+    file = resume_dir_.empty() ? temp_sibling(plan_.scratch_dir / (stem + ".scratch.h5"), files_.run_id())
+                               : resume_dir_ / (stem + ".h5");
     scratch_files_.push_back(file);
   }
   return std::make_shared<ChunkedVolume>(grid, type_id, create_volume_store(file, type_id, grid, chunk));
@@ -734,6 +908,63 @@ void Executor::Scheduler::remove_scratch(bool keep_live) {
     std::error_code ec;
     fs::remove(f, ec);
   }
+}
+
+// Keeps what node i made for `--resume` (resume.hpp): its scratch volumes flushed, its in-memory
+// volumes and tables written to the resume folder, then the manifest. Nodes that write files (their
+// outputs are staged with the run's) and nodes with other outputs (graphs, meshes) are not kept:
+// they run again when the run is resumed. A failure to keep them is a warning, not an error.
+void Executor::Scheduler::checkpoint(size_t i, const NodeReport& nr) {
+  const ResumeVolumeIo* io = resume_volume_io();
+  if (!nr.outputs_written.empty() || !io) return;
+  std::map<std::string, DataPtr> outs;
+  {
+    std::lock_guard lock(m_);
+    outs = results_[i];
+  }
+  const std::string& id = plan_.nodes[i].id;
+  detail::ResumeNode rn;
+  rn.key = plan_.nodes[i].cache_key;
+  try {
+    for (const auto& [port, d] : outs) {
+      if (!d) return;
+      detail::ResumeOutput o;
+      o.port = port;
+      if (const auto* c = dynamic_cast<const ChunkedVolume*>(d.get())) {
+        const fs::path f = c->store()->file();
+        if (f.parent_path() != resume_dir_ || f.filename().string().rfind(id + ".", 0) != 0) return;  // not its own
+        io->flush(*c->store());
+        o.kind = "volume";
+        o.file = f.filename().string();
+        o.type_id = c->type_id();
+        o.grid = c->grid();
+      } else if (voxel_bytes(d->type_id()) > 0) {
+        o.kind = "volume";
+        o.file = id + "." + port + ".memory.h5";
+        o.type_id = d->type_id();
+        o.grid = any_volume_grid(*d, "output '" + port + "'");
+        io->save(resume_dir_ / o.file, *d);
+      } else if (const auto* t = dynamic_cast<const Table*>(d.get())) {
+        o.kind = "table";
+        o.file = id + "." + port + ".table";
+        detail::save_table(resume_dir_ / o.file, *t);
+      } else {
+        return;
+      }
+      rn.outputs.push_back(std::move(o));
+    }
+    std::lock_guard lock(manifest_m_);
+    manifest_.done[id] = std::move(rn);
+    write_file_atomically(resume_dir_ / detail::kResumeManifest, detail::manifest_text(manifest_));
+  } catch (const std::exception& e) {
+    if (opt_.on_warning) opt_.on_warning(id, std::string("not kept for --resume: ") + e.what());
+  }
+}
+
+void Executor::Scheduler::remove_resume_dir() {
+  if (resume_dir_.empty()) return;
+  std::error_code ec;
+  fs::remove_all(resume_dir_, ec);
 }
 
 // Caches what ran when outputs are kept (GUI); headless runs free intermediates instead.
@@ -773,6 +1004,7 @@ void Executor::Scheduler::conclude(double seconds) {
     if (plan_.memory_budget > 0) {
       if (!opt_.keep_outputs) results_.clear();  // drops the on-disk volumes: their stores remove their files
       remove_scratch(opt_.keep_outputs);
+      remove_resume_dir();
     }
     return;
   }
@@ -780,6 +1012,7 @@ void Executor::Scheduler::conclude(double seconds) {
   if (plan_.memory_budget > 0) {
     results_.clear();
     remove_scratch(false);
+    remove_resume_dir();
   }
   for (size_t i = 0; i < n_; ++i)
     if (state_[i] == NodeState::Waiting) status(i, NodeState::Cancelled, 0.0, {});
@@ -827,9 +1060,13 @@ RunReport Executor::run(const Pipeline& pipeline, const ExecOptions& opt) {
   report.pipeline = plan.pipeline.file();
   report.threads = plan.threads;
   report.notes = remove_stale_outputs(plan);
+  auto results = im.lookup_cache(plan);
+  fs::path resume_dir;
+  detail::ResumeManifest manifest = im.prepare_resume(plan, opt, results, report.notes, resume_dir);
   if (opt.on_notice)
     for (const auto& n : report.notes) opt.on_notice(n);
-  Scheduler run(im, plan, opt, im.lookup_cache(plan), modules_run_, report);
+  Scheduler run(im, plan, opt, std::move(results), modules_run_, report);
+  run.set_resume(std::move(resume_dir), std::move(manifest));
   run.run_all();
   run.conclude(std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count());
   return report;

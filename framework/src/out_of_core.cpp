@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cctype>
+#include <chrono>
 #include <cmath>
 #include <mutex>
 #include <sstream>
+#include <thread>
 
+#include "skel/resume_io.hpp"
 #include "skel/text.hpp"
 
 namespace skel {
@@ -188,6 +191,7 @@ Dims block_for_budget(uint64_t budget, int64_t halo, int64_t bytes_per_voxel, co
 }
 
 void report_blocks(const Interrupter& interrupter, const std::string& label, int64_t done, int64_t total) {
+  if (done > 0 && test_block_delay_ms() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(test_block_delay_ms()));
   interrupter.check(total > 0 ? static_cast<double>(done) / static_cast<double>(total) : 1.0);
   interrupter.note(label + " " + std::to_string(done) + "/" + std::to_string(total) + " blocks");
 }

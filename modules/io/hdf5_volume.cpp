@@ -1,4 +1,5 @@
 #include "io/hdf5_volume.hpp"
+#include "io/volume_format.hpp"
 
 #include <hdf5.h>
 #include <zlib.h>
@@ -14,6 +15,7 @@
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
 #include "skel/out_of_core.hpp"
+#include "skel/resume_io.hpp"
 #include "skel/parallel.hpp"
 
 namespace fs = std::filesystem;
@@ -511,9 +513,11 @@ void shuffle_bytes(const unsigned char* src, unsigned char* dst, size_t n) {
 // for multi-byte types, then zlib compress2 at the dataset's level, exactly as H5Z_filter_deflate.
 // Chunks are compressed in batches and written in chunk order by the calling thread (which holds
 // the HDF5 mutex; the workers call no HDF5 function). Caller holds the mutex.
+// `v` may be a band of the dataset starting at `at` (on chunk boundaries, ending on chunk boundaries
+// or at the dataset's end): only its chunks are written.
 template <class T>
 void write_compressed_chunks(hid_t d, const Volume<T>& v, int level, int threads, const fs::path& file,
-                             const std::string& dataset) {
+                             const std::string& dataset, const Dims& at = Dims{0, 0, 0}) {
   Handle dcpl(H5Dget_create_plist(d), H5Pclose);
   hsize_t hc[3];
   if (H5Pget_chunk(dcpl.id, 3, hc) != 3) fail(file, "cannot read the chunk shape of dataset '" + dataset + "'");
@@ -556,8 +560,9 @@ void write_compressed_chunks(hid_t d, const Volume<T>& v, int level, int threads
     });
     for (int64_t k = 0; k < count; ++k) {
       const int64_t c = first + k;
-      const hsize_t offset[3] = {static_cast<hsize_t>((c / (gx * gy)) * cz), static_cast<hsize_t>((c / gx % gy) * cy),
-                                 static_cast<hsize_t>((c % gx) * cx)};
+      const hsize_t offset[3] = {static_cast<hsize_t>(at[2] + (c / (gx * gy)) * cz),
+                                 static_cast<hsize_t>(at[1] + (c / gx % gy) * cy),
+                                 static_cast<hsize_t>(at[0] + (c % gx) * cx)};
       if (H5Dwrite_chunk(d, H5P_DEFAULT, 0, offset, out_size[static_cast<size_t>(k)], out[static_cast<size_t>(k)].data()) < 0)
         fail_write(file, "dataset '" + dataset + "'");
     }
@@ -580,6 +585,58 @@ void write_volume(const fs::path& file, const DataObject& volume, const std::str
         fail_write(file, "dataset '" + dataset + "'");
       if (H5Fflush(f.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
       // Closed here so that a failure is reported; the flush above leaves close little to write.
+      if (!d.close_now() || !f.close_now() || detail::first_write_errno() != 0) fail_write(file, "dataset '" + dataset + "'");
+    });
+  });
+}
+
+void write_volume_boxes(const fs::path& file, const VolumeBoxSource& source, const std::string& dataset,
+                        const WriteOptions& opt) {
+  check_write_args(dataset, opt);
+  source.grid.validate();
+  visit_voxel_type(source.type_id, "volume", [&](auto t) {
+    using T = decltype(t);
+    const Dims n = source.grid.dims;
+    write_atomically(file, [&](const fs::path& tmp) {
+      std::unique_lock lock(hdf5_mutex());  // destroyed after the handles: they close under the lock
+      quiet();
+      auto [f, d] = create_dataset(tmp, dataset, native<T>(), source.grid, opt);
+      if (source.grid.voxel_count() > 0) {
+        Handle dcpl(H5Dget_create_plist(d.id), H5Pclose);
+        hsize_t hc[3];
+        if (H5Pget_chunk(dcpl.id, 3, hc) != 3) fail(file, "cannot read the chunk shape of dataset '" + dataset + "'");
+        const int64_t cy = static_cast<int64_t>(hc[1]), cz = static_cast<int64_t>(hc[0]);
+        // Bands of whole x-rows of chunks, in the dataset's chunk order (the file write_volume makes).
+        const int64_t rows = units_per_box(source, static_cast<uint64_t>(n[0] * cy * cz) * sizeof(T), (n[1] + cy - 1) / cy);
+        for (int64_t z0 = 0; z0 < n[2]; z0 += cz)
+          for (int64_t y0 = 0; y0 < n[1]; y0 += rows * cy) {
+            const Dims begin{0, y0, z0}, size{n[0], std::min(rows * cy, n[1] - y0), std::min(cz, n[2] - z0)};
+            DataPtr box;
+            lock.unlock();  // the source may be an HDF5 scratch file: it takes the mutex itself
+            try {
+              box = source.read(begin, size);
+            } catch (...) {
+              lock.lock();
+              throw;
+            }
+            lock.lock();
+            const auto* v = dynamic_cast<const Volume<T>*>(box.get());
+            if (!v || v->dims() != size) throw Error(file.string() + ": the volume's box reader gave no " + VoxelTraits<T>::id + " box");
+            if (opt.compression > 0) {
+              write_compressed_chunks(d.id, *v, opt.compression, opt.threads, file, dataset, begin);
+              continue;
+            }
+            Handle space(H5Dget_space(d.id), H5Sclose);
+            const hsize_t start[3] = {static_cast<hsize_t>(z0), static_cast<hsize_t>(y0), 0};
+            const hsize_t count[3] = {static_cast<hsize_t>(size[2]), static_cast<hsize_t>(size[1]), static_cast<hsize_t>(size[0])};
+            if (H5Sselect_hyperslab(space.id, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
+              fail(file, "invalid box for dataset '" + dataset + "'");
+            Handle mem(H5Screate_simple(3, count, nullptr), H5Sclose);
+            if (H5Dwrite(d.id, native<T>(), mem.id, space.id, H5P_DEFAULT, v->data()) < 0)
+              fail_write(file, "dataset '" + dataset + "'");
+          }
+      }
+      if (H5Fflush(f.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
       if (!d.close_now() || !f.close_now() || detail::first_write_errno() != 0) fail_write(file, "dataset '" + dataset + "'");
     });
   });
@@ -703,6 +760,23 @@ public:
       throw;
     }
   }
+  // Opens a flushed scratch file or one written by write_volume (resumed runs), read-only; removed
+  // when the store is destroyed, as a new one.
+  Hdf5ScratchStore(const fs::path& file, const std::string& type_id) : file_(file), type_(native_of(dtype_of_type_id(type_id))) {
+    std::lock_guard lock(hdf5_mutex());
+    quiet();
+    file_handle_ = Handle(H5Fopen(file_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!file_handle_) throw Error("cannot open the resumed scratch file " + file_.string() + hdf5_reason());
+    Handle dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
+    H5Pset_chunk_cache(dapl.id, 521, kChunkCacheBytes, 0.75);
+    dset_ = Handle(H5Dopen2(file_handle_.id, kDataset, dapl.id), H5Dclose);
+    if (!dset_) throw Error("cannot open the resumed scratch file " + file_.string() + hdf5_reason());
+  }
+  // Data and metadata to disk.
+  void flush() const {
+    std::lock_guard lock(hdf5_mutex());
+    if (H5Fflush(file_handle_.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file_, "scratch data");
+  }
   ~Hdf5ScratchStore() override {
     {
       std::lock_guard lock(hdf5_mutex());
@@ -743,11 +817,29 @@ private:
   Handle file_handle_, dset_;
 };
 
-// Registers the HDF5 scratch store with the framework (skel/out_of_core.hpp) at start-up.
+// Registers the HDF5 scratch store with the framework (skel/out_of_core.hpp) at start-up, and the
+// saving, flushing and reopening of stage volumes for resumed runs (skel/resume_io.hpp).
 const bool kScratchStoreRegistered = [] {
   register_volume_store_factory([](const fs::path& file, const std::string& type_id, const Grid& grid, const Dims& chunk) {
     return create_scratch_store(file, type_id, grid, chunk);
   });
+  ResumeVolumeIo io;
+  io.save = [](const fs::path& file, const DataObject& volume) {
+    WriteOptions o;
+    o.compression = 0;
+    write_volume(file, volume, "/volume", o);
+  };
+  io.flush = [](const VolumeStore& store) {
+    if (const auto* h = dynamic_cast<const Hdf5ScratchStore*>(&store)) h->flush();
+  };
+  io.open = [](const fs::path& file, const std::string& type_id, const Grid& grid) {
+    const VolumeInfo i = read_volume_info(file, "/volume");
+    if (i.dims != grid.dims || i.dtype != dtype_of_type_id(type_id))
+      throw Error(file.string() + ": holds " + i.dtype + " " + std::to_string(i.dims[0]) + "x" + std::to_string(i.dims[1]) +
+                  "x" + std::to_string(i.dims[2]) + ", not the " + type_id + " volume the resume manifest names");
+    return std::make_shared<ChunkedVolume>(grid, type_id, std::make_shared<Hdf5ScratchStore>(file, type_id));
+  };
+  register_resume_volume_io(std::move(io));
   return true;
 }();
 

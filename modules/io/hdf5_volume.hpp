@@ -56,6 +56,13 @@ VolumeInfo read_volume_info(const std::filesystem::path& file, const std::string
 // and renamed into place (an existing file is replaced; nothing partial is ever left under `file`).
 void write_volume(const std::filesystem::path& file, const DataObject& volume, const std::string& dataset = "/volume",
                   const WriteOptions& options = {});
+struct VolumeBoxSource;  // volume_format.hpp
+
+// write_volume of a volume given box by box (under a memory budget): bands of whole rows of chunks
+// (x whole, as many chunk rows as source.max_box_bytes holds) are read from the source and written
+// in chunk order, compressed as write_volume does. The file holds the same dataset and attributes.
+void write_volume_boxes(const std::filesystem::path& file, const VolumeBoxSource& source,
+                        const std::string& dataset = "/volume", const WriteOptions& options = {});
 // Block-wise (out-of-core) writing: create_volume_dataset creates `file` (replacing it) with an
 // empty dataset of `dtype` (uint8, uint16, uint32, uint64, int32, float32, float64) and `grid`
 // (dims, spacing, origin attributes); write_box then writes a block whose voxel (0,0,0) goes to

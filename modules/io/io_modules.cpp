@@ -5,6 +5,7 @@
 #include "io/names.hpp"
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/table.hpp"
 #include "volume/convert.hpp"
 
@@ -77,6 +78,7 @@ public:
           why += "' holds " + h.dtype + " voxels";
           return DeducedOutput{{volume_type_for_dtype(h.dtype)}, why};
         })
+        .blockwise(0, 16)
         .details(R"(Reads a three-dimensional image; the format is chosen by the file's extension (or,
 for an unknown extension, by its first bytes). Formats:
 
@@ -101,7 +103,15 @@ says (the origin keeps its position in voxels). uint8/16/32/64, float32 and floa
 they are, int8/int16/int32 become int32, int64 becomes float64. `skelflow validate` reads the file's
 header, so a missing, truncated or foreign file and a voxel type the next node does not take are
 reported before anything runs. Memory: the volume itself (its voxel size in bytes per voxel; with
-`dtype`, the converted copy too).)");
+`dtype`, the converted copy too).
+
+Block-wise under a memory budget: files whose format reads a box without decoding the rest (TIFF
+pages and strips, Zarr chunks, HDF5, raw, uncompressed NRRD and MetaImage) are read box by box
+straight into an on-disk volume: slabs of whole slices taking a quarter of the budget (or the
+`block` of `execution:`), each converted to `dtype` on its own; memory per box: the stored voxel
+size plus, with `dtype`, the converted one, in bytes per voxel. Other files (gzip NRRD, compressed
+MetaImage, NIfTI, VTK image, Amira) are read whole when they fit the budget; otherwise the run stops
+with an error naming the file and its format.)");
   }
   void run(RunContext& ctx) override {
     const auto path = ctx.input_path("path");
@@ -109,15 +119,67 @@ reported before anything runs. Memory: the volume itself (its voxel size in byte
     for (const auto& p : ctx.spec().params()) params[p.name] = ctx.param_value(p.name);
     VolumeReadOptions o = read_options(params);
     o.threads = ctx.threads();
-    DataPtr v = read_any_volume(path, o);
     const std::string dt = ctx.param<std::string>("dtype");
-    if (dt != "keep") {
-      volume::ConvertOptions o;
-      o.dtype = dt;
-      o.threads = ctx.threads();
-      v = volume::convert_volume_type(*v, o);
+    auto convert = [&](DataPtr v) {
+      if (dt == "keep") return v;
+      volume::ConvertOptions c;
+      c.dtype = dt;
+      c.threads = ctx.threads();
+      return volume::convert_volume_type(*v, c);
+    };
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      if (reads_boxes_cheaply(path, o)) {
+        ctx.output("volume", DataPtr(read_into_scratch(ctx, *blocks, path, o, dt, convert)));
+        return;
+      }
+      // No box reader for this file: the whole volume, when it fits the budget.
+      const VolumeHeader h = read_volume_header(path, o);
+      const uint64_t n = static_cast<uint64_t>(h.grid.voxel_count());
+      const uint64_t bytes = n * static_cast<uint64_t>(voxel_bytes(volume_type_for_dtype(h.dtype))) +
+                             (dt == "keep" ? 0 : n * static_cast<uint64_t>(voxel_bytes(volume_type_for_dtype(dt))));
+      if (bytes > blocks->memory_budget)
+        throw InputError(path.string() + ": " + volume_format_for_read(path).name + " file (" + h.dtype + " " +
+                         std::to_string(h.grid.dims[0]) + "x" + std::to_string(h.grid.dims[1]) + "x" +
+                         std::to_string(h.grid.dims[2]) + ", " + format_byte_size(bytes) + " in memory" +
+                         (dt == "keep" ? "" : " with the converted copy") +
+                         ") cannot be read box by box (compressed or encoded as a whole) and does not fit the memory "
+                         "budget of " + format_byte_size(blocks->memory_budget) +
+                         "; convert it to TIFF, Zarr, HDF5 or an uncompressed NRRD/MetaImage/raw file, or raise --memory-budget");
     }
-    ctx.output("volume", v);
+    ctx.output("volume", convert(read_any_volume(path, o)));
+  }
+
+private:
+  // The boxes read under a budget: the user's block shape, else slabs of whole slices (whole rows, or
+  // parts of a row, when one slice is too large) taking a quarter of the budget at `bytes_per_voxel`,
+  // as thick as a multiple of the scratch chunks (32) where they are thicker than one.
+  static Dims read_shape(const Dims& d, uint64_t budget, int64_t bytes_per_voxel) {
+    const int64_t quota = static_cast<int64_t>(std::min<uint64_t>(budget / 4, uint64_t{1} << 62));
+    auto fit = [](int64_t n, int64_t cap) {
+      n = std::min(n, cap);
+      return n >= 32 ? n - n % 32 : n;
+    };
+    const int64_t slice = d[0] * d[1] * bytes_per_voxel, row = d[0] * bytes_per_voxel;
+    if (quota / slice >= 1) return {d[0], d[1], fit(quota / slice, d[2])};
+    if (quota / row >= 1) return {d[0], fit(quota / row, d[1]), 1};
+    return {std::max<int64_t>(1, quota / bytes_per_voxel), 1, 1};
+  }
+
+  template <class Convert>
+  static std::shared_ptr<ChunkedVolume> read_into_scratch(RunContext& ctx, const BlockPlan& blocks,
+                                                           const std::filesystem::path& path, const VolumeReadOptions& o,
+                                                           const std::string& dt, Convert&& convert) {
+    const VolumeHeader h = read_volume_header(path, o);
+    const std::string stored = volume_type_for_dtype(h.dtype);
+    const std::string type = dt == "keep" ? stored : volume_type_for_dtype(dt);
+    auto out = ctx.scratch_volume("volume", type, h.grid);
+    const int64_t bpv = voxel_bytes(stored) + (dt == "keep" ? 0 : voxel_bytes(type));
+    const Dims shape = blocks.block_from_user ? blocks.block : read_shape(h.grid.dims, blocks.memory_budget, bpv);
+    for_each_block(BlockLayout(h.grid.dims, shape), ctx.progress(), "read", [&](const Block& b) {
+      const DataPtr box = convert(read_any_volume_box(path, o, b.begin, b.size));
+      visit_volume(*box, "volume", [&](const auto& v) { out->write(v, b.begin); });
+    });
+    return out;
   }
 };
 SKEL_REGISTER_MODULE(ReadVolume);
@@ -144,10 +206,47 @@ threads. TIFF: one page per z slice with ImageJ calibration (pixel width/height 
 when the voxels exceed 4 GiB, deflate at `compression` > 0 (0: uncompressed, for readers without
 deflate); a volume with direction cosines is refused (TIFF cannot store them). The file is written
 under a temporary name and renamed only when the whole pipeline run succeeds. Memory: no copy of the
-volume (0 bytes per voxel).)");
+volume (0 bytes per voxel).
+
+Block-wise under a memory budget: a volume on disk is written box by box, never assembled in memory:
+HDF5 by bands of whole rows of chunks in chunk order (compressed as above), Zarr chunk by chunk,
+TIFF by slabs of whole pages; each box takes at most a quarter of the budget (at least one row of
+chunks or one slice). Other formats load the volume when it fits the budget, and otherwise stop
+with an error naming the file.)")
+        .blockwise(0, 1);
   }
   void run(RunContext& ctx) override {
-    write_any_volume(ctx.output_path("path"), *ctx.input_data("volume"), ctx.options<VolumeWriteOptions>());
+    const auto path = ctx.output_path("path");
+    const DataPtr volume = ctx.input_data("volume");
+    VolumeWriteOptions o = ctx.options<VolumeWriteOptions>();
+    o.threads = ctx.threads();
+    const auto* on_disk = dynamic_cast<const ChunkedVolume*>(volume.get());
+    const BlockPlan* blocks = ctx.blocks();
+    if (!on_disk || !blocks) {
+      write_any_volume(path, *volume, o);
+      return;
+    }
+    const VolumeFormat& f = volume_format_for_write(path);
+    if (f.write_boxes) {
+      VolumeBoxSource source;
+      source.grid = on_disk->grid();
+      source.type_id = on_disk->type_id();
+      source.max_box_bytes = blocks->memory_budget / 4;
+      source.read = [&](Dims begin, Dims size) {
+        ctx.progress().check();  // cancellation between boxes
+        return visit_voxel_type(on_disk->type_id(), "input 'volume'",
+                                [&](auto t) -> DataPtr { return std::make_shared<Volume<decltype(t)>>(on_disk->read<decltype(t)>(begin, size)); });
+      };
+      write_any_volume_boxes(path, source, o);
+      return;
+    }
+    // A format written from a whole volume: in memory, when it fits the budget.
+    if (on_disk->voxel_data_bytes() > blocks->memory_budget)
+      throw InputError(ctx.final_output_path("path").string() + ": " + f.name + " files are written from a whole volume in memory, and the " +
+                       on_disk->describe() + " (" + format_byte_size(on_disk->voxel_data_bytes()) +
+                       ") does not fit the memory budget of " + format_byte_size(blocks->memory_budget) +
+                       "; write .h5, .zarr or .tif (written block by block), or raise --memory-budget");
+    write_any_volume(path, *materialize(volume), o);
   }
 };
 SKEL_REGISTER_MODULE(WriteVolume);

@@ -54,6 +54,17 @@ struct VolumeWriteOptions {
   int threads = 0;       // compression threads; <= 0: all hardware threads
 };
 
+// A volume handed to a writer box by box (an on-disk volume under a memory budget): its grid, its
+// port type id ("volume.u8", ...) and a reader of boxes [begin, begin + size) as Volume<T> of that
+// type. Writers ask for slabs or bands of whole chunks of at most max_box_bytes where they can (at
+// least one row of chunks or one slice), in their own order, and never hold the whole volume.
+struct VolumeBoxSource {
+  Grid grid;
+  std::string type_id;
+  uint64_t max_box_bytes = 0;  // 0: no limit
+  std::function<DataPtr(Dims begin, Dims size)> read;
+};
+
 struct VolumeFormat {
   std::string name;                     // "TIFF", "NRRD", ... as shown to users
   std::vector<std::string> extensions;  // lower case, with the dot; compound ones allowed (".nii.gz")
@@ -70,10 +81,17 @@ struct VolumeFormat {
   // Optional: a box [begin, begin + size) (x, y, z) as Volume<T>, for streaming into block-wise
   // stages without reading the whole file.
   std::function<DataPtr(const std::filesystem::path&, const VolumeReadOptions&, Dims begin, Dims size)> read_box;
+  // Optional: whether read_box of this file reads only what the box touches (NRRD and MetaImage:
+  // only uncompressed data; a gzip stream would be inflated whole for every box). Null: always, when
+  // read_box is set. io.read_volume streams a file into the block-wise engine only when this holds.
+  std::function<bool(const std::filesystem::path&, const VolumeReadOptions&)> boxes_are_cheap;
   // Optional (null: read-only). Writes `volume` (any Volume<T>) to exactly `path` (the engine stages
   // outputs under a temporary name and renames them; a writer that cannot store the voxel type,
   // unit or direction throws InputError saying so).
   std::function<void(const std::filesystem::path&, const DataObject& volume, const VolumeWriteOptions&)> write;
+  // Optional: writes a volume given box by box (HDF5 by bands of chunks, Zarr by chunks, TIFF by
+  // pages), the same file `write` makes of the whole volume, staged the same way.
+  std::function<void(const std::filesystem::path&, const VolumeBoxSource& volume, const VolumeWriteOptions&)> write_boxes;
   // Optional: a multi-line description for `skelflow info`; null: made from read_header.
   std::function<std::string(const std::filesystem::path&)> describe;
 };
@@ -99,10 +117,28 @@ DataPtr read_any_volume(const std::filesystem::path& path, const VolumeReadOptio
 // A box [begin, begin + size) (x, y, z) of any supported file: the format's read_box, or (for formats
 // without one) the whole volume read and cut. Throws InputError when the box is outside the volume.
 DataPtr read_any_volume_box(const std::filesystem::path& path, const VolumeReadOptions& options, Dims begin, Dims size);
+// True when the format of `path` reads a box without decoding the whole volume (read_box set and
+// boxes_are_cheap null or true): io.read_volume streams such files under a memory budget.
+bool reads_boxes_cheaply(const std::filesystem::path& path, const VolumeReadOptions& options);
+// The box [begin, begin + size) of a grid's voxels stored uncompressed, x fastest, from byte `offset`
+// of `file` (raw, NRRD raw, MetaImage raw): seeks to each row (one read per slice for whole rows).
+// `dtype` as in VolumeHeader; the result as VolumeFormat::read gives it, with the box's origin.
+DataPtr read_raw_voxel_box(const std::filesystem::path& file, uint64_t offset, const Grid& grid, const std::string& dtype,
+                           bool big_endian, Dims begin, Dims size);
+// The box [begin, begin + size) of an in-memory volume (a box reader's fallback for encodings it
+// cannot read in place); the box's origin keeps its physical position.
+DataPtr crop_volume_box(const DataObject& whole, Dims begin, Dims size);
 // The port type id ("volume.u16", ...) a reader gives for a stored dtype (int8/int16 -> volume.i32,
 // int64 -> volume.f64). Throws InputError for an unknown dtype.
 std::string volume_type_for_dtype(const std::string& dtype);
 void write_any_volume(const std::filesystem::path& path, const DataObject& volume, const VolumeWriteOptions& options = {});
+// Writes a volume box by box through the format's write_boxes; InputError naming the file and the
+// format when it has none.
+void write_any_volume_boxes(const std::filesystem::path& path, const VolumeBoxSource& volume,
+                            const VolumeWriteOptions& options = {});
+// How many whole units (slices of `unit_bytes`, rows of chunks, ...) a writer reads at once from
+// `source`: as many as max_box_bytes holds, at least 1, at most `count`.
+int64_t units_per_box(const VolumeBoxSource& source, uint64_t unit_bytes, int64_t count);
 // `skelflow info` text of a volume file (the format's describe, or one made from its header).
 std::string describe_volume_file(const std::filesystem::path& path);
 

@@ -8,6 +8,7 @@
 #include "io/volume_format.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
+#include "skel/out_of_core.hpp"
 
 namespace skel::io {
 
@@ -201,11 +202,17 @@ DataPtr read_any_volume_box(const std::filesystem::path& path, const VolumeReadO
     return with_overrides(f.read_box(path, options, begin, size), options);
   }
   DataPtr whole = f.read(path, options);
-  return with_overrides(visit_volume(*whole, "volume", [&](const auto& v) -> DataPtr {
+  const Dims& d = any_volume_grid(*whole, path.string()).dims;
+  for (int k = 0; k < 3; ++k)
+    if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > d[k]) throw InputError(path.string() + ": box outside the volume");
+  return with_overrides(crop_volume_box(*whole, begin, size), options);
+}
+
+DataPtr crop_volume_box(const DataObject& whole, Dims begin, Dims size) {
+  return visit_volume(whole, "volume", [&](const auto& v) -> DataPtr {
     using T = typename std::decay_t<decltype(v)>::value_type;
     for (int k = 0; k < 3; ++k)
-      if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > v.dims()[k])
-        throw InputError(path.string() + ": box outside the volume");
+      if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > v.dims()[k]) throw InputError("box outside the volume");
     Grid g = v.grid();
     g.dims = size;
     for (int k = 0; k < 3; ++k) g.origin[k] += static_cast<double>(begin[k]) * g.spacing[k];
@@ -214,7 +221,12 @@ DataPtr read_any_volume_box(const std::filesystem::path& path, const VolumeReadO
       for (int64_t y = 0; y < size[1]; ++y)
         std::copy_n(&v(begin[0], begin[1] + y, begin[2] + z), size[0], &(*out)(0, y, z));
     return out;
-  }), options);
+  });
+}
+
+bool reads_boxes_cheaply(const std::filesystem::path& path, const VolumeReadOptions& options) {
+  const VolumeFormat& f = volume_format_for_read(path);
+  return f.read_box && (!f.boxes_are_cheap || f.boxes_are_cheap(path, options));
 }
 
 std::string volume_type_for_dtype(const std::string& dtype) {
@@ -230,6 +242,18 @@ std::string volume_type_for_dtype(const std::string& dtype) {
 
 void write_any_volume(const std::filesystem::path& path, const DataObject& volume, const VolumeWriteOptions& options) {
   volume_format_for_write(path).write(path, volume, options);
+}
+
+void write_any_volume_boxes(const std::filesystem::path& path, const VolumeBoxSource& volume, const VolumeWriteOptions& options) {
+  const VolumeFormat& f = volume_format_for_write(path);
+  if (!f.write_boxes)
+    throw InputError(display_path(path).string() + ": " + f.name + " files are written from a whole volume in memory, not box by box");
+  f.write_boxes(path, volume, options);
+}
+
+int64_t units_per_box(const VolumeBoxSource& source, uint64_t unit_bytes, int64_t count) {
+  if (source.max_box_bytes == 0 || unit_bytes == 0) return std::max<int64_t>(count, 1);
+  return std::clamp<int64_t>(static_cast<int64_t>(source.max_box_bytes / unit_bytes), 1, std::max<int64_t>(count, 1));
 }
 
 std::string describe_volume_file(const std::filesystem::path& path) {

@@ -43,6 +43,12 @@ VolumeFormat hdf5_volume_format() {
     w.threads = o.threads;
     write_volume(p, v, o.dataset.empty() ? "/volume" : o.dataset, w);
   };
+  f.write_boxes = [](const std::filesystem::path& p, const VolumeBoxSource& v, const VolumeWriteOptions& o) {
+    WriteOptions w;
+    w.compression = o.compression;
+    w.threads = o.threads;
+    write_volume_boxes(p, v, o.dataset.empty() ? "/volume" : o.dataset, w);
+  };
   f.describe = [](const std::filesystem::path& p) { return describe_file(p); };
   return f;
 }

@@ -225,6 +225,31 @@ MetaHeader parse_header(const fs::path& path) {
   return h;
 }
 
+// The first voxel byte of uncompressed data, its size checked against the file's.
+uint64_t raw_data_start(const MetaHeader& h) {
+  const std::string data_file = h.data_path.string();
+  const uint64_t need = volbytes::checked_bytes(h.file, h.header.grid.dims, volbytes::dtype_bytes(h.header.dtype));
+  const uint64_t size = volbytes::file_size(h.data_path);
+  uint64_t start = h.local ? h.data_offset : 0;
+  if (!h.local && h.header_size > 0) start = static_cast<uint64_t>(h.header_size);
+  if (!h.local && h.header_size == -1) {
+    volbytes::check_available(data_file, size, need, "the voxel data");
+    start = size - need;
+  }
+  volbytes::check_available(data_file, size > start ? size - start : 0, need, "the voxel data");
+  return start;
+}
+
+DataPtr read_metaimage(const fs::path& path, const VolumeReadOptions&);
+
+// A box of uncompressed data read in place; compressed data is inflated whole and cut.
+DataPtr read_metaimage_box(const fs::path& path, const VolumeReadOptions& o, Dims begin, Dims size) {
+  const MetaHeader h = parse_header(path);
+  if (!h.compressed)
+    return read_raw_voxel_box(h.data_path, raw_data_start(h), h.header.grid, h.header.dtype, h.big_endian, begin, size);
+  return crop_volume_box(*read_metaimage(path, o), begin, size);
+}
+
 DataPtr read_metaimage(const fs::path& path, const VolumeReadOptions&) {
   const MetaHeader h = parse_header(path);
   const std::string data_file = h.data_path.string();
@@ -233,11 +258,7 @@ DataPtr read_metaimage(const fs::path& path, const VolumeReadOptions&) {
   uint64_t start = h.local ? h.data_offset : 0;
   if (!h.local && h.header_size > 0) start = static_cast<uint64_t>(h.header_size);
   if (!h.compressed) {
-    if (!h.local && h.header_size == -1) {
-      volbytes::check_available(data_file, size, need, "the voxel data");
-      start = size - need;
-    }
-    volbytes::check_available(data_file, size > start ? size - start : 0, need, "the voxel data");
+    start = raw_data_start(h);
     return volbytes::decode(h.header.grid, h.header.dtype, h.big_endian, [&](char* dst, uint64_t bytes) {
       volbytes::read_exact(h.data_path, start, dst, bytes, "voxel data");
     });
@@ -288,6 +309,8 @@ VolumeFormat make(bool local) {
   };
   f.read_header = [](const fs::path& p, const VolumeReadOptions&) { return parse_header(p).header; };
   f.read = read_metaimage;
+  f.read_box = read_metaimage_box;
+  f.boxes_are_cheap = [](const fs::path& p, const VolumeReadOptions&) { return !parse_header(p).compressed; };
   if (local) f.write = write_metaimage;
   return f;
 }

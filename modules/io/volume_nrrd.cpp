@@ -339,6 +339,30 @@ uint64_t skip_lines(const NrrdHeader& h, uint64_t start) {
   return static_cast<uint64_t>(in.tellg());
 }
 
+// The first voxel byte of raw-encoded data, its size checked against the file's.
+uint64_t raw_data_start(const NrrdHeader& h) {
+  const std::string data_file = h.data_path.string();
+  const uint64_t need = volbytes::checked_bytes(h.file, h.header.grid.dims, volbytes::dtype_bytes(h.header.dtype));
+  const uint64_t size = volbytes::file_size(h.data_path);
+  if (h.byte_skip == -1) {
+    volbytes::check_available(data_file, size, need, "the voxel data");
+    return size - need;
+  }
+  const uint64_t start = skip_lines(h, h.attached ? h.data_offset : 0) + static_cast<uint64_t>(h.byte_skip);
+  volbytes::check_available(data_file, size > start ? size - start : 0, need, "the voxel data");
+  return start;
+}
+
+DataPtr read_nrrd(const fs::path& path, const VolumeReadOptions&);
+
+// A box of raw-encoded data read in place; gzip and ascii data are decoded whole and cut.
+DataPtr read_nrrd_box(const fs::path& path, const VolumeReadOptions& o, Dims begin, Dims size) {
+  const NrrdHeader h = parse_header(path);
+  if (h.encoding == "raw")
+    return read_raw_voxel_box(h.data_path, raw_data_start(h), h.header.grid, h.header.dtype, h.big_endian, begin, size);
+  return crop_volume_box(*read_nrrd(path, o), begin, size);
+}
+
 DataPtr read_nrrd(const fs::path& path, const VolumeReadOptions&) {
   const NrrdHeader h = parse_header(path);
   const std::string data_file = h.data_path.string();
@@ -346,13 +370,7 @@ DataPtr read_nrrd(const fs::path& path, const VolumeReadOptions&) {
   const uint64_t size = volbytes::file_size(h.data_path);
   uint64_t start = h.attached ? h.data_offset : 0;
   if (h.encoding == "raw") {
-    if (h.byte_skip == -1) {
-      volbytes::check_available(data_file, size, need, "the voxel data");
-      start = size - need;
-    } else {
-      start = skip_lines(h, start) + static_cast<uint64_t>(h.byte_skip);
-      volbytes::check_available(data_file, size > start ? size - start : 0, need, "the voxel data");
-    }
+    start = raw_data_start(h);
     return volbytes::decode(h.header.grid, h.header.dtype, h.big_endian, [&](char* dst, uint64_t n) {
       volbytes::read_exact(h.data_path, start, dst, n, "voxel data");
     });
@@ -425,6 +443,8 @@ VolumeFormat make(bool attached) {
   f.sniff = [](std::string_view head) { return head.substr(0, 7) == "NRRD000"; };
   f.read_header = [](const fs::path& p, const VolumeReadOptions&) { return parse_header(p).header; };
   f.read = read_nrrd;
+  f.read_box = read_nrrd_box;
+  f.boxes_are_cheap = [](const fs::path& p, const VolumeReadOptions&) { return parse_header(p).encoding == "raw"; };
   if (attached) f.write = write_nrrd;
   return f;
 }

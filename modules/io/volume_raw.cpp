@@ -68,26 +68,29 @@ RawLayout raw_layout(const fs::path& file, const VolumeReadOptions& o) {
 }
 
 template <class T, class S>
-Volume<T> read_raw_box(const fs::path& file, const VolumeReadOptions& o, const RawLayout& l, Dims begin, Dims size) {
-  Grid g = l.header.grid;
+Volume<T> read_raw_box_as(const fs::path& file, uint64_t offset, const Grid& grid, bool big_endian, Dims begin, Dims size) {
+  Grid g = grid;
   g.dims = size;
   for (size_t k = 0; k < 3; ++k) g.origin[k] += static_cast<double>(begin[k]) * g.spacing[k];
   Volume<T> v = Volume<T>::uninitialized(g);
+  if (v.size() == 0) return v;
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file.string() + ": cannot open");
-  const Dims& d = l.header.grid.dims;
-  std::vector<S> row(static_cast<size_t>(size[0]));
-  const bool swap = o.raw.big_endian != (std::endian::native == std::endian::big);
+  const Dims& d = grid.dims;
+  // Whole rows of a slice are one contiguous run of the file: read them with one call.
+  const int64_t rows_per_read = size[0] == d[0] ? size[1] : 1;
+  std::vector<S> run(static_cast<size_t>(size[0] * rows_per_read));
+  const bool swap = big_endian != (std::endian::native == std::endian::big);
   for (int64_t z = 0; z < size[2]; ++z)
-    for (int64_t y = 0; y < size[1]; ++y) {
+    for (int64_t y = 0; y < size[1]; y += rows_per_read) {
       const int64_t index = begin[0] + d[0] * ((begin[1] + y) + d[1] * (begin[2] + z));
-      in.seekg(o.raw.header_bytes + index * l.bytes);
-      in.read(reinterpret_cast<char*>(row.data()), static_cast<std::streamsize>(row.size() * sizeof(S)));
+      in.seekg(static_cast<std::streamoff>(offset + static_cast<uint64_t>(index) * sizeof(S)));
+      in.read(reinterpret_cast<char*>(run.data()), static_cast<std::streamsize>(run.size() * sizeof(S)));
       if (!in) throw InputError(file.string() + ": cannot read row " + std::to_string(begin[1] + y) + " of slice " +
-                                std::to_string(begin[2] + z) + ": the file changed or is unreadable");
+                                std::to_string(begin[2] + z) + ": the file is truncated, changed or unreadable");
       T* out = &v(0, y, z);
-      for (size_t i = 0; i < row.size(); ++i) {
-        S s = row[i];
+      for (size_t i = 0; i < run.size(); ++i) {
+        S s = run[i];
         if (swap && sizeof(S) > 1) {
           unsigned char bytes[sizeof(S)];
           std::memcpy(bytes, &s, sizeof(S));
@@ -101,20 +104,27 @@ Volume<T> read_raw_box(const fs::path& file, const VolumeReadOptions& o, const R
 }
 
 DataPtr read_raw(const fs::path& file, const VolumeReadOptions& o, Dims begin, Dims size, const RawLayout& l) {
-  const std::string& t = l.header.dtype;
-  if (t == "uint8") return std::make_shared<VolumeU8>(read_raw_box<uint8_t, uint8_t>(file, o, l, begin, size));
-  if (t == "uint16") return std::make_shared<VolumeU16>(read_raw_box<uint16_t, uint16_t>(file, o, l, begin, size));
-  if (t == "uint32") return std::make_shared<VolumeU32>(read_raw_box<uint32_t, uint32_t>(file, o, l, begin, size));
-  if (t == "uint64") return std::make_shared<VolumeU64>(read_raw_box<uint64_t, uint64_t>(file, o, l, begin, size));
-  if (t == "int8") return std::make_shared<VolumeI32>(read_raw_box<int32_t, int8_t>(file, o, l, begin, size));
-  if (t == "int16") return std::make_shared<VolumeI32>(read_raw_box<int32_t, int16_t>(file, o, l, begin, size));
-  if (t == "int32") return std::make_shared<VolumeI32>(read_raw_box<int32_t, int32_t>(file, o, l, begin, size));
-  if (t == "int64") return std::make_shared<VolumeF64>(read_raw_box<double, int64_t>(file, o, l, begin, size));
-  if (t == "float32") return std::make_shared<VolumeF32>(read_raw_box<float, float>(file, o, l, begin, size));
-  return std::make_shared<VolumeF64>(read_raw_box<double, double>(file, o, l, begin, size));
+  return read_raw_voxel_box(file, static_cast<uint64_t>(o.raw.header_bytes), l.header.grid, l.header.dtype,
+                            o.raw.big_endian, begin, size);
 }
 
 }  // namespace
+
+DataPtr read_raw_voxel_box(const fs::path& file, uint64_t offset, const Grid& grid, const std::string& t,
+                           bool big_endian, Dims begin, Dims size) {
+  const bool e = big_endian;
+  if (t == "uint8") return std::make_shared<VolumeU8>(read_raw_box_as<uint8_t, uint8_t>(file, offset, grid, e, begin, size));
+  if (t == "uint16") return std::make_shared<VolumeU16>(read_raw_box_as<uint16_t, uint16_t>(file, offset, grid, e, begin, size));
+  if (t == "uint32") return std::make_shared<VolumeU32>(read_raw_box_as<uint32_t, uint32_t>(file, offset, grid, e, begin, size));
+  if (t == "uint64") return std::make_shared<VolumeU64>(read_raw_box_as<uint64_t, uint64_t>(file, offset, grid, e, begin, size));
+  if (t == "int8") return std::make_shared<VolumeI32>(read_raw_box_as<int32_t, int8_t>(file, offset, grid, e, begin, size));
+  if (t == "int16") return std::make_shared<VolumeI32>(read_raw_box_as<int32_t, int16_t>(file, offset, grid, e, begin, size));
+  if (t == "int32") return std::make_shared<VolumeI32>(read_raw_box_as<int32_t, int32_t>(file, offset, grid, e, begin, size));
+  if (t == "int64") return std::make_shared<VolumeF64>(read_raw_box_as<double, int64_t>(file, offset, grid, e, begin, size));
+  if (t == "float32") return std::make_shared<VolumeF32>(read_raw_box_as<float, float>(file, offset, grid, e, begin, size));
+  if (t == "float64") return std::make_shared<VolumeF64>(read_raw_box_as<double, double>(file, offset, grid, e, begin, size));
+  throw InputError(file.string() + ": unknown voxel type '" + t + "'");
+}
 
 VolumeFormat raw_volume_format() {
   VolumeFormat f;

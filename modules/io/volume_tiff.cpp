@@ -21,6 +21,7 @@
 #include "io/volume_format.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/text.hpp"
 
 namespace fs = std::filesystem;
@@ -654,17 +655,18 @@ std::string imagej_escape(const std::string& s) {
   return out;
 }
 
-void write_tiff(const fs::path& path, const DataObject& data, const VolumeWriteOptions& o) {
+// Writes a stack of g.dims[2] pages; `page(z)` gives slice z (x fastest), asked for in z order.
+template <class T>
+void write_tiff_pages(const fs::path& path, const Grid& g, const VolumeWriteOptions& o,
+                      const std::function<const T*(int64_t z)>& page) {
   install_handlers();
-  visit_volume(data, "volume", [&](const auto& v) {
-    using T = typename std::decay_t<decltype(v)>::value_type;
-    const Grid& g = v.grid();
-    if (v.size() == 0) throw InputError(show(path) + ": cannot write an empty volume as TIFF");
+  {
+    if (g.voxel_count() == 0) throw InputError(show(path) + ": cannot write an empty volume as TIFF");
     if (g.direction != kIdentityDirection)
       throw InputError(show(path) + ": TIFF cannot store the volume's direction cosines; write .nrrd, .mha or .nii");
     if (g.dims[0] > 0xFFFFFFFFll || g.dims[1] > 0xFFFFFFFFll || g.dims[2] > 0xFFFFll * 0xFFFF)
       throw InputError(show(path) + ": too large for TIFF");
-    const uint64_t bytes = static_cast<uint64_t>(v.size()) * sizeof(T);
+    const uint64_t bytes = static_cast<uint64_t>(g.voxel_count()) * sizeof(T);
     const bool big = bytes + (64ull << 20) > (4ull << 30);
     // ImageJ calibration: spacing x/y as resolution (pixels per unit), z, unit and origin (in pixels) in
     // the description.
@@ -725,9 +727,10 @@ void write_tiff(const fs::path& path, const DataObject& data, const VolumeWriteO
           TIFFSetField(tf, TIFFTAG_COMPRESSION, COMPRESSION_NONE);
         }
         if (z == 0) TIFFSetField(tf, TIFFTAG_IMAGEDESCRIPTION, desc.c_str());
+        const T* slice = page(z);
         for (int64_t y = 0, strip = 0; y < g.dims[1]; y += rows, ++strip) {
           const int64_t n = std::min<int64_t>(rows, g.dims[1] - y);
-          auto* p = const_cast<T*>(&v(0, y, z));  // libtiff's API is not const; it does not write the buffer
+          auto* p = const_cast<T*>(slice + y * g.dims[0]);  // libtiff's API is not const; it does not write the buffer
           if (TIFFWriteEncodedStrip(tf, static_cast<uint32_t>(strip), p, static_cast<tmsize_t>(n * row_bytes)) < 0)
             fail("page " + std::to_string(z));
         }
@@ -738,6 +741,36 @@ void write_tiff(const fs::path& path, const DataObject& data, const VolumeWriteO
       const bool flush_error = !g_tiff_error.empty();
       TIFFClose(raw);
       if (flush_error) fail("closing the file");
+    });
+  }
+}
+
+void write_tiff(const fs::path& path, const DataObject& data, const VolumeWriteOptions& o) {
+  visit_volume(data, "volume", [&](const auto& v) {
+    using T = typename std::decay_t<decltype(v)>::value_type;
+    write_tiff_pages<T>(path, v.grid(), o, [&](int64_t z) { return &v(0, 0, z); });
+  });
+}
+
+// write_tiff of a volume given box by box: slabs of whole slices (as many as the source's
+// max_box_bytes holds, a multiple of 32 when more), one slab in memory at a time.
+void write_tiff_boxes(const fs::path& path, const VolumeBoxSource& source, const VolumeWriteOptions& o) {
+  visit_voxel_type(source.type_id, show(path), [&](auto t) {
+    using T = decltype(t);
+    const Dims n = source.grid.dims;
+    int64_t depth = units_per_box(source, static_cast<uint64_t>(n[0] * n[1]) * sizeof(T), n[2]);
+    if (depth > 32) depth -= depth % 32;  // whole chunks of the scratch files (32 deep)
+    std::shared_ptr<const Volume<T>> slab;
+    int64_t z0 = 0;
+    write_tiff_pages<T>(path, source.grid, o, [&](int64_t z) {
+      if (!slab || z >= z0 + slab->nz()) {
+        slab.reset();  // one slab at a time
+        z0 = z;
+        const Dims size{n[0], n[1], std::min(depth, n[2] - z)};
+        slab = std::dynamic_pointer_cast<const Volume<T>>(source.read(Dims{0, 0, z}, size));
+        if (!slab || slab->dims() != size) throw Error(show(path) + ": the volume's box reader gave a wrong box");
+      }
+      return &(*slab)(0, 0, z - z0);
     });
   });
 }
@@ -762,6 +795,7 @@ VolumeFormat tiff_volume_format() {
     return read_box_any(open_stack(p, o), begin, size);
   };
   f.write = write_tiff;
+  f.write_boxes = write_tiff_boxes;
   return f;
 }
 

@@ -659,6 +659,36 @@ void write_zarr(const fs::path& path, const DataObject& volume, const VolumeWrit
   });
 }
 
+// write_zarr of a volume given box by box: bands of whole x-rows of chunks (as many chunk rows as
+// the source's max_box_bytes holds), each chunk written once, whole.
+void write_zarr_boxes(const fs::path& path, const VolumeBoxSource& source, const VolumeWriteOptions& o) {
+  const std::string shown = display_path(path).string();
+  const Grid& g = source.grid;
+  const std::string dtype = visit_voxel_type(source.type_id, shown, [](auto t) { return std::string(VoxelTraits<decltype(t)>::name); });
+  if (g.direction != kIdentityDirection) write_metadata(path, dtype, g, {1, 1, 1}, 0, "0", shown);  // throws, writes nothing
+  if (std::endian::native == std::endian::big) throw Error("Zarr writer: big-endian hosts are not supported");
+  const size_t w = volbytes::dtype_bytes(dtype);
+  const auto c = automatic_chunks(g.dims, static_cast<int64_t>(w));  // (x, y, z)
+  const std::string array_path = array_path_of(o);
+  write_dir_atomically(path, [&](const fs::path& dir) {
+    write_metadata(dir, dtype, g, c, std::clamp(o.compression, 0, 9), array_path, shown);
+    VolumeReadOptions ro;
+    ro.dataset = array_path;
+    const ZArray a = open_array(dir, ro);
+    const Dims& n = g.dims;
+    const int64_t rows = units_per_box(source, static_cast<uint64_t>(n[0] * c[1] * c[2]) * w, (n[1] + c[1] - 1) / c[1]);
+    for (int64_t z0 = 0; z0 < n[2]; z0 += c[2])
+      for (int64_t y0 = 0; y0 < n[1]; y0 += rows * c[1]) {
+        const Dims begin{0, y0, z0}, size{n[0], std::min(rows * c[1], n[1] - y0), std::min(c[2], n[2] - z0)};
+        const DataPtr box = source.read(begin, size);
+        visit_volume(*box, shown, [&](const auto& v) {
+          if (v.dims() != size || volbytes::volume_dtype(v) != dtype) throw Error(shown + ": the volume's box reader gave a wrong box");
+          write_chunks(a, reinterpret_cast<const char*>(v.data()), size, begin, o.threads, shown);
+        });
+      }
+  });
+}
+
 }  // namespace
 
 VolumeFormat zarr_volume_format() {
@@ -669,6 +699,7 @@ VolumeFormat zarr_volume_format() {
   f.read = read_zarr;
   f.read_box = read_zarr_box;
   f.write = write_zarr;
+  f.write_boxes = write_zarr_boxes;
   return f;
 }
 

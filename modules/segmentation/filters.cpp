@@ -250,50 +250,70 @@ DataPtr median(const DataObject& image, const MedianOptions& o) {
   });
 }
 
+namespace {
+
+// m(z) of one slice: the mean of its brightest `percentile` fraction (at least one voxel); `vals` is
+// work space. The same arithmetic in memory and block-wise (nth_element, then the sum in order).
+template <class T>
+double slice_brightness(const T* slice, int64_t plane, double percentile, std::vector<double>& vals) {
+  const int64_t top = std::max<int64_t>(1, static_cast<int64_t>(std::ceil(percentile * static_cast<double>(plane))));
+  vals.resize(static_cast<size_t>(plane));
+  for (int64_t i = 0; i < plane; ++i) vals[static_cast<size_t>(i)] = static_cast<double>(slice[i]);
+  std::nth_element(vals.begin(), vals.begin() + (plane - top), vals.end());
+  double sum = 0;
+  for (int64_t i = plane - top; i < plane; ++i) sum += vals[static_cast<size_t>(i)];
+  return sum / static_cast<double>(top);
+}
+
+void check_percentile(const IlluminationOptions& o) {
+  if (o.mode == IlluminationMode::fit && !(o.percentile > 0 && o.percentile <= 1))
+    throw InputError("param 'percentile': expected a fraction in (0, 1], got " + std::to_string(o.percentile));
+}
+
+// The factors f(z) from res.slice_statistic (fit) or the given line.
+void illumination_factors(IlluminationResult& res, int64_t nz, const IlluminationOptions& o) {
+  res.factor.resize(static_cast<size_t>(nz));
+  if (o.mode != IlluminationMode::fit) {
+    for (int64_t z = 0; z < nz; ++z) res.factor[static_cast<size_t>(z)] = o.intercept + o.slope * static_cast<double>(z);
+    return;
+  }
+  // Least-squares line through (z, m(z)).
+  double sz = 0, sm = 0, szz = 0, szm = 0;
+  for (int64_t z = 0; z < nz; ++z) {
+    const double m = res.slice_statistic[static_cast<size_t>(z)], zz = static_cast<double>(z);
+    sz += zz; sm += m; szz += zz * zz; szm += zz * m;
+  }
+  const double n = static_cast<double>(nz);
+  const double den = n * szz - sz * sz;
+  res.fit_slope = nz > 1 && den != 0 ? (n * szm - sz * sm) / den : 0.0;
+  res.fit_intercept = nz > 0 ? (sm - res.fit_slope * sz) / n : 0.0;
+  for (int64_t z = 0; z < nz; ++z) {
+    const double lz = res.fit_intercept + res.fit_slope * static_cast<double>(z);
+    if (!(lz > 0))
+      throw InputError("image: the fitted brightness line " + std::to_string(res.fit_intercept) + " + " +
+                       std::to_string(res.fit_slope) + "·z is not positive at slice " + std::to_string(z) +
+                       "; give slope/intercept instead (fit: false)");
+    res.factor[static_cast<size_t>(z)] = res.fit_intercept / lz;
+  }
+}
+
+}  // namespace
+
 IlluminationResult illumination_z(const DataObject& image, const IlluminationOptions& o) {
   IlluminationResult res;
   res.image = visit_volume(image, "image", [&](const auto& v) {
     const int64_t nz = v.nz(), plane = v.nx() * v.ny();
+    check_percentile(o);
     if (o.mode == IlluminationMode::fit) {
-      if (!(o.percentile > 0 && o.percentile <= 1))
-        throw InputError("param 'percentile': expected a fraction in (0, 1], got " + std::to_string(o.percentile));
       res.slice_statistic.assign(static_cast<size_t>(nz), 0.0);
-      if (plane > 0) {
-        const int64_t top = std::max<int64_t>(1, static_cast<int64_t>(std::ceil(o.percentile * static_cast<double>(plane))));
+      if (plane > 0)
         parallel_for(0, nz, o.threads, [&](int64_t b, int64_t e) {
-          std::vector<double> vals(static_cast<size_t>(plane));
-          for (int64_t z = b; z < e; ++z) {
-            for (int64_t i = 0; i < plane; ++i) vals[static_cast<size_t>(i)] = static_cast<double>(v[z * plane + i]);
-            std::nth_element(vals.begin(), vals.begin() + (plane - top), vals.end());
-            double sum = 0;
-            for (int64_t i = plane - top; i < plane; ++i) sum += vals[static_cast<size_t>(i)];
-            res.slice_statistic[static_cast<size_t>(z)] = sum / static_cast<double>(top);
-          }
+          std::vector<double> vals;
+          for (int64_t z = b; z < e; ++z)
+            res.slice_statistic[static_cast<size_t>(z)] = slice_brightness(&v[z * plane], plane, o.percentile, vals);
         }, 1);
-      }
-      // Least-squares line through (z, m(z)).
-      double sz = 0, sm = 0, szz = 0, szm = 0;
-      for (int64_t z = 0; z < nz; ++z) {
-        const double m = res.slice_statistic[static_cast<size_t>(z)], zz = static_cast<double>(z);
-        sz += zz; sm += m; szz += zz * zz; szm += zz * m;
-      }
-      const double n = static_cast<double>(nz);
-      const double den = n * szz - sz * sz;
-      res.fit_slope = nz > 1 && den != 0 ? (n * szm - sz * sm) / den : 0.0;
-      res.fit_intercept = nz > 0 ? (sm - res.fit_slope * sz) / n : 0.0;
-      res.factor.resize(static_cast<size_t>(nz));
-      for (int64_t z = 0; z < nz; ++z) {
-        const double lz = res.fit_intercept + res.fit_slope * static_cast<double>(z);
-        if (!(lz > 0))
-          throw InputError("image: the fitted brightness line " + std::to_string(res.fit_intercept) + " + " +
-                           std::to_string(res.fit_slope) + "·z is not positive at slice " + std::to_string(z) +
-                           "; give slope/intercept instead (fit: false)");
-        res.factor[static_cast<size_t>(z)] = res.fit_intercept / lz;
-      }
-    } else {
-      res.factor.resize(static_cast<size_t>(nz));
-      for (int64_t z = 0; z < nz; ++z) res.factor[static_cast<size_t>(z)] = o.intercept + o.slope * static_cast<double>(z);
     }
+    illumination_factors(res, nz, o);
     o.interrupter.check(0.5);
     VolumeF32 out = VolumeF32::uninitialized(v.grid());
     parallel_for(0, nz, o.threads, [&](int64_t b, int64_t e) {
@@ -305,6 +325,46 @@ IlluminationResult illumination_z(const DataObject& image, const IlluminationOpt
     return out;
   });
   o.interrupter.check(1.0);
+  return res;
+}
+
+IlluminationResult illumination_z_blocks(const DataObject& image, const ChunkedVolume& out, const IlluminationOptions& o,
+                                         const Dims& block, int64_t slab) {
+  IlluminationResult res;
+  check_percentile(o);
+  const Dims d = any_volume_grid(image, "input 'image'").dims;
+  const int64_t nz = d[2], plane = d[0] * d[1];
+  visit_voxel_type(image.type_id(), "input 'image'", [&](auto t) {
+    using T = decltype(t);
+    if (o.mode == IlluminationMode::fit) {
+      // Pass 1: slabs of whole slices (the statistic needs a whole slice), the slices in parallel.
+      res.slice_statistic.assign(static_cast<size_t>(nz), 0.0);
+      slab = std::max<int64_t>(1, slab);
+      const int64_t slabs = (nz + slab - 1) / slab;
+      for (int64_t k = 0; k < slabs && plane > 0; ++k) {
+        const int64_t z0 = k * slab, n = std::min(slab, nz - z0);
+        const Volume<T> s = read_block<T>(image, {0, 0, z0}, {d[0], d[1], n}, "input 'image'");
+        parallel_for(0, n, o.threads, [&](int64_t b, int64_t e) {
+          std::vector<double> vals;
+          for (int64_t z = b; z < e; ++z)
+            res.slice_statistic[static_cast<size_t>(z0 + z)] = slice_brightness(&s[z * plane], plane, o.percentile, vals);
+        }, 1);
+        report_blocks(o.interrupter, "illumination statistics", k + 1, slabs);
+      }
+    }
+    illumination_factors(res, nz, o);
+    // Pass 2: every block scaled by the factor of its slices.
+    for_each_block(BlockLayout(d, block), o.interrupter, "illumination", [&](const Block& b) {
+      const Volume<T> in = read_block<T>(image, b.begin, b.size, "input 'image'");
+      VolumeF32 v = VolumeF32::uninitialized(out.box_grid(b.begin, b.size));
+      const int64_t bplane = b.size[0] * b.size[1];
+      for (int64_t z = 0; z < b.size[2]; ++z) {
+        const double f = res.factor[static_cast<size_t>(b.begin[2] + z)];
+        for (int64_t i = z * bplane; i < (z + 1) * bplane; ++i) v[i] = static_cast<float>(static_cast<double>(in[i]) * f);
+      }
+      out.write(v, b.begin);
+    });
+  });
   return res;
 }
 

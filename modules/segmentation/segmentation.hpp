@@ -171,6 +171,12 @@ struct IlluminationResult {
   double fit_intercept = 0, fit_slope = 0;  // L(z) (fitted mode)
 };
 IlluminationResult illumination_z(const DataObject& image, const IlluminationOptions& options = {});
+// Block-wise (out-of-core): the same factors and voxels as illumination_z; the corrected image goes
+// to `out` (float32, the image's grid; result.image stays empty). Fit mode first reads slabs of
+// `slab` whole slices (the statistic needs a whole slice: 8 bytes per voxel of a slice per thread
+// plus the slab), then every block of `block` is scaled by its slices' factors (halo 0).
+IlluminationResult illumination_z_blocks(const DataObject& image, const ChunkedVolume& out,
+                                         const IlluminationOptions& options, const Dims& block, int64_t slab);
 
 // Binary morphology with the exact digital ball {(dx,dy,dz): dx²+dy²+dz² <= radius²} (voxel units).
 // Dilation: object where the squared Euclidean distance to the nearest object voxel is <= radius²;

@@ -214,12 +214,32 @@ values with a linear function in z". Fit mode: m(z) = mean of the brightest `per
 slice z (at least one voxel); a least-squares line L(z) = a + b·z through (z, m(z)); each slice is
 multiplied by L(0)/L(z), which makes the fitted brightness constant (an error if L(z) <= 0 anywhere).
 Given mode: slice z is multiplied by intercept + slope·z. Slice statistics use nth_element per slice
-(parallel over slices). Memory: 4 bytes per voxel (output) plus one slice of doubles per thread.)");
+(parallel over slices). Memory: 4 bytes per voxel (output) plus one slice of doubles per thread.
+
+Block-wise under a memory budget: fit mode first reads slabs of whole slices (as many as a quarter of
+the budget holds at the input's bytes plus 8 per voxel; at least one) for the slice statistics, then
+every block (halo 0) is scaled by its slices' factors into an on-disk float32 volume: the same
+statistics, factors and voxels as in memory. Memory per block: input bytes + 4 per voxel; per slab:
+input bytes per voxel plus one slice of doubles per thread.)")
+        .blockwise(0, 12);
   }
   void run(RunContext& ctx) override {
     const auto o = ctx.options<IlluminationOptions>();
     const bool fit = o.mode == IlluminationMode::fit;
-    auto r = illumination_z(*ctx.input_data("image"), o);
+    IlluminationResult r;
+    DataPtr image;
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& in = *ctx.input_data("image");
+      const Grid& g = any_volume_grid(in, "input 'image'");
+      auto out = ctx.scratch_volume("image", type_ids::volume_f32, g);
+      const uint64_t slice = static_cast<uint64_t>(g.dims[0] * g.dims[1]) * static_cast<uint64_t>(voxel_bytes(in.type_id()) + 8);
+      const auto slab = static_cast<int64_t>(std::max<uint64_t>(1, blocks->memory_budget / 4 / std::max<uint64_t>(slice, 1)));
+      r = illumination_z_blocks(in, *out, o, blocks->block, slab);
+      image = std::move(out);
+    } else {
+      r = illumination_z(*ctx.input_data("image"), o);
+      image = std::make_shared<VolumeF32>(std::move(r.image));
+    }
     Table t;
     std::vector<int64_t> z(r.factor.size());
     for (size_t i = 0; i < z.size(); ++i) z[i] = static_cast<int64_t>(i);
@@ -227,7 +247,7 @@ Given mode: slice z is multiplied by intercept + slope·z. Slice statistics use 
     if (fit) t.add("statistic", r.slice_statistic);
     t.add("factor", r.factor);
     if (fit) ctx.warn("fitted brightness " + std::to_string(r.fit_intercept) + " + " + std::to_string(r.fit_slope) + "·z");
-    ctx.output("image", std::move(r.image));
+    ctx.output("image", std::move(image));
     ctx.output("table", std::move(t));
   }
 };

@@ -1,12 +1,16 @@
 // The command line of out-of-core runs: --memory-budget and --scratch (errors, exit codes), the
-// block-wise stages listed by `skelflow validate`, progress in blocks, and the scratch files of a
-// dead run removed by the next one.
+// block-wise stages listed by `skelflow validate`, progress in blocks, the scratch files of a
+// dead run removed by the next one, and --resume after kill -9 (the same bytes as an uninterrupted
+// run; refused when a parameter changed).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <chrono>
+#include <csignal>
 #include <fstream>
+#include <thread>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -68,11 +72,11 @@ TEST(OutOfCoreCli, ValidateListsTheBlockwiseStages) {
   std::ofstream(d / "p.yaml") << kPipeline;
   Result r = run({"validate", (d / "p.yaml").string()});
   EXPECT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("block-wise under --memory-budget: seg, dist\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("block-wise under --memory-budget: seg, dist, save\n"), std::string::npos) << r.out;
   std::ofstream(d / "q.yaml") << kPipeline << "execution: {memory_budget: 512MiB}\n";
   r = run({"validate", (d / "q.yaml").string()});
   EXPECT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("memory budget 512 MiB: block-wise: seg, dist\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("memory budget 512 MiB: block-wise: seg, dist, save\n"), std::string::npos) << r.out;
   std::ofstream(d / "bad.yaml") << kPipeline << "execution: {memory_budget: lots}\n";
   r = run({"validate", (d / "bad.yaml").string()});
   EXPECT_EQ(r.code, 2) << r.out;
@@ -115,4 +119,114 @@ TEST(OutOfCoreCli, BudgetRunRemovesADeadRunsScratchAndLeavesNone) {
     return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   };
   EXPECT_EQ(bytes(d / "out" / "dist.h5"), bytes(d / "mem" / "out" / "dist.h5"));
+}
+
+namespace {
+
+// Starts skelflow with SKELFLOW_TEST_BLOCK_DELAY_MS set (every block-wise stage sleeps after each
+// block), output to `log`; returns its pid.
+pid_t start_slow(const std::vector<std::string>& args, const fs::path& log, int delay_ms) {
+  const std::string bin = SKELFLOW_BIN;
+  const pid_t pid = fork();
+  if (pid == 0) {
+    FILE* f = std::freopen(log.c_str(), "w", stdout);
+    (void)f;
+    dup2(fileno(stdout), fileno(stderr));
+    setenv("SKELFLOW_TEST_BLOCK_DELAY_MS", std::to_string(delay_ms).c_str(), 1);
+    std::vector<char*> argv{const_cast<char*>(bin.c_str())};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(bin.c_str(), argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+// The resume folder in `scratch` (empty path when there is none).
+fs::path resume_dir(const fs::path& scratch) {
+  if (!fs::exists(scratch)) return {};
+  for (const auto& e : fs::directory_iterator(scratch))
+    if (e.path().filename().string().rfind(".skelflow-resume-p-", 0) == 0) return e.path();
+  return {};
+}
+
+std::string text_of(const fs::path& f) {
+  std::ifstream in(f, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Runs `args` slowly and kills it with SIGKILL once the manifest says `stage` finished and the next
+// stage ran for a while (in the middle of its blocks). False when the run ended first.
+bool kill_after(const std::vector<std::string>& args, const fs::path& scratch, const std::string& stage) {
+  const fs::path log = fs::temp_directory_path() / ("skel_ooc_kill_" + std::to_string(getpid()) + ".log");
+  const pid_t pid = start_slow(args, log, 20);
+  bool killed = false;
+  for (int i = 0; i < 3000; ++i) {  // up to 60 s on a loaded machine
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    int status = 0;
+    if (waitpid(pid, &status, WNOHANG) == pid) break;  // ended on its own
+    const fs::path d = resume_dir(scratch);
+    if (!d.empty() && text_of(d / "manifest.txt").find("\ndone " + stage + " ") != std::string::npos) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(400));
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+      break;
+    }
+  }
+  fs::remove(log);
+  return killed;
+}
+
+}  // namespace
+
+TEST(OutOfCoreCli, ResumeAfterKillGivesTheSameBytesAndRefusesChangedParameters) {
+  const fs::path d = scratch("resume");
+  // 8³ blocks: threshold and chamfer take a few seconds with 20 ms per block.
+  std::ofstream(d / "p.yaml") << kPipeline << "execution: {memory_budget: 1MiB, block: [8, 8, 8]}\n";
+  const fs::path s = d / "scratch";
+  const std::vector<std::string> args = {"run", (d / "p.yaml").string(), "--scratch", s.string(), "--quiet"};
+  // Uninterrupted, for reference.
+  Result ref = run({"run", (d / "p.yaml").string(), "--output-dir", (d / "ref").string(), "--quiet"});
+  ASSERT_EQ(ref.code, 0) << ref.out;
+  const std::string expected = text_of(d / "ref" / "out" / "dist.h5");
+  ASSERT_FALSE(expected.empty());
+
+  // Killed while chamfer runs: the threshold's mask is kept, no output appears.
+  ASSERT_TRUE(kill_after(args, s, "seg")) << "the run ended before it could be killed";
+  const fs::path kept = resume_dir(s);
+  ASSERT_FALSE(kept.empty());
+  EXPECT_NE(text_of(kept / "manifest.txt").find("\nout seg mask volume seg.mask.h5 volume.u8 30 26 21 "), std::string::npos)
+      << text_of(kept / "manifest.txt");
+  EXPECT_FALSE(fs::exists(d / "out" / "dist.h5"));
+
+  // A changed parameter: refused, naming the node; the kept state stays for a correct --resume.
+  Result bad = run({"run", (d / "p.yaml").string(), "--scratch", s.string(), "--quiet", "--resume", "--set", "seg.low=0.25"});
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--resume: cannot continue the run kept in " + kept.string() +
+                         ": the parameters of node 'seg' changed since that run; run without --resume to start over"),
+            std::string::npos)
+      << bad.out;
+  EXPECT_TRUE(fs::exists(kept / "manifest.txt"));
+  EXPECT_FALSE(fs::exists(d / "out" / "dist.h5"));
+
+  // Resumed: phantom and seg are not run again, the output is the uninterrupted run's bytes.
+  Result ok = run({"run", (d / "p.yaml").string(), "--scratch", s.string(), "--resume", "--report", (d / "r.json").string()});
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_NE(ok.out.find("resumed from " + kept.string() + ": 1 finished stage(s) loaded, 2 to run"), std::string::npos) << ok.out;
+  const std::string report = text_of(d / "r.json");
+  EXPECT_NE(report.find("{\"id\": \"seg\", \"module\": \"segmentation.threshold\", \"cached\": true"), std::string::npos) << report;
+  EXPECT_NE(report.find("{\"id\": \"phantom\", \"module\": \"synthetic.network\", \"cached\": true"), std::string::npos) << report;
+  EXPECT_EQ(text_of(d / "out" / "dist.h5"), expected);
+  EXPECT_TRUE(fs::is_empty(s)) << "scratch or resume state left behind";
+
+  // Killed again, then started without --resume: the kept state is removed, and the run says so.
+  fs::remove_all(d / "out");
+  ASSERT_TRUE(kill_after(args, s, "seg"));
+  Result fresh = run({"run", (d / "p.yaml").string(), "--scratch", s.string()});
+  EXPECT_EQ(fresh.code, 0) << fresh.out;
+  EXPECT_NE(fresh.out.find("removed the resume state of a run of this pipeline that did not finish (" + kept.string()), std::string::npos)
+      << fresh.out;
+  EXPECT_EQ(text_of(d / "out" / "dist.h5"), expected);
+  EXPECT_TRUE(fs::is_empty(s));
 }

@@ -1,5 +1,5 @@
 // Out-of-core runs end to end: a pipeline under a tiny memory budget (block-wise median, Gaussian,
-// threshold, chamfer, Euclidean DT, connected components and fill_cavities with their volumes in
+// threshold, chamfer, Euclidean DT, connected components, fill_cavities and illumination_z with their volumes in
 // scratch files) writes the same bytes as the in-memory run, leaves no scratch file behind (also
 // when a node fails), and an in-memory stage whose on-disk input does not fit the budget fails
 // naming the node.
@@ -54,6 +54,9 @@ nodes:
   save_table: {module: io.write_table, inputs: {table: parts.table}, params: {path: out/components.csv}}
   filled: {module: segmentation.fill_cavities, inputs: {mask: seg.mask}}
   save_filled: {module: io.write_volume, inputs: {volume: filled.mask}, params: {path: out/filled.h5}}
+  lit: {module: segmentation.illumination_z, inputs: {image: phantom.image}, params: {percentile: 0.1}}
+  save_lit: {module: io.write_volume, inputs: {volume: lit.image}, params: {path: out/lit.h5}}
+  save_lit_table: {module: io.write_table, inputs: {table: lit.table}, params: {path: out/lit.csv}}
 )";
 
 RunReport run_into(const Pipeline& p, const fs::path& dir, uint64_t budget, Dims block = {0, 0, 0},
@@ -76,7 +79,8 @@ TEST(OutOfCore, TinyBudgetGivesTheSameBytesAndLeavesNoScratch) {
   run_into(p, a, 0);
   run_into(p, b, 1ull << 20, {13, 17, 11});
   run_into(p, c, 1ull << 20);  // 16³ blocks from the budget
-  const std::vector<std::string> outputs = {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/filled.h5", "out/labels.h5", "out/mask.h5"};
+  const std::vector<std::string> outputs = {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/filled.h5", "out/labels.h5",
+                                            "out/lit.csv", "out/lit.h5", "out/mask.h5"};
   EXPECT_EQ(files_under(a), outputs);
   EXPECT_EQ(files_under(b), outputs);  // the scratch files went next to the outputs, and are gone
   EXPECT_EQ(files_under(c), outputs);
@@ -102,7 +106,8 @@ TEST(OutOfCore, BudgetFromThePipelineFileAndScratchFolder) {
   };
   Executor ex;
   ex.run(p, o);
-  for (const auto& f : {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/filled.h5", "out/labels.h5", "out/mask.h5"})
+  for (const auto& f : {"out/components.csv", "out/dist.h5", "out/edt.h5", "out/filled.h5", "out/labels.h5", "out/lit.csv",
+                        "out/lit.h5", "out/mask.h5"})
     EXPECT_EQ(bytes_of(a / f), bytes_of(b / f)) << f;
   EXPECT_TRUE(files_under(s).empty());
   EXPECT_NE(std::find(messages.begin(), messages.end(), "dist: chamfer 1/" + std::to_string(27 + 2 * 3 * 5 * 5) + " blocks"),
@@ -110,16 +115,20 @@ TEST(OutOfCore, BudgetFromThePipelineFileAndScratchFolder) {
 }
 
 TEST(OutOfCore, InMemoryStageOverTheBudgetFailsNamingTheNodeAndCleansUp) {
-  const std::string without_edt = std::string(kPipeline).substr(0, std::string(kPipeline).find("  edt:"));
+  std::string without_edt = std::string(kPipeline).substr(0, std::string(kPipeline).find("  edt:"));
+  // save_dist writes the distance map through an in-memory stage (io.write_volume is block-wise).
+  const std::string save_dist = "  save_dist: {module: io.write_volume, inputs: {volume: dist.distance}, params: {path: out/dist.h5}}\n";
+  without_edt.replace(without_edt.find(save_dist), save_dist.size(),
+                      "  save_dist: {module: volume.convert, inputs: {input: dist.distance}, params: {dtype: uint16}}\n");
   const Pipeline p = Pipeline::parse(without_edt, "ooc.yaml");
   const fs::path b = scratch("over_budget");
-  // 30 KiB: the blocks and the mask fit, but io.write_volume (in memory) cannot load the distance map.
+  // 30 KiB: the blocks and the mask fit, but volume.convert (in memory) cannot load the distance map.
   try {
     run_into(p, b, 30 << 10, {8, 8, 8});
     FAIL() << "no error";
   } catch (const InputError& e) {
     const std::string msg = e.what();
-    EXPECT_NE(msg.find("ooc.yaml:9:3: node 'save_dist' (io.write_volume): input 'volume': the volume on disk (volume.u16 "
+    EXPECT_NE(msg.find("ooc.yaml:9:3: node 'save_dist' (volume.convert): input 'input': the volume on disk (volume.u16 "
                        "37x29x23, 48.2 KiB) does not fit the memory budget of 30 KiB"),
               std::string::npos)
         << msg;

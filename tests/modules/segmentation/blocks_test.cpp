@@ -1,7 +1,7 @@
 // Block-wise (out-of-core) segmentation against the in-memory functions: threshold (manual and
 // Otsu), connected components (same labels, mask and table for 6/18/26-connectivity, min_size,
 // keep_largest) and fill_cavities for odd block shapes, one-voxel blocks and objects that touch only across block
-// edges and corners.
+// edges and corners; Gaussian, median and illumination_z give the same values.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -194,6 +194,44 @@ TEST(MedianBlocks, SameValuesAsInMemory) {
       EXPECT_TRUE(whole<uint16_t>(*out) == in_core) << "radius " << radius << " block " << b[0];
     }
   }
+}
+
+TEST(IlluminationBlocks, SameStatisticsFactorsAndValuesAsInMemory) {
+  // Brightness falling with depth, noise, an image on disk and one in memory; odd blocks and slabs.
+  std::mt19937 rng(11);
+  VolumeU16 img({23, 19, 29}, 0, {0.5, 0.5, 2.0});
+  std::uniform_int_distribution<int> val(0, 1000);
+  for (int64_t z = 0; z < img.nz(); ++z)
+    for (int64_t y = 0; y < img.ny(); ++y)
+      for (int64_t x = 0; x < img.nx(); ++x) img(x, y, z) = static_cast<uint16_t>(val(rng) * (60 - z) / 60);
+  auto on_disk = scratch("illumination_in", type_ids::volume_u16, img.grid());
+  on_disk->write(img, {0, 0, 0});
+  for (IlluminationMode mode : {IlluminationMode::fit, IlluminationMode::given}) {
+    IlluminationOptions o;
+    o.mode = mode;
+    o.percentile = 0.05;
+    o.slope = -0.01;
+    o.intercept = 1.2;
+    const IlluminationResult in_core = illumination_z(img, o);
+    for (const auto& [b, slab] : std::vector<std::pair<Dims, int64_t>>{{{3, 4, 2}, 1}, {{13, 17, 11}, 4}, {{23, 19, 29}, 29}}) {
+      for (const DataObject* input : {static_cast<const DataObject*>(&img), static_cast<const DataObject*>(on_disk.get())}) {
+        auto out = scratch("illumination", type_ids::volume_f32, img.grid());
+        const IlluminationResult r = illumination_z_blocks(*input, *out, o, b, slab);
+        const std::string what = "block " + std::to_string(b[0]) + " slab " + std::to_string(slab);
+        EXPECT_EQ(r.slice_statistic, in_core.slice_statistic) << what;
+        EXPECT_EQ(r.factor, in_core.factor) << what;
+        EXPECT_EQ(r.fit_slope, in_core.fit_slope) << what;
+        const VolumeF32 blocked = whole<float>(*out);
+        EXPECT_EQ(std::memcmp(blocked.data(), in_core.image.data(), static_cast<size_t>(img.size()) * sizeof(float)), 0) << what;
+      }
+    }
+  }
+  // The fitted line must stay positive: the same error as in memory.
+  VolumeU16 dark({4, 4, 3});
+  for (int64_t x = 0; x < 4; ++x) dark(x, 0, 0) = 1000;  // bright first slice, then black
+  auto out = scratch("illumination_dark", type_ids::volume_f32, dark.grid());
+  EXPECT_THROW(illumination_z(dark), InputError);
+  EXPECT_THROW(illumination_z_blocks(dark, *out, {}, {2, 2, 2}, 1), InputError);
 }
 
 }  // namespace
