@@ -131,8 +131,7 @@ public:
   }
   void push(int64_t kx, int64_t ky, int64_t kz) {
     const int dim = static_cast<int>((kx & 1) + (ky & 1) + (kz & 1));
-    auto& b = q_[BucketKey{priority(kx, ky, kz), dim}];
-    b.push_back(code(kx, ky, kz));
+    q_[BucketKey{priority(kx, ky, kz), dim}].push_back(code(kx, ky, kz));
     set_queued(kx, ky, kz, true);
     peak_ = std::max(peak_, ++size_);
   }
@@ -260,13 +259,25 @@ GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& p
   if (locked) locked_cells = GridCells::from_mask(*locked, o.threads);
   Thinner th(w, locked ? &locked_cells : nullptr, r.skeleton, o.end_point_length);
   // Line 2-9: every 2-cell incident with a background 3-cell (or the outside) is queued, raster order.
-  const Dims kd = r.skeleton.cell_dims();
-  for (int64_t kz = 0; kz < kd[2]; ++kz)
-    for (int64_t ky = 0; ky < kd[1]; ++ky)
-      for (int64_t kx = 0; kx < kd[0]; ++kx) {
-        if (((kx & 1) + (ky & 1) + (kz & 1)) != 2 || !r.skeleton.has(kx, ky, kz)) continue;
-        if (coface_count(r.skeleton, kx, ky, kz) < 2) th.push(kx, ky, kz);
-      }
+  // Raster order of the Khalimsky cells (kz, ky, kx ascending): kz = 2l + c, ky = 2j + b, kx = 2i + a; only
+  // lattice bytes holding a 2-cell are looked at.
+  const Dims ld = r.skeleton.lattice_dims();
+  const auto& bytes = r.skeleton.bytes_data();
+  for (int64_t l = 0; l < ld[2]; ++l)
+    for (int c = 0; c < 2; ++c)
+      for (int64_t j = 0; j < ld[1]; ++j)
+        for (int b = 0; b < 2; ++b) {
+          const uint8_t* row = bytes.data() + ld[0] * (j + ld[1] * l);
+          for (int64_t i = 0; i < ld[0]; ++i) {
+            if (!(row[i] & GridCells::kDimMask[2])) continue;
+            for (int a = 0; a < 2; ++a) {
+              const int bit = a | (b << 1) | (c << 2);
+              if (GridCells::bit_dimension(bit) != 2 || !((row[i] >> bit) & 1)) continue;
+              const int64_t kx = 2 * i + a, ky = 2 * j + b, kz = 2 * l + c;
+              if (coface_count(r.skeleton, kx, ky, kz) < 2) th.push(kx, ky, kz);
+            }
+          }
+        }
   o.interrupter.check(0.1);
   th.run(o.threads, o.interrupter, st);
   st.cells_after = r.skeleton.counts();
