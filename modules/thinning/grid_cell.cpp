@@ -302,12 +302,10 @@ CellTopology cell_topology(const GridCells& c) {
     const int64_t n = kd[0] * kd[1] * kd[2];
     UnionFind uf(n);
     auto id = [&](int64_t x, int64_t y, int64_t z) { return x + kd[0] * (y + kd[1] * z); };
-    int64_t present = 0;
     for (int64_t z = 0; z < kd[2]; ++z)
       for (int64_t y = 0; y < kd[1]; ++y)
         for (int64_t x = 0; x < kd[0]; ++x) {
           if (!c.has(x, y, z)) continue;
-          ++present;
           if (c.has(x - 1, y, z)) uf.unite(id(x, y, z), id(x - 1, y, z));
           if (c.has(x, y - 1, z)) uf.unite(id(x, y, z), id(x, y - 1, z));
           if (c.has(x, y, z - 1)) uf.unite(id(x, y, z), id(x, y, z - 1));
@@ -316,7 +314,6 @@ CellTopology cell_topology(const GridCells& c) {
       for (int64_t y = 0; y < kd[1]; ++y)
         for (int64_t x = 0; x < kd[0]; ++x)
           if (c.has(x, y, z) && uf.find(id(x, y, z)) == id(x, y, z)) ++t.components;
-    (void)present;
   }
   // Complement: absent open cells in a box padded by one cell, joined to absent immediate neighbours
   // (if a face of an absent cell is absent, every cell between them is absent too).
