@@ -10,3 +10,9 @@ inline constexpr const char* mesh_decimate = "geometry.mesh_decimate";
 inline constexpr const char* isosurface = "geometry.isosurface";
 
 }  // namespace skel::geometry::names
+
+// Grid cell skeleton geometry (cells_to_mesh_modules.cpp).
+namespace skel::geometry::names {
+inline constexpr const char* cells_to_mesh = "geometry.cells_to_mesh";
+inline constexpr const char* cells_to_graph = "geometry.cells_to_graph";
+}  // namespace skel::geometry::names

@@ -703,6 +703,8 @@ std::string describe_file(const fs::path& file) {
         << (i.has_spacing ? "" : " (default)");
       s << ", origin " << i.origin[0] << " " << i.origin[1] << " " << i.origin[2] << " " << i.unit
         << (i.has_unit ? "" : " (unit: default)") << "\n";
+      const std::string enc = read_string_attribute(file, n, "encoding");
+      if (!enc.empty()) s << "    encoding: " << enc << "\n";
     } catch (const InputError& e) {
       s << "  " << n << ": " << e.what() << "\n";
     }
@@ -711,6 +713,33 @@ std::string describe_file(const fs::path& file) {
 }
 
 
+
+void write_string_attribute(const fs::path& file, const std::string& dataset, const std::string& name,
+                            const std::string& value) {
+  std::lock_guard lock(hdf5_mutex());
+  quiet();
+  Handle f = open_file(file, true);
+  Handle d = open_dataset(f.id, file, dataset);
+  Handle st(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(st.id, std::max<size_t>(value.size(), 1));
+  H5Tset_cset(st.id, H5T_CSET_UTF8);
+  Handle as(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle a(H5Acreate2(d.id, name.c_str(), st.id, as.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  std::string v = value;
+  v.resize(std::max<size_t>(v.size(), 1));
+  if (!a || H5Awrite(a.id, st.id, v.data()) < 0) fail_write(file, "cannot write attribute " + name);
+  if (!a.close_now() || !d.close_now() || !f.close_now()) fail_write(file, "cannot close the file");
+}
+
+std::string read_string_attribute(const fs::path& file, const std::string& dataset, const std::string& name) {
+  std::lock_guard lock(hdf5_mutex());
+  quiet();
+  Handle f = open_file(file);
+  Handle d = open_dataset(f.id, file, dataset);
+  std::string out;
+  read_string_attr(d.id, name.c_str(), out, file);
+  return out;
+}
 
 // ---------------------------------------------------------------- scratch volumes (out-of-core)
 namespace {

@@ -81,7 +81,14 @@ void write_box(const std::filesystem::path& file, const std::string& dataset, co
 std::shared_ptr<VolumeStore> create_scratch_store(const std::filesystem::path& file, const std::string& type_id,
                                                   const Grid& grid, const Dims& chunk);
 
-// One line per dataset of the file (name, shape (x, y, z), dtype, chunks, filters, spacing, origin).
+// One line per dataset of the file (name, shape (x, y, z), dtype, chunks, filters, spacing, origin;
+// the `encoding` attribute when a dataset has one, e.g. a grid cell complex).
 std::string describe_file(const std::filesystem::path& file);
+
+// A string attribute of a dataset: written in place into an existing file (Error naming the file when
+// that fails); read as "" when absent (InputError when the file or dataset cannot be opened).
+void write_string_attribute(const std::filesystem::path& file, const std::string& dataset, const std::string& name,
+                            const std::string& value);
+std::string read_string_attribute(const std::filesystem::path& file, const std::string& dataset, const std::string& name);
 
 }  // namespace skel::io

@@ -14,5 +14,7 @@ inline constexpr const char* read_transform = "io.read_transform";
 inline constexpr const char* write_transform = "io.write_transform";
 inline constexpr const char* read_mesh = "io.read_mesh";
 inline constexpr const char* write_mesh = "io.write_mesh";
+inline constexpr const char* read_cells = "io.read_cells";    // grid_cells_io_modules.cpp
+inline constexpr const char* write_cells = "io.write_cells";
 
 }  // namespace skel::io::names

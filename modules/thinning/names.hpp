@@ -5,5 +5,6 @@ namespace skel::thinning::names {
 
 inline constexpr const char* doht = "thinning.doht";
 inline constexpr const char* lee94 = "thinning.lee94";
+inline constexpr const char* grid_cell = "thinning.grid_cell";
 
 }  // namespace skel::thinning::names
