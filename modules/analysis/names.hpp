@@ -9,7 +9,8 @@ inline constexpr const char* trees = "analysis.trees";
 inline constexpr const char* label_propagation = "analysis.label_propagation";
 inline constexpr const char* report = "analysis.report";
 inline constexpr const char* dangling_ends = "analysis.dangling_ends";
-inline constexpr const char* tubularity = "analysis.tubularity";  // declared in modules/geodesic/geodesic_modules.cpp
-inline constexpr const char* rods_plates = "analysis.rods_plates";  // declared in modules/geodesic/geodesic_modules.cpp
+inline constexpr const char* tubularity = "analysis.tubularity";  // rods_plates_modules.cpp (algorithm: geodesic/surface.hpp)
+inline constexpr const char* rods_plates = "analysis.rods_plates";  // rods_plates_modules.cpp (algorithm: geodesic/surface.hpp)
+inline constexpr const char* rods_plates_elements = "analysis.rods_plates_elements";
 
 }  // namespace skel::analysis::names

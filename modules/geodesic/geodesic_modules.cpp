@@ -1,13 +1,10 @@
 // Module wrappers of the geodesic family.
-#include "analysis/names.hpp"
 #include "geodesic/geodesic.hpp"
 #include "geodesic/names.hpp"
 #include "geodesic/surface.hpp"
-#include "skel/spatial_graph.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 
-#include <cmath>
 
 namespace skel::geodesic {
 namespace {
@@ -70,13 +67,6 @@ thread.)");
 };
 SKEL_REGISTER_MODULE(BoundaryDistance);
 
-ModuleSpec& distance_unit_params(ModuleSpec& s) {
-  return s.param("distance_unit", &TubularityOptions::unit,
-                  "unit of the distance input: physical (distance.euclidean; divided by the mean spacing), chamfer (divided by chamfer_unit), voxels")
-      .param("chamfer_unit", &TubularityOptions::chamfer_unit, "chamfer value of one voxel step (3 for the 3-4-5 chamfer distance)")
-      .min(1e-6);
-}
-
 class ThinSurface final : public Module {
 public:
   static ModuleSpec spec() {
@@ -98,87 +88,6 @@ topology. Memory: 1 byte per voxel (output) plus 8 bytes per surface voxel.)");
   }
 };
 SKEL_REGISTER_MODULE(ThinSurface);
-
-class Tubularity final : public Module {
-public:
-  static ModuleSpec spec() {
-    ModuleSpec s(analysis::names::tubularity, "The ratio g/d on skeleton voxels: geodesic importance over boundary distance");
-    s.input<VolumeU8>("skeleton", "skeleton voxels (0/1)")
-        .input<VolumeF32>("importance", "geodesic.boundary_distance importance")
-        .add_input("distance", all_volume_types(), "distance to the boundary (distance.euclidean or distance.chamfer)", true)
-        .optional_input<SpatialGraph>("graph", "graph whose points get the ratio as point attribute `tubularity`")
-        .output<VolumeF32>("ratio", "g/d on skeleton voxels, 0 elsewhere")
-        .output<SpatialGraph>("graph", "the input graph with point attribute `tubularity` (if a graph was given)");
-    distance_unit_params(s);
-    s.details(R"(Thesis §6.2 (figs. 6.9, 6.11, 6.13): g is the geodesic importance (voxel steps along the
-boundary layer), d the distance to the boundary converted to voxels. On a rod of radius r the two
-nearest boundary points of neighbouring voxels lie on opposite sides, half a circumference apart: g is
-about pi·r and g/d about pi. On a plate the path goes around the plate's rim, so g grows with the
-plate's width and g/d is large (t/d when the importance saturates at t). The ratio therefore separates
-rod-like from plate-like parts independently of thickness. d below half a voxel counts as half a voxel.
-Graph points take the ratio of the voxel they lie in (0 off the skeleton). Memory: 4 bytes per voxel.)");
-    return s;
-  }
-  void run(RunContext& ctx) override {
-    auto sk = ctx.input<VolumeU8>("skeleton");
-    auto imp = ctx.input<VolumeF32>("importance");
-    auto dist = ctx.input_data("distance");
-    VolumeF32 ratio = tubularity(*sk, *imp, *dist, ctx.options<TubularityOptions>());
-    if (auto g = ctx.optional_input<SpatialGraph>("graph")) {
-      SpatialGraph out(*g);
-      auto& pa = out.ensure_point_attribute("tubularity");
-      const Grid& gr = ratio.grid();
-      for (int64_t e = 0; e < out.edge_count(); ++e)
-        for (size_t i = 0; i < out.edges[e].points.size(); ++i) {
-          const auto& p = out.edges[e].points[i];
-          int64_t c[3];
-          for (int k = 0; k < 3; ++k) c[k] = std::llround((p[k] - gr.origin[k]) / gr.spacing[k]);
-          pa[e][i] = ratio.at_or(c[0], c[1], c[2], 0.0f);
-        }
-      ctx.output("graph", std::move(out));
-    }
-    ctx.output("ratio", std::move(ratio));
-  }
-};
-SKEL_REGISTER_MODULE(Tubularity);
-
-class RodsPlates final : public Module {
-public:
-  static ModuleSpec spec() {
-    ModuleSpec s(analysis::names::rods_plates, "Rods/plates decomposition of a (bone) object from its skeleton and g/d");
-    s.input<VolumeU8>("mask", "the object (voxel > 0)")
-        .input<VolumeU8>("skeleton", "its (mixed-dimensional) skeleton")
-        .input<VolumeF32>("importance", "geodesic.boundary_distance importance")
-        .add_input("distance", all_volume_types(), "distance to the boundary", true)
-        .output<VolumeU8>("labels", "every object voxel: 1 rod, 2 plate (0 background)")
-        .output<VolumeU8>("skeleton_labels", "skeleton voxels: 1 rod, 2 plate")
-        .output<Table>("table", "per class: voxels, volume, fraction, surface, skeleton voxels, pieces, mean thickness, plate-to-rod ratio")
-        .param("ratio_threshold", &RodsPlatesOptions::ratio_threshold, "g/d at or above which a skeleton voxel is plate").min(0);
-    distance_unit_params(s);
-    s.details(R"(Thesis §6.2 and fig. 6.14. Skeleton voxels are classified by the ratio g/d (see
-analysis.tubularity): rods give about pi, plates far more. The default threshold 5 sits between pi and
-the values of plates wider than a few thicknesses; with threshold-mode importance saturating at t,
-plates of thickness 2d are recognised while t/d >= 5 (choose t >= 10·d_max). Every object voxel takes
-the class of its nearest skeleton voxel (exact Euclidean feature transform), which decomposes the
-object into rod and plate parts. The table gives the structural indices bone researchers report: rod
-and plate volume and volume fraction, surface (voxel faces × face area), skeleton voxels, pieces
-(26-components of each class's skeleton), mean thickness (2 × mean distance on the class's skeleton,
-in the distance input's unit) and the plate-to-rod volume ratio. Memory: 1 byte (labels) + 4 (ratio)
-+ 4–8 (feature transform) + 4 bytes per voxel during the transform.)");
-    return s;
-  }
-  void run(RunContext& ctx) override {
-    auto mask = ctx.input<VolumeU8>("mask");
-    auto o = ctx.options<RodsPlatesOptions>();
-    ctx.fill(o.tubularity);
-    auto r = rods_plates(*mask, *ctx.input<VolumeU8>("skeleton"), *ctx.input<VolumeF32>("importance"),
-                                   *ctx.input_data("distance"), o);
-    ctx.output("labels", std::move(r.labels));
-    ctx.output("skeleton_labels", std::move(r.skeleton_labels));
-    ctx.output("table", std::move(r.table));
-  }
-};
-SKEL_REGISTER_MODULE(RodsPlates);
 
 }  // namespace
 }  // namespace skel::geodesic

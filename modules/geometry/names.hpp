@@ -8,6 +8,7 @@ inline constexpr const char* skeleton_to_mesh = "geometry.skeleton_to_mesh";
 inline constexpr const char* mesh_smooth = "geometry.mesh_smooth";
 inline constexpr const char* mesh_decimate = "geometry.mesh_decimate";
 inline constexpr const char* isosurface = "geometry.isosurface";
+inline constexpr const char* mesh_labels = "geometry.mesh_labels";  // mesh_labels_modules.cpp
 
 }  // namespace skel::geometry::names
 

@@ -99,7 +99,7 @@ TEST(Pipelines, BonePipelinesWriteMeshes) {
   o.keep_outputs = true;
   Pipeline plates = Pipeline::load_file(pipeline("bone_plates.yaml"));
   ASSERT_TRUE(ex.run(plates, o).ok);
-  auto mesh = std::dynamic_pointer_cast<const Mesh>(ex.output(plates, "mesh", "mesh"));
+  auto mesh = std::dynamic_pointer_cast<const Mesh>(ex.output(plates, "mesh_classes", "mesh"));
   auto small = std::dynamic_pointer_cast<const Mesh>(ex.output(plates, "mesh_small", "mesh"));
   ASSERT_TRUE(mesh && small);
   EXPECT_GT(mesh->triangle_count(), 10000);
@@ -109,6 +109,22 @@ TEST(Pipelines, BonePipelinesWriteMeshes) {
   EXPECT_EQ(small->line_count(), mesh->line_count());
   const auto& cls = Mesh::attribute<int32_t>(mesh->triangle_attributes, "manifold");
   EXPECT_GT(std::count(cls.begin(), cls.end(), 1), mesh->triangle_count() / 2);  // mostly plate interiors
+  // Rods and plates per element (fig. 6.14): the phantom has both; the mesh is coloured by them
+  // (triangles are plate skeleton, lines rods, with few exceptions at the rod-plate junctions).
+  auto indices = std::dynamic_pointer_cast<const Table>(ex.output(plates, "classes", "indices"));
+  ASSERT_TRUE(indices);
+  EXPECT_GT(indices->ints("plates")[0], 0);
+  EXPECT_GT(indices->ints("rods")[0], 0);
+  EXPECT_GT(indices->ints("rod_plate_junctions")[0], 0);
+  EXPECT_GT(indices->reals("pBV_BV")[0], indices->reals("rBV_BV")[0]);
+  const auto& tri_class = Mesh::attribute<int32_t>(mesh->triangle_attributes, "class");
+  EXPECT_GT(std::count(tri_class.begin(), tri_class.end(), 2), mesh->triangle_count() * 9 / 10);
+  const auto& line_class = Mesh::attribute<int32_t>(mesh->line_attributes, "class");
+  EXPECT_GT(std::count(line_class.begin(), line_class.end(), 1), mesh->line_count() / 2);
+  const auto& tri_element = Mesh::attribute<int32_t>(mesh->triangle_attributes, "element");
+  EXPECT_EQ(std::count(tri_element.begin(), tri_element.end(), 0), 0);
+  EXPECT_TRUE(fs::exists(out / "bone/structural_indices.csv"));
+  EXPECT_TRUE(fs::exists(out / "bone/rod_plate_elements.csv"));
   const Mesh back = io::read_mesh(out / "bone/skeleton_mesh.ply", io::MeshFormat::ply);
   EXPECT_TRUE(back == *mesh);
   EXPECT_EQ(io::read_mesh(out / "bone/skeleton_mesh_2pct.vtp", io::MeshFormat::vtp).triangle_count(), small->triangle_count());
