@@ -153,8 +153,9 @@ fractions of rods and plates; rod and plate thickness, length and area are means
 the mask's unit. The per-voxel g/d method stays available as analysis.rods_plates.
 
 Memory: outputs 4 (elements) + 1 (classes) + 4 (skeleton elements) bytes per voxel; working 1 byte per
-voxel plus the feature transform (4 or 8 bytes per voxel out, 4 during); about 60 bytes per skeleton
-voxel (voxel list, manifold types, 1-cells, element and junction ids).)");
+voxel plus the feature transform (4 or 8 bytes per voxel out, 4 during); 60-100 bytes per skeleton
+voxel (voxel list 8, manifold type 1, element, own-element, junction and proposal ids 16, 1-cell lists
+8 + 8 per incident 1-cell: about 2 on curves, 4-8 on surfaces).)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
