@@ -296,7 +296,9 @@ RodsPlatesElementResult rods_plates_elements(const VolumeU8& mask, const VolumeU
     const double volume = static_cast<double>(voxels[k]) * voxel_volume;
     double length = 0.0, area = 0.0;
     if (plate) {
-      area = static_cast<double>(skel_count[k]) * voxel_area;
+      // Mid-surface area of a plate of uniform thickness: volume / thickness (the one-voxel-thin patch
+      // ends short of the rim and counts inclined voxels once, so its voxel count underestimates).
+      area = thickness[k] > 0 ? volume / thickness[k] : 0.0;
     } else if (s.kind[k] == ElementKind::curve) {
       length = cell_length[k];
     } else {

@@ -144,15 +144,18 @@ of its own (kind `cluster`, a rod). Every object voxel takes the element of its 
 Table per element: `thickness` = 2 × mean distance over the element's own skeleton voxels; `length`
 (rods) = length of the 1-cells of its skeleton voxels, a 1-cell to another element counting half (for
 rods that are not curves: the length of a cylinder of the element's volume and thickness); `area`
-(plates) = skeleton voxels (junction voxels joined included) × mean spacing²; `junctions` = junction
+(plates) = volume / thickness, the mid-surface area of a plate of uniform thickness (the skeleton patch
+itself ends short of the rim and counts an inclined plane's voxels once per staircase step, so its
+voxel count underestimates the area); `junctions` = junction
 clusters it touches. Indices: TV = the grid's volume, BV = the object's; rBV/BV and pBV/BV the volume
 fractions of rods and plates; rod and plate thickness, length and area are means over elements;
 `junctions` counts junction clusters, `rod_plate_junctions` those touching a rod and a plate. Lengths in
 the mask's unit. The per-voxel g/d method stays available as analysis.rods_plates.
 
 Memory: outputs 4 (elements) + 1 (classes) + 4 (skeleton elements) bytes per voxel; working 1 byte per
-voxel plus the feature transform (4 or 8 bytes per voxel out, 4 during); about 60 bytes per skeleton
-voxel (voxel list, manifold types, 1-cells, element and junction ids).)");
+voxel plus the feature transform (4 or 8 bytes per voxel out, 4 during); 60-100 bytes per skeleton
+voxel (voxel list 8, manifold type 1, element, own-element, junction and proposal ids 16, 1-cell lists
+8 + 8 per incident 1-cell: about 2 on curves, 4-8 on surfaces).)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");

@@ -262,13 +262,14 @@ TEST(RodsPlatesElements, ModulePortsUnitsAndErrors) {
   g.unit = "mm";
   auto skel = std::make_shared<VolumeU8>(g, 0);
   for (int64_t i = 0; i < s.size(); ++i) (*skel)[i] = s[i];
-  auto dist = std::make_shared<VolumeF32>(g, 0.5f);
+  auto dist = std::make_shared<VolumeF32>(g, 0.25f);  // a plate one voxel (0.5 mm) thick
   const auto r = run_module(names::rods_plates_elements, {{"mask", skel}, {"skeleton", skel}, {"distance", dist}});
   const auto idx = r.get<Table>("indices");
   EXPECT_EQ(idx->ints("plates")[0], 1);
   EXPECT_EQ(idx->ints("rods")[0], 1);
   EXPECT_EQ(idx->column("plate_area").unit, "mm²");
-  EXPECT_DOUBLE_EQ(idx->reals("plate_area")[0], 24.0 * 24.0 * 0.25);
+  EXPECT_DOUBLE_EQ(idx->reals("plate_thickness")[0], 0.5);
+  EXPECT_DOUBLE_EQ(idx->reals("plate_area")[0], 24.0 * 24.0 * 0.25);  // volume / thickness
   EXPECT_EQ(idx->column("rod_length").unit, "mm");
   EXPECT_EQ(r.get<Table>("table")->column("volume").unit, "mm³");
   EXPECT_EQ(r.get<VolumeI32>("elements")->grid().unit, "mm");
@@ -289,4 +290,27 @@ TEST(RodsPlatesElements, ModulePortsUnitsAndErrors) {
   ASSERT_EQ(re.warnings.size(), 1u);
   EXPECT_EQ(re.get<Table>("table")->rows(), 0);
   EXPECT_EQ(re.get<Table>("indices")->ints("rods")[0], 0);
+}
+
+TEST(RodsPlatesElements, InclinedPlateIsOnePlate) {
+  // A slab 5 voxels thick whose mid-plane is inclined (normal (1, 1, 1)/sqrt 3): its digital plate
+  // skeleton is a staircase of voxels, still one surface patch and one plate.
+  const int64_t n = 48;
+  VolumeU8 m(Dims{n, n, n}, 0);
+  const double c = (n - 1) * 1.5, s3 = std::sqrt(3.0);
+  for (int64_t z = 0; z < n; ++z)
+    for (int64_t y = 0; y < n; ++y)
+      for (int64_t x = 0; x < n; ++x) {
+        const double h = (static_cast<double>(x + y + z) - c) / s3;
+        const double r2 = (x - 23.5) * (x - 23.5) + (y - 23.5) * (y - 23.5) + (z - 23.5) * (z - 23.5) - h * h;
+        if (std::abs(h) <= 2.5 && r2 <= 18.0 * 18.0) m(x, y, z) = 1;
+      }
+  const Mixed x = mixed_skeleton(m, 24);
+  const auto r = rods_plates_elements(m, x.skeleton, x.distance);
+  EXPECT_EQ(r.indices.ints("plates")[0], 1);
+  EXPECT_EQ(r.indices.ints("rods")[0], 0);
+  EXPECT_DOUBLE_EQ(r.indices.reals("pBV_BV")[0], 1.0);
+  // Thickness about 5, area about that of the disk of radius 18 (volume / thickness).
+  EXPECT_NEAR(r.indices.reals("plate_thickness")[0], 5.0, 0.6);
+  EXPECT_NEAR(r.indices.reals("plate_area")[0], 3.14159 * 18.0 * 18.0, 0.15 * 3.14159 * 18.0 * 18.0);
 }
