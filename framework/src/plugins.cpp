@@ -123,12 +123,18 @@ std::string load_plugin(const std::string& file) {
   // The staged registry holds the plugin's specs and factories for the life of the process; the
   // global registry's factories call into it.
   auto staged = std::make_shared<Registry>();
+  std::string failure;  // the exception (an object of the plugin's code) is gone before dlclose
   try {
     CaptureGuard capture(*staged);
     reg(*staged);
   } catch (const std::exception& e) {
+    failure = e.what();
+  } catch (...) {
+    failure = "an exception that is no std::exception";
+  }
+  if (!failure.empty()) {
     staged.reset();
-    return refuse("plugin " + shown + ": registering its modules failed: " + e.what());
+    return refuse("plugin " + shown + ": registering its modules failed: " + failure);
   }
   std::vector<std::string> names = names_of(*staged);
   if (names.empty()) {

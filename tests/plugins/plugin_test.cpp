@@ -162,6 +162,15 @@ TEST(Plugin, StaticInitialiserRegistrationIsRefused) {
   EXPECT_NE(Registry::instance().find("plugin_test.after"), nullptr);
 }
 
+TEST(Plugin, AnExceptionWhileRegisteringRefusesThePluginAsAWhole) {
+  isolate(scratch("broken_spec"));
+  EXPECT_EQ(load_plugin(PLUGIN_BROKEN_SPEC), "plugin " + canonical(PLUGIN_BROKEN_SPEC) +
+                                                 ": registering its modules failed: ModuleSpec::range called before any param");
+  EXPECT_EQ(Registry::instance().find("plugin_test.good_half"), nullptr);
+  EXPECT_EQ(Registry::instance().find("plugin_test.broken"), nullptr);
+  EXPECT_TRUE(loaded_plugins().empty());
+}
+
 TEST(Plugin, NonPluginsAndUnloadableFilesAreNamedWithTheReason) {
   const fs::path d = scratch("non_plugin");
   isolate(d);
