@@ -23,6 +23,7 @@
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/pipeline.hpp"
+#include "skel/plugin.hpp"
 #include "skel/table.hpp"
 #include "skel/text.hpp"
 #include "cli.hpp"
@@ -306,6 +307,30 @@ void print_markdown(const ModuleSpec& m, std::ostream& o) {
   if (!m.details().empty()) o << m.details() << "\n\n";
 }
 
+// ---------------------------------------------------------------- plugins
+// Loads the plugins (SKELFLOW_PLUGIN_PATH, the user folder) before any command; a refused plugin is
+// a warning naming its file and why, and the command goes on without it.
+void load_plugins_for_cli() {
+  for (const auto& e : load_plugins().errors) std::fprintf(stderr, "skelflow: warning: %s\n", e.c_str());
+}
+
+// `skelflow --version`'s lines about plugins: the ABI tag a plugin must carry and every plugin loaded.
+void print_plugins() {
+  std::printf("plugin ABI: %s\n", plugin_abi_tag().c_str());
+  if (loaded_plugins().empty()) std::printf("plugins: none loaded (SKELFLOW_PLUGIN_PATH, ~/.local/share/skelflow/plugins)\n");
+  for (const auto& p : loaded_plugins()) {
+    std::printf("plugin: %s:", p.file.c_str());
+    for (const auto& m : p.modules) std::printf(" %s", m.c_str());
+    std::printf("\n");
+  }
+}
+
+// "  [plugin FILE]" after a module that came from a plugin, in `skelflow modules`.
+std::string plugin_note(const std::string& module) {
+  const std::string file = plugin_of_module(module);
+  return file.empty() ? std::string() : "  [plugin " + file + "]";
+}
+
 int cmd_modules(const std::vector<std::string>& args) {
   bool markdown = false, names_only = false;
   std::string name;
@@ -344,7 +369,8 @@ int cmd_modules(const std::vector<std::string>& args) {
     }
     return kOk;
   }
-  for (const auto* m : reg.specs()) std::printf("%-34s %s\n", m->name().c_str(), m->doc().c_str());
+  for (const auto* m : reg.specs())
+    std::printf("%-34s %s%s\n", m->name().c_str(), m->doc().c_str(), plugin_note(m->name()).c_str());
   return kOk;
 }
 
@@ -599,8 +625,10 @@ int skelflow_main(int argc, char** argv) {
     std::fputs(usage_text().c_str(), args.empty() ? stderr : stdout);
     return args.empty() ? kInvalid : kOk;
   }
+  load_plugins_for_cli();
   if (args[0] == "--version" || args[0] == "-V") {
     std::printf("skelflow %s\n", SKELFLOW_VERSION);
+    print_plugins();
     return kOk;
   }
   {  // `skelflow help COMMAND` and `skelflow COMMAND --help`

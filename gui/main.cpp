@@ -6,7 +6,10 @@
 
 #include <QVTKOpenGLNativeWidget.h>
 
+#include <cstdio>
+
 #include "main_window.hpp"
+#include "skel/plugin.hpp"
 
 int main(int argc, char** argv) {
   // VTK needs its OpenGL context format before the application exists.
@@ -25,6 +28,8 @@ int main(int argc, char** argv) {
   parser.addOption(run_option);
   parser.process(app);
 
+  // Plugin modules join the palette; a refused plugin is reported on stderr with its file and why.
+  for (const auto& e : skel::load_plugins().errors) std::fprintf(stderr, "skelflow-gui: warning: %s\n", e.c_str());
   skel::gui::MainWindow window;
   const QStringList args = parser.positionalArguments();
   if (!args.isEmpty() && !window.open_file(args.front())) return 1;

@@ -1,4 +1,5 @@
 #include "skel/module.hpp"
+#include "registry_capture.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -219,17 +220,27 @@ const ParamSpec* ModuleSpec::find_param(const std::string& n) const {
 }
 
 // ---------------------------------------------------------------- Registry
+namespace {
+// Set by the plugin loader (registry_capture.hpp) while a plugin's code runs.
+Registry* g_capture = nullptr;
+}  // namespace
+void detail::set_registry_capture(Registry* capture) { g_capture = capture; }
+
 Registry& Registry::instance() {
   static Registry r;
   return r;
 }
 void Registry::add(ModuleSpec spec, Factory factory) {
+  if (g_capture && this == &instance()) return g_capture->add(std::move(spec), std::move(factory));
   const std::string name = spec.name();
   if (name.find('.') == std::string::npos) throw Error("module name '" + name + "' must be family.name");
   if (entries_.count(name)) throw Error("module '" + name + "' is registered twice");
   entries_.emplace(name, Entry{std::move(spec), std::move(factory)});
 }
-void Registry::add_inspector(FileInspector inspector) { inspectors_.push_back(std::move(inspector)); }
+void Registry::add_inspector(FileInspector inspector) {
+  if (g_capture && this == &instance()) return g_capture->add_inspector(std::move(inspector));
+  inspectors_.push_back(std::move(inspector));
+}
 const ModuleSpec* Registry::find(const std::string& name) const {
   auto it = entries_.find(name);
   return it == entries_.end() ? nullptr : &it->second.spec;

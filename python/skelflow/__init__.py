@@ -26,7 +26,7 @@ from . import _skelflow as _core
 
 __all__ = [
     "Error", "InputError", "Cancelled", "Volume", "Graph", "Table", "Data", "Outputs", "Pipeline", "run",
-    "modules", "module_names", "branch_table", "last_report", "__version__",
+    "modules", "module_names", "plugins", "branch_table", "last_report", "__version__",
 ]
 
 __version__ = _core.version()
@@ -614,6 +614,24 @@ def _build_modules():
         names.append(spec["name"])
     sys.modules[root.__name__] = root
     return root, names
+
+
+def _load_plugins():
+    """Loads the plugins (SKELFLOW_PLUGIN_PATH, the user folder) so their modules become functions
+    too; a refused plugin is a warning naming its file and why."""
+    import warnings
+    loaded, errors = _core.load_plugins()
+    for e in errors:
+        warnings.warn("skelflow: " + e, RuntimeWarning, stacklevel=3)
+    return loaded
+
+
+_plugins = _load_plugins()
+
+
+def plugins() -> list:
+    """The plugins loaded at import: [(file, [module names])]."""
+    return [(f, list(m)) for f, m in _plugins]
 
 
 modules, _module_names = _build_modules()

@@ -31,6 +31,7 @@
 #include "skel/executor.hpp"
 #include "skel/module.hpp"
 #include "skel/pipeline.hpp"
+#include "skel/plugin.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
 #include "skel/volume.hpp"
@@ -677,6 +678,15 @@ PYBIND11_MODULE(_skelflow, m) {
   }, "The JSON run report of the last run or module call (empty before the first).");
   m.def("specs", &specs, "Every registered module's spec as a list of dicts.");
   m.def("version", [] { return std::string(SKEL_VERSION_STRING); });
+  // Plugins (SKELFLOW_PLUGIN_PATH, the user folder) are loaded at import, before the package makes
+  // a function of every module; a refused plugin is a Python warning naming the file and why.
+  m.def("load_plugins", [] {
+    const PluginLoadReport& r = load_plugins();
+    py::list loaded;
+    for (const auto& p : r.loaded) loaded.append(py::make_tuple(p.file, p.modules));
+    return py::make_tuple(loaded, r.errors);
+  }, "Loads the plugins once: ([(file, [module, ...]), ...], [error, ...]).");
+  m.def("plugin_of_module", &plugin_of_module, "The plugin file a module came from, or '' when built in.");
 
   py::class_<Data>(m, "Data", "A Skelflow data object (volume, graph, table, landmarks, transform, ...).")
       .def_property_readonly("type_id", &Data::type_id)

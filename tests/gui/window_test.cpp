@@ -32,6 +32,7 @@
 #include "main_window.hpp"
 #include "node_editor.hpp"
 #include "palette.hpp"
+#include "skel/plugin.hpp"
 #include "properties_panel.hpp"
 #include "skel/units.hpp"
 #include "skel/volume.hpp"
@@ -592,6 +593,18 @@ TEST(Window, DemoPipeline) {
   EXPECT_GT(s.grey_max - s.grey_min, 60);
   ASSERT_TRUE(w.grab().save(shot_dir() + "/demo_window.png"));
   EXPECT_FALSE(QFileInfo::exists(QString(SKEL_SOURCE_DIR) + "/pipelines/demo"));
+}
+
+// A plugin loaded before the window is built (as gui/main.cpp does) puts its modules in the
+// palette like built-in ones. Last in this file: the module stays registered for the process.
+TEST(Window, PluginModulesJoinThePalette) {
+  REQUIRE_DISPLAY();
+  ASSERT_EQ(skel::load_plugin(SKEL_BINARY_DIR "/tests/plugins/good/invert_plugin.so"), "");
+  MainWindow w;
+  w.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+  w.palette()->set_filter("invert");
+  EXPECT_EQ(w.palette()->visible_modules(), QStringList{"plugin_test.invert"});
 }
 
 int main(int argc, char** argv) {
