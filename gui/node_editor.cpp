@@ -453,7 +453,8 @@ void NodeView::fit_all() {
   const double z = std::clamp(vp.width() / r.width(), kLegibleZoom, 1.0);
   scale(z, z);
   const double half_w = 0.5 * vp.width() / z, half_h = 0.5 * vp.height() / z;
-  centerOn(QPointF(r.width() > 2 * half_w ? r.left() + half_w : r.center().x(), r.top() + half_h));
+  const QRectF nodes = r.adjusted(20, 20, -20, -20);  // without the margins
+  centerOn(QPointF(nodes.width() > 2 * half_w ? r.left() + half_w : r.center().x(), r.top() + half_h));
 }
 
 int NodeView::legible_columns(int width) {

@@ -26,6 +26,9 @@
 extern char** environ;
 
 namespace skel::render {
+namespace detail {
+bool can_open_x_display();  // x_display.cpp
+}  // namespace detail
 namespace {
 
 // A private Xvfb for the time of one rendering when DISPLAY is not set (VTK 9.1 on Debian has no
@@ -34,7 +37,9 @@ class PrivateXServer {
 public:
   PrivateXServer(int width, int height) {
     const char* d = std::getenv("DISPLAY");
-    if (d && *d) return;  // the user's display (or xvfb-run's)
+    // The user's display (or xvfb-run's) when it answers; a stale one (e.g. from an ended ssh -X
+    // session) would make VTK abort, so then a private server is used instead.
+    if (d && *d && detail::can_open_x_display()) return;
     int fds[2];
     if (pipe(fds) != 0) throw Error(std::string("render: cannot start Xvfb: pipe: ") + std::strerror(errno));
     const std::string fd = std::to_string(fds[1]);
@@ -55,7 +60,7 @@ public:
     if (rc != 0) {
       close(fds[0]);
       pid_ = -1;
-      throw Error(std::string("render: no X display (DISPLAY is not set) and Xvfb cannot be started (") +
+      throw Error(std::string("render: no X display (DISPLAY is not set or does not answer) and Xvfb cannot be started (") +
                   std::strerror(rc) +
                   "): this VTK renders through X/GLX only (no OSMesa or EGL back end), so off-screen "
                   "rendering needs an X server; install Xvfb (Debian: xvfb) or run under xvfb-run");
@@ -74,8 +79,10 @@ public:
     while (!number.empty() && (number.back() == '\n' || number.back() == ' ')) number.pop_back();
     if (number.empty() || number.find_first_not_of("0123456789") != std::string::npos) {
       stop();
-      throw Error("render: no X display (DISPLAY is not set) and the private Xvfb did not start; run under xvfb-run");
+      throw Error("render: no X display (DISPLAY is not set or does not answer) and the private Xvfb did not start; "
+                  "run under xvfb-run");
     }
+    if (d) old_display_ = d;
     setenv("DISPLAY", (":" + number).c_str(), 1);
     set_display_ = true;
   }
@@ -85,7 +92,10 @@ public:
 
 private:
   void stop() {
-    if (set_display_) unsetenv("DISPLAY");
+    if (set_display_) {
+      if (old_display_.empty()) unsetenv("DISPLAY");
+      else setenv("DISPLAY", old_display_.c_str(), 1);
+    }
     set_display_ = false;
     if (pid_ <= 0) return;
     kill(pid_, SIGTERM);
@@ -96,6 +106,7 @@ private:
   }
   pid_t pid_ = -1;
   bool set_display_ = false;
+  std::string old_display_;
 };
 
 }  // namespace

@@ -337,8 +337,12 @@ TEST(Window, LongChainsWrapIntoRowsAtALegibleZoom) {
   EXPECT_LE(box.width() * zoom, vp.width() + 1.0) << box.width() * zoom << " > " << vp.width();
   NodeItem* first = w.scene()->node_item("phantom");
   ASSERT_NE(first, nullptr);
-  const QRect first_on_screen = w.node_view()->mapFromScene(first->sceneBoundingRect()).boundingRect();
+  const QRect first_on_screen = w.node_view()->mapFromScene(first->sceneBoundingRect().adjusted(4, 4, -4, -4)).boundingRect();
   EXPECT_TRUE(vp.contains(first_on_screen)) << first_on_screen.x() << "," << first_on_screen.y();
+  // Its successor, in the next column, is in view too (with its output ports).
+  const QRect second =
+      w.node_view()->mapFromScene(w.scene()->node_item("smooth")->sceneBoundingRect().adjusted(4, 4, -4, -4)).boundingRect();
+  EXPECT_TRUE(vp.contains(second)) << second.x() << "," << second.y() << " " << second.width() << "x" << second.height();
   ASSERT_TRUE(w.node_view()->grab().save(shot_dir() + "/node_editor_vessels.png"));
   ASSERT_TRUE(w.grab().save(shot_dir() + "/window_vessels.png"));
 }
