@@ -10,9 +10,13 @@ namespace skel::gui {
 
 namespace {
 
+// "*.tif *.TIF": the extensions are lower case and match any case when a pipeline runs, but the
+// dialogs' filters follow the file system's case (sensitive on Linux), so upper case is listed too.
 QString patterns(const std::vector<std::string>& extensions) {
   QStringList p;
   for (const auto& e : extensions) p << "*" + QString::fromStdString(e);
+  for (const auto& e : extensions)
+    if (QString u = "*" + QString::fromStdString(e).toUpper(); !p.contains(u)) p << u;
   return p.join(' ');
 }
 

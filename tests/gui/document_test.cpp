@@ -424,6 +424,8 @@ TEST(FileFilters, EveryRegistryExtensionIsInTheDialogFilter) {
     EXPECT_TRUE(f.startsWith("Supported files (")) << f.toStdString();
     EXPECT_TRUE(f.endsWith("All files (*)")) << f.toStdString();
   }
+  // Upper-case files too (the dialogs match case-sensitively on Linux).
+  EXPECT_TRUE(has_pattern(read, ".TIF")) << read.toStdString();
   ParamSpec plain;
   EXPECT_EQ(file_dialog_filter(plain), "All files (*)");
 }
