@@ -16,6 +16,7 @@
 #include <vtkWindowToImageFilter.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -31,6 +32,16 @@ bool can_open_x_display();  // x_display.cpp
 }  // namespace detail
 namespace {
 
+// The private Xvfb of the rendering in progress, stopped when the process aborts (VTK aborts on X
+// errors), so that no server is left behind.
+std::atomic<pid_t> g_xvfb_pid{-1};
+extern "C" void stop_xvfb_on_abort(int sig) {
+  const pid_t p = g_xvfb_pid.load();
+  if (p > 0) kill(p, SIGTERM);
+  signal(sig, SIG_DFL);
+  raise(sig);
+}
+
 // A private Xvfb for the time of one rendering when DISPLAY is not set (VTK 9.1 on Debian has no
 // OSMesa/EGL back end: every render window is an X window, off-screen ones included).
 class PrivateXServer {
@@ -40,11 +51,26 @@ public:
     // The user's display (or xvfb-run's) when it answers; a stale one (e.g. from an ended ssh -X
     // session) would make VTK abort, so then a private server is used instead.
     if (d && *d && detail::can_open_x_display()) return;
+    if (d) old_display_ = d;
+    for (int attempt = 0; attempt < 5; ++attempt)
+      if (start(width, height)) return;
+    throw Error("render: no X display (DISPLAY is not set or does not answer) and the private Xvfb did not start; "
+                "run under xvfb-run");
+  }
+  ~PrivateXServer() { stop(); }
+  PrivateXServer(const PrivateXServer&) = delete;
+  PrivateXServer& operator=(const PrivateXServer&) = delete;
+
+private:
+  // Starts Xvfb and points DISPLAY at it; false (nothing left running) when it did not come up.
+  bool start(int width, int height) {
     int fds[2];
     if (pipe(fds) != 0) throw Error(std::string("render: cannot start Xvfb: pipe: ") + std::strerror(errno));
     const std::string fd = std::to_string(fds[1]);
     const std::string screen = std::to_string(std::max(width, 64)) + "x" + std::to_string(std::max(height, 64)) + "x24";
-    std::vector<std::string> args = {"Xvfb", "-displayfd", fd, "-screen", "0", screen, "-nolisten", "tcp"};
+    // -noreset: an X server resets when its last client leaves, and refuses connections meanwhile; the
+    // check below is such a client, VTK connects right after it.
+    std::vector<std::string> args = {"Xvfb", "-displayfd", fd, "-screen", "0", screen, "-nolisten", "tcp", "-noreset"};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -79,18 +105,25 @@ public:
     while (!number.empty() && (number.back() == '\n' || number.back() == ' ')) number.pop_back();
     if (number.empty() || number.find_first_not_of("0123456789") != std::string::npos) {
       stop();
-      throw Error("render: no X display (DISPLAY is not set or does not answer) and the private Xvfb did not start; "
-                  "run under xvfb-run");
+      return false;
     }
-    if (d) old_display_ = d;
     setenv("DISPLAY", (":" + number).c_str(), 1);
     set_display_ = true;
+    g_xvfb_pid.store(pid_);
+    static const bool handler = [] {
+      struct sigaction sa {};
+      sa.sa_handler = stop_xvfb_on_abort;
+      sigemptyset(&sa.sa_mask);
+      return sigaction(SIGABRT, &sa, nullptr) == 0;
+    }();
+    (void)handler;
+    // Another server started at the same moment (xvfb-run -a, a second render) can take the number
+    // this one reported: then it does not answer, and a new one is started.
+    if (detail::can_open_x_display()) return true;
+    stop();
+    return false;
   }
-  ~PrivateXServer() { stop(); }
-  PrivateXServer(const PrivateXServer&) = delete;
-  PrivateXServer& operator=(const PrivateXServer&) = delete;
 
-private:
   void stop() {
     if (set_display_) {
       if (old_display_.empty()) unsetenv("DISPLAY");
@@ -98,6 +131,7 @@ private:
     }
     set_display_ = false;
     if (pid_ <= 0) return;
+    g_xvfb_pid.store(-1);
     kill(pid_, SIGTERM);
     int status = 0;
     while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
