@@ -27,6 +27,8 @@
 #include "skel/table.hpp"
 #include "skel/text.hpp"
 #include "cli.hpp"
+#include "cli_options.hpp"
+#include "render_command.hpp"
 
 namespace fs = std::filesystem;
 using namespace skel;
@@ -88,6 +90,31 @@ const std::vector<Command>& commands() {
        "  --output-dir D              check outputs as `run --output-dir D` would write them\n"
        "  --allow-outside-output-dir  allow outputs outside --output-dir",
        "skelflow validate pipelines/vessel_network.yaml", {"--output-dir", "--allow-outside-output-dir", "--help", "-h"}},
+      {"render",
+       "render PIPELINE --node NODE.PORT [--node NODE.PORT]... -o FILE.png [--size WxH]\n"
+       "               [--color-by ATTR] [--camera iso|x|y|z] [--volume-mode MODE]\n"
+       "               [--set node.param=value]... [--threads N] [--quiet]",
+       "Draws node outputs (volumes, graphs, meshes) into a PNG as the GUI's 3D view shows them, without\n"
+       "a window: runs only what the nodes need, then renders off-screen with VTK. Several --node are\n"
+       "drawn together (e.g. a graph over its volume). VTK on Debian renders through X only (no OSMesa or\n"
+       "EGL): without DISPLAY a private Xvfb is started for the rendering (package xvfb), or run the\n"
+       "command under xvfb-run.\n"
+       "options:\n"
+       "  --node NODE.PORT     an output to draw (repeatable; drawn in the GUI's colours in this order)\n"
+       "  -o, --output FILE    the PNG to write\n"
+       "  --size WxH           image size in pixels (default 1280x800)\n"
+       "  --color-by ATTR      colour graphs and meshes by this attribute (a graph's point/edge attribute;\n"
+       "                       a mesh's NAME or vertex:/triangle:/line:NAME); default as in the GUI: radius,\n"
+       "                       the triangles' manifold class\n"
+       "  --camera VIEW        iso (three-quarter view, default) or along the x, y or z axis\n"
+       "  --volume-mode MODE   volumes as slices, mip, iso, volume or voxels (default: voxels for masks,\n"
+       "                       slices otherwise)\n"
+       "  --set node.param=value  override a parameter of a node (repeatable)\n"
+       "  --threads N          worker threads, 0 = all cores\n"
+       "  --quiet, -q          do not print the file written",
+       "skelflow render pipelines/vessel_network.yaml --node graph.graph --node seg.mask -o network.png",
+       {"--node", "-o", "--output", "--size", "--color-by", "--camera", "--volume-mode", "--set", "--threads", "--quiet",
+        "-q", "--help", "-h"}},
       {"modules", "modules [--markdown | --names] [NAME]",
        "Lists the modules, or documents one (or all, with --markdown) in full.\n"
        "options:\n"
@@ -517,23 +544,9 @@ int cmd_run(const std::vector<std::string>& args) {
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
     if (a == "--set") {
-      const std::string& s = need(i, "--set");
-      auto eq = s.find('=');
-      auto dot = s.find('.');
-      if (eq == std::string::npos || dot == std::string::npos || dot > eq)
-        throw InputError("--set " + s + ": expected node.param=value");
-      if (dot == 0 || eq == dot + 1) throw InputError("--set " + s + ": expected node.param=value");
-      try {
-        opt.overrides[s.substr(0, dot)][s.substr(dot + 1, eq - dot - 1)] = parse_param_text(s.substr(eq + 1));
-      } catch (const InputError& e) {
-        throw InputError("--set " + s + ": " + e.what());
-      }
+      cli::parse_set_option(need(i, "--set"), opt);
     } else if (a == "--threads") {
-      const std::string& v = need(i, "--threads");
-      int64_t n = 0;
-      if (!text::parse_int(v, n) || n < 0 || n > 4096)
-        throw InputError("--threads " + v + ": expected a whole number from 0 (all cores) to 4096");
-      opt.threads = static_cast<int>(n);
+      cli::parse_threads_option(need(i, "--threads"), opt);
     } else if (a == "--output-dir") {
       opt.output_dir = need(i, "--output-dir");
     } else if (a == "--allow-outside-output-dir") {
@@ -661,6 +674,8 @@ int skelflow_main(int argc, char** argv) {
     if (cmd == "validate") return cmd_validate(rest);
     if (cmd == "modules") return cmd_modules(rest);
     if (cmd == "info") return cmd_info(rest);
+    if (cmd == "render")
+      return cli::cmd_render(rest, &g_interrupted, [](const std::string& a) { unknown_option("render", a); });
     std::fputs(usage_text().c_str(), stdout);  // "help" with more than one word
     return kOk;
   } catch (const Cancelled&) {

@@ -19,13 +19,16 @@
 #include <QSettings>
 #include <QSplitter>
 #include <QStatusBar>
+#include <QScrollBar>
 #include <QTableWidget>
+#include <QTimer>
 #include <QTime>
 #include <QToolBar>
 
 #include <algorithm>
 #include <cmath>
 
+#include "final_outputs.hpp"
 #include "modes/graph_edit_mode.hpp"
 #include "modes/landmark_mode.hpp"
 #include "node_editor.hpp"
@@ -50,14 +53,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   view_ = new NodeView(scene_, this);
   view3d_ = new View3D(this);
 
-  auto* split = new QSplitter(Qt::Horizontal, this);
-  split->addWidget(view_);
-  split->addWidget(view3d_);
-  split->setStretchFactor(0, 2);
-  split->setStretchFactor(1, 3);
-  split->setChildrenCollapsible(false);
-  split->setSizes({520, 700});
-  setCentralWidget(split);
+  split_ = new QSplitter(Qt::Horizontal, this);
+  split_->addWidget(view_);
+  split_->addWidget(view3d_);
+  split_->setStretchFactor(0, 2);
+  split_->setStretchFactor(1, 3);
+  split_->setChildrenCollapsible(false);
+  split_->setSizes({520, 700});
+  setCentralWidget(split_);
 
   palette_ = new Palette(doc_->registry(), this);
   auto* palette_dock = new QDockWidget("Modules", this);
@@ -132,7 +135,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(doc_, &PipelineDocument::file_path_changed, this, &MainWindow::update_title);
   connect(doc_, &PipelineDocument::document_reset, this, [this] {
     view3d_->clear();
+    view_chosen_ = false;
     view_->fit_all();
+    QTimer::singleShot(0, view_, [this] { view_->fit_all(); });  // again once the splitter has settled
   });
 
   connect(run_, &RunController::started, this, [this] {
@@ -162,6 +167,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       const QString n = pending_node_, p = pending_port_;
       pending_node_.clear();
       show_output(n, p);
+    } else if (ok && !view_chosen_ && view3d_->object_names().isEmpty()) {
+      show_final_geometry();
     }
     pending_node_.clear();
   });
@@ -316,6 +323,14 @@ void MainWindow::log(const QString& text, bool error) {
 QString MainWindow::log_text() const { return log_->toPlainText(); }
 
 bool MainWindow::open_file(const QString& path) {
+  // While the 3D view shows nothing, the node editor gets the larger part of the window, and a
+  // pipeline without stored positions is laid out in rows as wide as the editor at a legible zoom.
+  if (view3d_->object_names().isEmpty()) {
+    const int total = split_->width();
+    split_->setSizes({total * 3 / 5, total - total * 3 / 5});
+  }
+  doc_->set_layout_columns(NodeView::legible_columns(split_->sizes().value(0) - view_->verticalScrollBar()->sizeHint().width() -
+                                                     2 * view_->frameWidth()));
   try {
     doc_->load(path);
   } catch (const std::exception& e) {
@@ -427,7 +442,24 @@ void MainWindow::cancel_run() {
   run_->cancel();
 }
 
+QStringList MainWindow::show_final_geometry() {
+  const QStringList names = final_geometry_outputs(
+      doc_->pipeline(), doc_->registry(), [this](const std::string& node, const std::string& port) {
+        return run_->output(QString::fromStdString(node), QString::fromStdString(port));
+      });
+  QStringList shown;
+  for (const QString& name : names) {
+    const int dot = name.lastIndexOf('.');
+    QString error;
+    if (view3d_->show_data(name, run_->output(name.left(dot), name.mid(dot + 1)), &error)) shown << name;
+    else log(error, true);
+  }
+  if (!shown.isEmpty()) log("Showing the final geometry: " + shown.join(", ") + " (click an output port to show another)");
+  return shown;
+}
+
 bool MainWindow::show_output(const QString& node, const QString& port) {
+  view_chosen_ = true;  // the user decides what the view shows from now on
   if (run_->is_running()) {
     log("A run is in progress; click the port again when it has finished.");
     return false;

@@ -12,6 +12,7 @@ class QLabel;
 class QMenu;
 class QPlainTextEdit;
 class QProgressBar;
+class QSplitter;
 class QTableWidget;
 
 namespace skel::gui {
@@ -44,6 +45,10 @@ public:
   // Shows a node's output port in the 3D view (volumes, graphs) or the table dock (tables); runs
   // the pipeline up to that node first if the output is not computed.
   bool show_output(const QString& node, const QString& port);
+  // After a successful run, unless the user has chosen what to show (clicked an output port) since
+  // the pipeline was opened and while the view is empty, the run's final geometry is shown by itself
+  // (final_outputs.hpp: the sink-most mesh and graph, else the last volume). Returns what it shows.
+  QStringList show_final_geometry();
   // Edit mode on a computed graph output (docs/editing.md); false (logged) if it is not one.
   bool edit_graph(const QString& node, const QString& port);
 
@@ -84,6 +89,7 @@ private:
   Palette* palette_;
   PropertiesPanel* props_;
   View3D* view3d_;
+  QSplitter* split_;
   QPlainTextEdit* log_;
   QTableWidget* table_;
   GraphEditMode* edit_ = nullptr;
@@ -95,6 +101,7 @@ private:
   QAction* run_selected_ = nullptr;
   QAction* cancel_ = nullptr;
   QString pending_node_, pending_port_;  // output to show when the current run ends
+  bool view_chosen_ = false;             // the user showed an output since the pipeline was opened
   int paste_count_ = 0;
 };
 

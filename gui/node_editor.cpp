@@ -8,15 +8,16 @@
 #include <QTimer>
 #include <QWheelEvent>
 
+#include <algorithm>
 #include <cmath>
 
 namespace skel::gui {
 
 namespace {
-constexpr qreal kWidth = 180;
-constexpr qreal kHeader = 38;
-constexpr qreal kRow = 20;
-constexpr qreal kFooter = 24;
+constexpr qreal kWidth = PipelineDocument::kNodeWidth;
+constexpr qreal kHeader = PipelineDocument::kNodeHeader;
+constexpr qreal kRow = PipelineDocument::kNodeRow;
+constexpr qreal kFooter = PipelineDocument::kNodeFooter;
 constexpr qreal kPortRadius = 6;
 
 QString qstr(const std::string& s) { return QString::fromStdString(s); }
@@ -88,8 +89,7 @@ NodeItem::NodeItem(NodeScene* scene, const QString& id, const QString& module, c
     : scene_(scene), id_(id), module_(module), known_(spec != nullptr) {
   setFlags(ItemIsMovable | ItemIsSelectable | ItemSendsGeometryChanges);
   setZValue(1);
-  const size_t rows = spec ? std::max(spec->inputs().size(), spec->outputs().size()) : 0;
-  height_ = kHeader + kRow * static_cast<qreal>(rows) + kFooter;
+  height_ = PipelineDocument::node_height(spec);
   if (spec) {
     for (size_t i = 0; i < spec->inputs().size(); ++i) {
       auto* port = new PortItem(this, id, spec->inputs()[i], false);
@@ -433,15 +433,34 @@ NodeView::NodeView(NodeScene* scene, QWidget* parent) : QGraphicsView(scene, par
 }
 
 void NodeView::fit_all() {
-  QRectF r = scene_->itemsBoundingRect();
+  // The nodes (the curves of connections between bands may bulge out a little).
+  QRectF r;
+  for (QGraphicsItem* item : scene_->items())
+    if (dynamic_cast<NodeItem*>(item)) r = r.united(item->sceneBoundingRect());
   if (r.isEmpty()) r = QRectF(-200, -150, 400, 300);
-  fitInView(r.adjusted(-40, -40, 40, 40), Qt::KeepAspectRatio);
-  // Never magnify small graphs beyond 1:1.
-  if (transform().m11() > 1.0) {
-    const QPointF c = r.center();
-    resetTransform();
-    centerOn(c);
+  r.adjust(-20, -20, 20, 20);
+  const QRect vp = viewport()->rect();
+  const double fit = std::min(vp.width() / r.width(), vp.height() / r.height());
+  resetTransform();
+  if (fit >= kLegibleZoom) {
+    // All of it, never magnified beyond 1:1.
+    const double z = std::min(fit, 1.0);
+    scale(z, z);
+    centerOn(r.center());
+    return;
   }
+  // Too large to show whole at a legible size: its width if that fits, from the top.
+  const double z = std::clamp(vp.width() / r.width(), kLegibleZoom, 1.0);
+  scale(z, z);
+  const double half_w = 0.5 * vp.width() / z, half_h = 0.5 * vp.height() / z;
+  const QRectF nodes = r.adjusted(20, 20, -20, -20);  // without the margins
+  centerOn(QPointF(nodes.width() > 2 * half_w ? r.left() + half_w : r.center().x(), r.top() + half_h));
+}
+
+int NodeView::legible_columns(int width) {
+  const double w = width / kLegibleZoom - 40;  // fit_all's margins
+  const double step = PipelineDocument::kLayoutColumnStep, node = kWidth;
+  return std::max(2, static_cast<int>((w - node) / step) + 1);
 }
 
 void NodeView::zoom(double factor) {

@@ -132,7 +132,15 @@ class NodeView final : public QGraphicsView {
   Q_OBJECT
 public:
   explicit NodeView(NodeScene* scene, QWidget* parent = nullptr);
+  // The smallest zoom fit_all() uses: node names (10 pt) stay at least 9 pt on screen.
+  static constexpr double kLegibleZoom = 0.9;
+  // Shows the whole pipeline, at most 1:1 and at least kLegibleZoom: a pipeline too large for that
+  // is fitted to the view's width when it can be, and shown from its start (top left), the rest a
+  // scroll away.
   void fit_all();
+  // How many layout columns (PipelineDocument::set_layout_columns) fit a view `width` pixels wide at
+  // kLegibleZoom.
+  [[nodiscard]] static int legible_columns(int width);
   void zoom(double factor);
   // Scene position of the visible centre (where pasted or double-clicked modules go).
   [[nodiscard]] QPointF visible_center() const;

@@ -149,15 +149,16 @@ void PipelineDocument::load_text(const QString& yaml, const QString& file_name, 
 
 void PipelineDocument::set_positions_from_gui_section() {
   state_.positions = parse_positions(state_.pipeline.gui_yaml());
-  // Nodes without a stored position are laid out in columns by their depth in the graph.
+  // Nodes without a stored position: columns by their depth in the graph, wrapped into bands of
+  // layout_columns_ columns (see set_layout_columns).
   std::map<std::string, int> depth;
-  std::map<int, int> rows;
   std::vector<std::string> order;
   try {
     order = state_.pipeline.topological_order();
   } catch (const Error&) {
     for (const auto& n : state_.pipeline.nodes()) order.push_back(n.id);
   }
+  std::map<int, std::vector<std::string>> column_nodes;  // per depth, in order
   for (const auto& id : order) {
     const PipelineNode* n = state_.pipeline.find(id);
     int d = 0;
@@ -166,9 +167,41 @@ void PipelineDocument::set_positions_from_gui_section() {
       if (it != depth.end()) d = std::max(d, it->second + 1);
     }
     depth[id] = d;
-    const QString qid = qstr(id);
-    if (!state_.positions.contains(qid)) state_.positions.insert(qid, QPointF(d * 240.0, rows[d]++ * 140.0));
+    column_nodes[d].push_back(id);
   }
+  auto height_of = [&](const std::string& id) {
+    const PipelineNode* n = state_.pipeline.find(id);
+    return node_height(n ? registry_.find(n->module) : nullptr) + kLayoutGap;
+  };
+  // Each band is as tall as its tallest column.
+  const int columns = layout_columns_;
+  const int band_count = column_nodes.empty() ? 0 : column_nodes.rbegin()->first / columns + 1;
+  std::vector<double> band_top(static_cast<size_t>(band_count), 0.0);
+  double top = 0;
+  for (int b = 0; b < band_count; ++b) {
+    band_top[static_cast<size_t>(b)] = top;
+    double tallest = 0;
+    for (int c = b * columns; c < (b + 1) * columns; ++c) {
+      double h = 0;
+      if (auto it = column_nodes.find(c); it != column_nodes.end())
+        for (const auto& id : it->second) h += height_of(id);
+      tallest = std::max(tallest, h);
+    }
+    top += tallest + kLayoutBandGap;
+  }
+  for (const auto& [d, ids] : column_nodes) {
+    double y = band_top[static_cast<size_t>(d / columns)];
+    for (const auto& id : ids) {
+      const QString qid = qstr(id);
+      if (!state_.positions.contains(qid)) state_.positions.insert(qid, QPointF((d % columns) * kLayoutColumnStep, y));
+      y += height_of(id);
+    }
+  }
+}
+
+double PipelineDocument::node_height(const ModuleSpec* spec) {
+  const size_t rows = spec ? std::max(spec->inputs().size(), spec->outputs().size()) : 0;
+  return kNodeHeader + kNodeRow * static_cast<double>(rows) + kNodeFooter;
 }
 
 std::string PipelineDocument::gui_section() const {

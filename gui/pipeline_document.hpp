@@ -10,6 +10,8 @@
 #include <QStringList>
 #include <QUndoStack>
 
+#include <algorithm>
+
 #include "skel/pipeline.hpp"
 
 namespace skel::gui {
@@ -33,6 +35,18 @@ public:
   [[nodiscard]] const ModuleSpec* spec(const QString& node) const;  // nullptr for unknown modules
   [[nodiscard]] QPointF position(const QString& node) const;
   [[nodiscard]] const QMap<QString, QPointF>& positions() const { return state_.positions; }
+
+  // Nodes without a stored position are laid out by their depth in the graph, one column per depth;
+  // a pipeline deeper than `columns` wraps into bands of that many columns, one below the other and
+  // read like lines of text, so a long chain becomes rows that fit the editor at a legible zoom
+  // (MainWindow sets it from the node editor's width before opening a file). At least 2.
+  void set_layout_columns(int columns) { layout_columns_ = std::max(columns, 2); }
+  [[nodiscard]] int layout_columns() const { return layout_columns_; }
+  // Size of a node in the editor (scene units): a header, one row per input/output pair, a footer.
+  static constexpr double kNodeWidth = 180, kNodeHeader = 38, kNodeRow = 20, kNodeFooter = 24;
+  [[nodiscard]] static double node_height(const ModuleSpec* spec);
+  // Grid of the automatic layout: columns this far apart, nodes in a column this far apart vertically.
+  static constexpr double kLayoutColumnStep = 220, kLayoutGap = 30, kLayoutBandGap = 40;
 
   // --- files (not undoable; they reset the undo stack) ---
   void clear();                                  // new, empty document
@@ -88,6 +102,7 @@ private:
   DocState state_;
   QUndoStack undo_;
   QString file_path_;
+  int layout_columns_ = 4;
 };
 
 // Port colour key shared by the editor and tests: the first type id of a port.

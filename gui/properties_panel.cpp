@@ -15,6 +15,7 @@
 #include <climits>
 #include <cmath>
 
+#include "file_filters.hpp"
 #include "skel/error.hpp"
 #include "skel/units.hpp"
 
@@ -236,10 +237,11 @@ QWidget* PropertiesPanel::make_editor(const ParamSpec& ps, const ParamValue& val
       browse->setText("…");
       browse->setToolTip(ps.path_role == PathRole::Output ? "choose a file to write" : "choose a file to read");
       const bool output = ps.path_role == PathRole::Output;
-      connect(browse, &QToolButton::clicked, this, [this, name, edit, output] {
+      const QString filter = file_dialog_filter(ps);  // from the readers' and writers' extensions
+      connect(browse, &QToolButton::clicked, this, [this, name, edit, output, filter] {
         const QString base = QString::fromStdString(doc_->pipeline().base_dir().string());
-        const QString path = output ? QFileDialog::getSaveFileName(this, "Output file", base)
-                                    : QFileDialog::getOpenFileName(this, "Input file", base);
+        const QString path = output ? QFileDialog::getSaveFileName(this, "Output file", base, filter)
+                                    : QFileDialog::getOpenFileName(this, "Input file", base, filter);
         if (path.isEmpty()) return;
         edit->setText(path);
         apply(name, ParamValue(path.toStdString()));

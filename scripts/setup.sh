@@ -26,7 +26,7 @@ done
 
 packages=(
   build-essential cmake ninja-build pkg-config git ccache
-  qtbase5-dev libqt5opengl5-dev libvtk9-dev libvtk9-qt-dev
+  qtbase5-dev libqt5opengl5-dev libvtk9-dev libvtk9-qt-dev libx11-dev
   libhdf5-dev zlib1g-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
   libeigen3-dev libtbb-dev libnanoflann-dev libexpat1-dev libtiff-dev
   libopenmpi-dev libhdf5-openmpi-dev

@@ -27,7 +27,7 @@
 #include "skel/error.hpp"
 #include "skel/volume.hpp"
 #include "views/view3d.hpp"
-#include "views/vtk_convert.hpp"
+#include "skel_render/vtk_convert.hpp"
 
 namespace skel::gui {
 
@@ -86,7 +86,7 @@ bool GraphEditMode::start(const QString& node, const QString& port, const QStrin
           context.distance = f;
           distance_port_ = qid + "." + qport;
         } else if (background_.isEmpty() && d->type_id().rfind("volume.", 0) == 0 && out.name != "distance" &&
-                   !is_binary_volume(*d)) {
+                   !render::is_binary_volume(*d)) {
           background_ = qid + "." + qport;
         }
       }

@@ -1,43 +1,29 @@
 #pragma once
-// A spatial graph in the 3D view: lines or tubes (radius attribute x scale), plain or coloured by any
-// point/edge attribute (the view's scalar bar shows the colours).
-#include <vtkSmartPointer.h>
-
+// A spatial graph in the 3D view: its render::GraphDisplay (lines or tubes, plain or coloured by any
+// point/edge attribute; the view's scalar bar shows the colours) and the page that sets them.
 #include "representation.hpp"
-#include "skel/spatial_graph.hpp"
 
 class QComboBox;
 class QDoubleSpinBox;
-class vtkPolyData;
 
 namespace skel::gui {
 
-enum class GraphMode { Lines, Tubes };
+using render::GraphMode;
 
 class GraphRepresentation final : public Representation {
 public:
-  // Tubes coloured by radius when the graph has a radius attribute, else plain lines.
-  GraphRepresentation(const QString& name, const std::shared_ptr<const SpatialGraph>& graph, const Color& color);
+  GraphRepresentation(const QString& name, std::unique_ptr<render::GraphDisplay> display);
   ~GraphRepresentation() override;
 
-  [[nodiscard]] GraphMode mode() const { return mode_; }
-  void set_mode(GraphMode mode) { mode_ = mode; }
-  void set_color_by(const QString& attribute) { color_by_ = attribute; }  // empty: plain colour
+  [[nodiscard]] GraphMode mode() const { return graph_->mode(); }
+  void set_mode(GraphMode mode) { graph_->set_mode(mode); }
+  void set_color_by(const QString& attribute) { graph_->set_color_by(attribute.toStdString()); }  // empty: plain
 
-  [[nodiscard]] std::vector<vtkSmartPointer<vtkProp>> build_props(vtkScalarBarActor* bar) override;
-  [[nodiscard]] bool uses_scalar_bar() const override { return !color_by_.isEmpty(); }
   [[nodiscard]] QWidget* create_controls() override;
   void update_controls() override;
 
-protected:
-  void keep_settings(const Representation& old) override;
-
 private:
-  std::shared_ptr<const SpatialGraph> graph_;
-  vtkSmartPointer<vtkPolyData> poly_;
-  GraphMode mode_ = GraphMode::Lines;
-  QString color_by_;
-  double tube_scale_ = 1.0;
+  render::GraphDisplay* graph_;  // owned by the base
 
   QComboBox* mode_box_ = nullptr;
   QComboBox* color_box_ = nullptr;

@@ -4,28 +4,41 @@
 
 #include "graph_representation.hpp"
 #include "mesh_representation.hpp"
+#include "skel/error.hpp"
 #include "volume_representation.hpp"
 
 namespace skel::gui {
 
-Representation::Representation(QString name, DataPtr data, const Color& color)
-    : name_(std::move(name)), data_(std::move(data)), color_(color) {}
+Representation::Representation(QString name, std::unique_ptr<render::Display> display)
+    : name_(std::move(name)), display_(std::move(display)) {}
 
 Representation::~Representation() = default;
 
 void Representation::keep_display_of(const Representation& old) {
-  color_ = old.color_;
+  display_->set_color(old.color());
   visible_ = old.visible_;
-  keep_settings(old);
+  display_->keep_settings(*old.display_);
 }
 
 std::unique_ptr<Representation> make_representation(const QString& name, const DataPtr& data, const Color& color,
                                                     QString* error) {
-  if (auto g = std::dynamic_pointer_cast<const SpatialGraph>(data)) return std::make_unique<GraphRepresentation>(name, g, color);
-  if (auto m = std::dynamic_pointer_cast<const Mesh>(data)) return std::make_unique<MeshRepresentation>(name, m, color);
-  if (auto v = VolumeRepresentation::create(name, data, color)) return v;
-  if (error) *error = name + ": the 3D view shows volumes, graphs and meshes, not " + QString::fromStdString(data->type_id());
-  return nullptr;
+  std::unique_ptr<render::Display> d;
+  try {
+    d = render::make_display(data, color);
+  } catch (const std::exception& e) {
+    if (error) *error = name + ": " + QString::fromUtf8(e.what());
+    return nullptr;
+  }
+  if (auto* g = dynamic_cast<render::GraphDisplay*>(d.get())) {
+    d.release();
+    return std::make_unique<GraphRepresentation>(name, std::unique_ptr<render::GraphDisplay>(g));
+  }
+  if (auto* m = dynamic_cast<render::MeshDisplay*>(d.get())) {
+    d.release();
+    return std::make_unique<MeshRepresentation>(name, std::unique_ptr<render::MeshDisplay>(m));
+  }
+  auto* v = static_cast<render::VolumeDisplay*>(d.release());
+  return std::make_unique<VolumeRepresentation>(name, std::unique_ptr<render::VolumeDisplay>(v));
 }
 
 }  // namespace skel::gui

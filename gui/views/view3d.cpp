@@ -8,28 +8,15 @@
 #include <QVBoxLayout>
 
 #include <QVTKOpenGLNativeWidget.h>
-#include <vtkCamera.h>
 #include <vtkGenericOpenGLRenderWindow.h>
 #include <vtkImageData.h>
 #include <vtkProp.h>
 #include <vtkRenderer.h>
 #include <vtkScalarBarActor.h>
-#include <vtkTextProperty.h>
 #include <vtkWindowToImageFilter.h>
 
-#include <array>
 
 namespace skel::gui {
-
-namespace {
-// Colours given to objects in the order they are shown.
-const std::array<Color, 6> kPalette = {{{0.90, 0.75, 0.55},
-                                        {0.55, 0.80, 0.95},
-                                        {0.95, 0.55, 0.55},
-                                        {0.65, 0.90, 0.60},
-                                        {0.85, 0.65, 0.95},
-                                        {0.95, 0.90, 0.50}}};
-}  // namespace
 
 struct View3D::Vtk {
   vtkSmartPointer<vtkGenericOpenGLRenderWindow> window;
@@ -42,18 +29,9 @@ View3D::View3D(QWidget* parent) : QWidget(parent), vtk_state_(std::make_unique<V
   vtk_state_->window = vtkSmartPointer<vtkGenericOpenGLRenderWindow>::New();
   vtk_->setRenderWindow(vtk_state_->window);
   vtk_state_->renderer = vtkSmartPointer<vtkRenderer>::New();
-  vtk_state_->renderer->SetBackground(0.10, 0.11, 0.13);
-  vtk_state_->renderer->SetBackground2(0.25, 0.27, 0.32);
-  vtk_state_->renderer->GradientBackgroundOn();
+  render::setup_renderer(vtk_state_->renderer);  // the look `skelflow render` shares
   vtk_state_->window->AddRenderer(vtk_state_->renderer);
-  vtk_state_->bar = vtkSmartPointer<vtkScalarBarActor>::New();
-  vtk_state_->bar->SetNumberOfLabels(5);
-  vtk_state_->bar->SetWidth(0.08);
-  vtk_state_->bar->SetHeight(0.5);
-  vtk_state_->bar->SetPosition(0.9, 0.25);
-  vtk_state_->bar->GetTitleTextProperty()->SetFontSize(12);
-  vtk_state_->bar->SetVisibility(false);
-  vtk_state_->renderer->AddActor2D(vtk_state_->bar);
+  vtk_state_->bar = render::make_scalar_bar(vtk_state_->renderer);
 
   // Side panel: objects with visibility check boxes and the controls of the selected object (a
   // page per object, made by its representation).
@@ -115,7 +93,7 @@ bool View3D::show_data(const QString& name, const DataPtr& data, QString* error)
     return false;
   }
   auto o = std::make_shared<Object>();
-  o->rep = make_representation(name, data, kPalette[static_cast<size_t>(objects_.size()) % kPalette.size()], error);
+  o->rep = make_representation(name, data, render::palette_color(static_cast<size_t>(objects_.size())), error);
   if (!o->rep) return false;
   const bool first = objects_.isEmpty();
   if (objects_.contains(name)) {
@@ -268,15 +246,7 @@ void View3D::update_controls() {
 }
 
 void View3D::reset_camera() {
-  vtkRenderer* ren = vtk_state_->renderer;
-  ren->ResetCamera();
-  vtkCamera* cam = ren->GetActiveCamera();
-  // A three-quarter view shows all three slice planes.
-  cam->Azimuth(35);
-  cam->Elevation(25);
-  cam->OrthogonalizeViewUp();
-  ren->ResetCamera();
-  ren->ResetCameraClippingRange();
+  render::set_camera(vtk_state_->renderer, render::CameraPreset::Iso);
   render();
 }
 

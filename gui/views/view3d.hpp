@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "graph_representation.hpp"
+#include "mesh_representation.hpp"
 #include "skel/data.hpp"
 #include "volume_representation.hpp"
 

@@ -14,12 +14,16 @@ constexpr const char* kGraphFormats =
     "every format except SWC (radius and swc_type only). The unit is stored in every format (.am Units, .vtp "
     "field data, GraphML graph attribute, SWC '# unit:' comment, CSV headers 'x [mm]').";
 
+// The extensions the reader and the writer take (their path parameters, the GUI's file dialogs).
+const std::vector<std::string> kGraphExtensions = {".am", ".vtp", ".swc", ".graphml", ".csv"};
+
 class ReadGraphModule final : public Module {
 public:
   static ModuleSpec spec() {
     return ModuleSpec(names::read_graph, "Read a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
         .output<SpatialGraph>("graph", "the graph")
         .path("path", "", PathRole::Input, "graph file")
+        .extensions(kGraphExtensions)
         .path("nodes_path", "", PathRole::Input, "CSV only: nodes table (default: <stem>_nodes.csv)")
         .optional_value()
         .param("scale", &ReadGraphOptions::scale, "multiplies coordinates, radii and every length attribute (e.g. the voxel size of a graph in voxel coordinates)")
@@ -47,7 +51,7 @@ public:
     return ModuleSpec(names::write_graph, "Write a spatial graph file (.am, .vtp, .swc, .graphml, .csv)")
         .input<SpatialGraph>("graph", "the graph")
         .path("path", "", PathRole::Output, "graph file; the format follows the extension")
-        .extensions({".am", ".vtp", ".swc", ".graphml", ".csv"})
+        .extensions(kGraphExtensions)
         .path("nodes_path", "", PathRole::Output, "CSV only (required there): nodes table file")
         .optional_value()
         .extensions({".csv"})

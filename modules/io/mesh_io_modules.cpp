@@ -15,12 +15,16 @@ constexpr const char* kMeshFormats =
     "ASCII; points and triangles in one patch). Polygons of more than 3 vertices are read as triangle "
     "fans.";
 
+// The extensions the reader and the writer take (their path parameters, the GUI's file dialogs).
+const std::vector<std::string> kMeshExtensions = {".vtp", ".ply", ".stl", ".obj", ".surf"};
+
 class ReadMeshModule final : public Module {
 public:
   static ModuleSpec spec() {
     return ModuleSpec(names::read_mesh, "Read a mesh file (.vtp, .ply, .stl, .obj, .surf)")
         .output<Mesh>("mesh", "the mesh")
         .path("path", "", PathRole::Input, "mesh file")
+        .extensions(kMeshExtensions)
         .details(std::string(kMeshFormats) +
                  " Malformed files are input errors naming the file (and line, for text formats). Memory: "
                  "the file plus the mesh (~30 B per triangle, 4 B per attribute value).");
@@ -38,7 +42,7 @@ public:
     return ModuleSpec(names::write_mesh, "Write a mesh file (.vtp, .ply, .stl, .obj, .surf)")
         .input<Mesh>("mesh", "the mesh")
         .path("path", "", PathRole::Output, "mesh file; the format follows the extension")
-        .extensions({".vtp", ".ply", ".stl", ".obj", ".surf"})
+        .extensions(kMeshExtensions)
         .details(std::string(kMeshFormats) +
                  " Files appear only when the whole run succeeds (temporary file + rename). Coordinates are "
                  "float (shortest round-trip text in .obj and .surf), so every format reads back the points "

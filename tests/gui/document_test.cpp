@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <QCoreApplication>
+#include <QRegularExpression>
 #include <QSignalSpy>
 #include <QTemporaryDir>
 
@@ -13,8 +14,10 @@
 #include <set>
 #include <random>
 
+#include "file_filters.hpp"
 #include "pipeline_document.hpp"
 #include "run_controller.hpp"
+#include "io/names.hpp"
 #include "io/volume_format.hpp"
 #include "skel/error.hpp"
 
@@ -388,4 +391,41 @@ TEST_F(DocTest, RunControllerReportsRunTimeErrorsAtTheNodesLine) {
   EXPECT_EQ(reason.rfind(broken + ": cannot read dataset '/volume': the file is truncated or corrupt", 0), 0u) << reason;
   EXPECT_EQ(args.at(1).toString().toStdString(), "pipes/gui.yaml:3:3: node 'image' (io.read_volume): " + reason);
   EXPECT_EQ(run.status("image").state, NodeState::Error);
+}
+
+// Issue 19: the file dialogs' filters come from the readers and writers — every extension of the
+// volume format registry (and each format's name), and the graph and mesh readers' extensions.
+TEST(FileFilters, EveryRegistryExtensionIsInTheDialogFilter) {
+  const Registry& reg = Registry::instance();
+  auto filter_of = [&](const char* module) {
+    const ModuleSpec* m = reg.find(module);
+    EXPECT_NE(m, nullptr) << module;
+    const ParamSpec* path = m ? m->find_param("path") : nullptr;
+    EXPECT_NE(path, nullptr) << module;
+    return path ? file_dialog_filter(*path) : QString();
+  };
+  auto has_pattern = [](const QString& filter, const std::string& ext) {
+    return filter.split(QRegularExpression("[ ()]"), Qt::SkipEmptyParts).contains("*" + QString::fromStdString(ext));
+  };
+  const QString read = filter_of(io::names::read_volume), write = filter_of(io::names::write_volume);
+  ASSERT_FALSE(io::readable_volume_extensions().empty());
+  for (const auto& e : io::readable_volume_extensions()) EXPECT_TRUE(has_pattern(read, e)) << e << " in " << read.toStdString();
+  for (const auto& e : io::writable_volume_extensions()) EXPECT_TRUE(has_pattern(write, e)) << e << " in " << write.toStdString();
+  for (const auto& f : io::volume_formats()) {
+    EXPECT_TRUE(read.contains(QString::fromStdString(f.name) + " (")) << f.name << " in " << read.toStdString();
+    for (const auto& e : f.extensions) EXPECT_TRUE(has_pattern(read, e)) << f.name << " " << e;
+    if (f.write) EXPECT_TRUE(write.contains(QString::fromStdString(f.name) + " (")) << f.name;
+    else EXPECT_FALSE(write.contains(QString::fromStdString(f.name) + " (")) << f.name << " cannot write";
+  }
+  for (const char* m : {io::names::read_graph, io::names::read_mesh, io::names::write_graph, io::names::write_mesh}) {
+    const QString f = filter_of(m);
+    for (const auto& e : reg.find(m)->find_param("path")->extensions)
+      EXPECT_TRUE(has_pattern(f, e)) << m << ": " << e << " in " << f.toStdString();
+    EXPECT_TRUE(f.startsWith("Supported files (")) << f.toStdString();
+    EXPECT_TRUE(f.endsWith("All files (*)")) << f.toStdString();
+  }
+  // Upper-case files too (the dialogs match case-sensitively on Linux).
+  EXPECT_TRUE(has_pattern(read, ".TIF")) << read.toStdString();
+  ParamSpec plain;
+  EXPECT_EQ(file_dialog_filter(plain), "All files (*)");
 }

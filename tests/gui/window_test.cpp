@@ -237,6 +237,117 @@ TEST(Window, MeshesColouredByManifoldClass) {
   img.save(shot_dir() + "/view3d_mesh.png");
 }
 
+// Issue 18: after a run the final geometry is shown without a click (as Amira does), unless the user
+// chose what to show.
+TEST(Window, RunShowsTheFinalGeometryWithoutAClick) {
+  REQUIRE_DISPLAY();
+  {
+    MainWindow w;
+    w.resize(1280, 900);
+    w.runner()->set_threads(2);
+    build_test_pipeline(w.document());  // volumes and a table only
+    w.show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+    w.run_all();
+    ASSERT_TRUE(wait_run(w, 60000));
+    QTest::qWait(50);
+    // No mesh or graph: the sink-most volume (the count's table is no geometry).
+    EXPECT_EQ(w.view3d()->object_names(), QStringList{"threshold.mask"});
+  }
+  {
+    MainWindow w;
+    w.resize(1280, 900);
+    w.runner()->set_threads(2);
+    build_test_pipeline(w.document());
+    ASSERT_EQ(w.document()->add_node("gui_test.graph", {0, 300}), "graph");
+    ASSERT_EQ(w.document()->add_node("gui_test.mesh", {0, 600}), "mesh");
+    w.show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+    EXPECT_TRUE(w.view3d()->object_names().isEmpty());
+    w.run_all();
+    ASSERT_TRUE(wait_run(w, 60000));
+    QTest::qWait(50);
+    QStringList names = w.view3d()->object_names();
+    names.sort();
+    EXPECT_EQ(names, (QStringList{"graph.graph", "mesh.mesh"}));
+    w.view3d()->reset_camera();
+    QTest::qWait(50);
+    const ImageStats st = stats(w.view3d()->grab_image());
+    EXPECT_GT(st.distinct, 50);
+    // A re-run keeps what is shown (and does not add the volume).
+    ASSERT_EQ(w.document()->set_param("field", "size", ParamValue(std::vector<int64_t>{48, 48, 48})), "");
+    w.run_all();
+    ASSERT_TRUE(wait_run(w, 60000));
+    QTest::qWait(50);
+    names = w.view3d()->object_names();
+    names.sort();
+    EXPECT_EQ(names, (QStringList{"graph.graph", "mesh.mesh"}));
+  }
+  {
+    // The user chose: a port clicked before the run is all the view shows.
+    MainWindow w;
+    w.resize(1280, 900);
+    w.runner()->set_threads(2);
+    build_test_pipeline(w.document());
+    ASSERT_EQ(w.document()->add_node("gui_test.graph", {0, 300}), "graph");
+    w.show();
+    ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+    EXPECT_FALSE(w.show_output("field", "image"));  // runs what it needs, then shows it
+    ASSERT_TRUE(wait_run(w, 60000));
+    QTest::qWait(50);
+    EXPECT_EQ(w.view3d()->object_names(), QStringList{"field.image"});
+    w.view3d()->clear();
+    w.run_all();
+    ASSERT_TRUE(wait_run(w, 60000));
+    QTest::qWait(50);
+    EXPECT_TRUE(w.view3d()->object_names().isEmpty());
+  }
+}
+
+// Issue 18: the 16-node vessel pipeline (a long chain) opens laid out in rows, fitted at a zoom where
+// node names stay legible in a 1280x800 window, starting with its first node in view.
+TEST(Window, LongChainsWrapIntoRowsAtALegibleZoom) {
+  REQUIRE_DISPLAY();
+  const QString file = QString(SKEL_SOURCE_DIR) + "/pipelines/vessel_network.yaml";
+  MainWindow w;
+  w.resize(1280, 800);
+  w.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+  ASSERT_TRUE(w.open_file(file));
+  QTest::qWait(100);
+  ASSERT_GE(w.document()->node_ids().size(), 15);
+  QRectF box;  // the nodes
+  for (const QString& id : w.document()->node_ids()) box = box.united(w.scene()->node_item(id)->sceneBoundingRect());
+  // No two nodes overlap.
+  const QStringList ids = w.document()->node_ids();
+  for (int i = 0; i < ids.size(); ++i)
+    for (int j = i + 1; j < ids.size(); ++j)
+      EXPECT_FALSE(w.scene()->node_item(ids[i])->sceneBoundingRect().adjusted(4, 4, -4, -4).intersects(
+          w.scene()->node_item(ids[j])->sceneBoundingRect().adjusted(4, 4, -4, -4)))
+          << ids[i].toStdString() << " overlaps " << ids[j].toStdString();
+  // One row would be ~10 columns of 220 by one node: aspect ~15. In rows it is closer to the view's.
+  EXPECT_LT(box.width() / box.height(), 2.5) << box.width() << "x" << box.height();
+  EXPECT_GE(w.document()->layout_columns(), 2);
+  const double zoom = w.node_view()->transform().m11();
+  EXPECT_GE(zoom, NodeView::kLegibleZoom - 1e-9);
+  EXPECT_LE(zoom, 1.0 + 1e-9);
+  // Node names are drawn at 10 pt: on screen at least 9 pt.
+  EXPECT_GE(10.0 * zoom, 9.0 - 1e-9);
+  // The rows fit the editor's width (no sideways scrolling), and the chain's start is in view.
+  const QRect vp = w.node_view()->viewport()->rect();
+  EXPECT_LE(box.width() * zoom, vp.width() + 1.0) << box.width() * zoom << " > " << vp.width();
+  NodeItem* first = w.scene()->node_item("phantom");
+  ASSERT_NE(first, nullptr);
+  const QRect first_on_screen = w.node_view()->mapFromScene(first->sceneBoundingRect().adjusted(4, 4, -4, -4)).boundingRect();
+  EXPECT_TRUE(vp.contains(first_on_screen)) << first_on_screen.x() << "," << first_on_screen.y();
+  // Its successor, in the next column, is in view too (with its output ports).
+  const QRect second =
+      w.node_view()->mapFromScene(w.scene()->node_item("smooth")->sceneBoundingRect().adjusted(4, 4, -4, -4)).boundingRect();
+  EXPECT_TRUE(vp.contains(second)) << second.x() << "," << second.y() << " " << second.width() << "x" << second.height();
+  ASSERT_TRUE(w.node_view()->grab().save(shot_dir() + "/node_editor_vessels.png"));
+  ASSERT_TRUE(w.grab().save(shot_dir() + "/window_vessels.png"));
+}
+
 TEST(Window, EditorConnectsRefusesWithReasonAndUndoes) {
   REQUIRE_DISPLAY();
   MainWindow w;

@@ -13,7 +13,7 @@
 
 #include "skel/volume.hpp"
 
-namespace skel::gui {
+namespace skel::render {
 
 namespace {
 
@@ -137,4 +137,4 @@ vtkSmartPointer<vtkPolyData> graph_to_polydata(const SpatialGraph& g) {
   return poly;
 }
 
-}  // namespace skel::gui
+}  // namespace skel::render

@@ -1,7 +1,7 @@
 #pragma once
-// Adapters from Skelflow data objects to VTK data sets for the 3D view. Volumes are wrapped without
-// copying (the caller keeps the DataPtr alive as long as the VTK object); graphs become poly lines
-// with every point and edge attribute as VTK arrays.
+// Adapters from Skelflow data objects to VTK data sets for the GUI's 3D view and `skelflow render`.
+// Volumes are wrapped without copying (the caller keeps the DataPtr alive as long as the VTK
+// object); graphs become poly lines with every point and edge attribute as VTK arrays.
 #include <vtkImageData.h>
 #include <vtkPolyData.h>
 #include <vtkSmartPointer.h>
@@ -12,7 +12,7 @@
 #include "skel/data.hpp"
 #include "skel/spatial_graph.hpp"
 
-namespace skel::gui {
+namespace skel::render {
 
 // Voxel values as point scalars ("voxels") of an image with the volume's spacing and origin.
 // Throws InputError if `volume` is not a volume.
@@ -29,4 +29,4 @@ vtkSmartPointer<vtkPolyData> graph_to_polydata(const SpatialGraph& graph);
 // Names of the point arrays graph_to_polydata creates, for the colour-by list.
 std::vector<std::string> graph_attribute_names(const SpatialGraph& graph);
 
-}  // namespace skel::gui
+}  // namespace skel::render
