@@ -12,6 +12,7 @@
 #include <cmath>
 #include <exception>
 #include <iomanip>
+#include <mutex>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -136,6 +137,37 @@ void parallel_for(int64_t begin, int64_t end, int threads,
     body(begin, end);
     return;
   }
+#if defined(__SANITIZE_THREAD__) || defined(SKEL_PARALLEL_STD_THREADS)
+  // ThreadSanitizer builds: Debian's libtbb is not instrumented, so TSan cannot see how TBB hands the
+  // work to its workers and reports every read of data written before the loop as a race. Here the
+  // same ranges go to std::threads (whose start and join TSan sees) from a shared counter, so each
+  // report is about Skelflow's own accesses. The first exception stops the hand-out and is rethrown.
+  {
+    std::atomic<int64_t> next{begin};
+    std::atomic<bool> failed{false};
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    auto worker = [&] {
+      while (!failed.load()) {
+        const int64_t b = next.fetch_add(grain);
+        if (b >= end) return;
+        try {
+          body(b, std::min(end, b + grain));
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(error_mutex);
+          if (!error) error = std::current_exception();
+          failed = true;
+        }
+      }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+    worker();
+    for (auto& t : pool) t.join();
+    if (error) std::rethrow_exception(error);
+    return;
+  }
+#endif
   // More arena slots than cores only makes TBB complain; the split into ranges stays the same.
   tbb::task_arena arena(std::min(threads, std::max(2, hardware_threads())));
   arena.execute([&] {
