@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Runs the libFuzzer targets of fuzz/ (built with clang in build-fuzz/, see fuzz/README.md).
-#   scripts/fuzz.sh TARGET|all SECONDS     fuzz each target for SECONDS (new inputs go to
+#   scripts/fuzz.sh TARGET|all SECONDS [RUNS]
+#                                          fuzz each target for SECONDS, or until RUNS inputs have run
+#                                          when RUNS is given and reached first (new inputs go to
 #                                          build-fuzz/corpus/<target>/, the seeds in fuzz/corpus/ stay)
 #   scripts/fuzz.sh regress                every seed of fuzz/corpus/ once through its target (CI)
-# Targets: pipeline hdf5 graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal
+# Targets: pipeline hdf5 tiff graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal
 #          volume_nrrd volume_metaimage volume_nifti volume_vti volume_amira
 # A crash, sanitizer report, leak, timeout (10 s per input) or allocation over 1 GB stops a target; its
 # input is saved as fuzz/crashes/<target>/crash-<sha1> (or leak-, timeout-, oom-) and the script fails.
@@ -13,10 +15,10 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${SKEL_FUZZ_BUILD_DIR:-$here/build-fuzz}
-all_targets=(pipeline hdf5 graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal
+all_targets=(pipeline hdf5 tiff graph_amira graph_swc graph_graphml graph_vtp graph_csv landmarks transform journal
              volume_nrrd volume_metaimage volume_nifti volume_vti volume_amira)
 
-usage() { sed -n '2,9p' "$0" >&2; exit 2; }
+usage() { sed -n '2,11p' "$0" >&2; exit 2; }
 [ $# -ge 1 ] || usage
 mode=fuzz
 case "$1" in
@@ -25,7 +27,8 @@ case "$1" in
   *) targets=("$1") ;;
 esac
 seconds=${2:-}
-if [ $mode = fuzz ] && ! [[ "$seconds" =~ ^[0-9]+$ ]]; then usage; fi
+max_runs=${3:-0}
+if [ $mode = fuzz ] && ! [[ "$seconds" =~ ^[0-9]+$ && "$max_runs" =~ ^[0-9]+$ ]]; then usage; fi
 for t in "${targets[@]}"; do
   [[ " ${all_targets[*]} " == *" $t "* ]] || { echo "fuzz.sh: unknown target '$t' (expected one of: ${all_targets[*]})" >&2; exit 2; }
 done
@@ -64,7 +67,12 @@ for t in "${targets[@]}"; do
     while :; do
       left=$(( seconds - ($(date +%s) - t0) ))
       [ $left -gt 0 ] || break
-      if "$exe" "${common[@]}" -max_total_time="$left" -print_final_stats=1 "$work" "$seeds" >>"$log" 2>&1; then r=0; else r=$?; fi
+      limit=()
+      if [ "$max_runs" -gt 0 ]; then
+        [ $runs -lt "$max_runs" ] || break
+        limit=(-runs=$(( max_runs - runs )))
+      fi
+      if "$exe" "${common[@]}" -max_total_time="$left" "${limit[@]}" -print_final_stats=1 "$work" "$seeds" >>"$log" 2>&1; then r=0; else r=$?; fi
       n=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
       sed -i 's/stat::number_of_executed_units/stat::counted_executed_units/' "$log"
       runs=$(( runs + ${n:-0} ))
@@ -73,7 +81,7 @@ for t in "${targets[@]}"; do
       [ $restarts -lt 50 ] || break
     done
     found=$(( $(find "$crashes" -type f | wc -l) - before ))
-    echo "fuzz $t: $runs executions in ${seconds} s, corpus $(find "$work" -type f | wc -l) (+ $(find "$seeds" -type f | wc -l) seeds), findings $found (inputs saved in fuzz/crashes/$t/), restarts $restarts"
+    echo "fuzz $t: $runs executions in $(( $(date +%s) - t0 )) s (limit ${seconds} s), corpus $(find "$work" -type f | wc -l) (+ $(find "$seeds" -type f | wc -l) seeds), findings $found (inputs saved in fuzz/crashes/$t/), restarts $restarts"
     if [ $rc != 0 ]; then grep -E 'ERROR|SUMMARY|what\(\)' "$log" | sort | uniq -c | head -20; failed=1; fi
   fi
 done

@@ -13,12 +13,15 @@ build_dir="$here/build-tsan"
 tests=(framework/framework_engine_test modules/distance/distance_test modules/segmentation/segmentation_test
        modules/segmentation/segmentation_threads_edges_test modules/thinning/thinning_doht_test
        modules/thinning/thinning_lee94_test modules/thinning/thinning_grid_cell_test
-       modules/geodesic/geodesic_test modules/geodesic/geodesic_surface_test)
+       modules/geodesic/geodesic_test modules/geodesic/geodesic_surface_test
+       modules/io/io_test framework/framework_out_of_core_test modules/distance/distance_blocks_test
+       modules/segmentation/segmentation_blocks_test pipelines/out_of_core_pipelines_test
+       pipelines/out_of_core_io_test)
 cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -g1" \
   -DSKEL_BUILD_GUI=OFF -DSKEL_BUILD_BENCH=OFF -DSKEL_BUILD_PYTHON=OFF \
   "-DCMAKE_CXX_FLAGS=-fsanitize=thread -fno-omit-frame-pointer" -DCMAKE_EXE_LINKER_FLAGS=-fsanitize=thread \
   -DCMAKE_SHARED_LINKER_FLAGS=-fsanitize=thread >/dev/null
-cmake --build "$build_dir" -j "$(nproc)" --target "${tests[@]##*/}"
+cmake --build "$build_dir" -j "$(nproc)" --target "${tests[@]##*/}" skelflow
 status=0
 for t in "${tests[@]}"; do
   log="$build_dir/${t##*/}.tsan.log"

@@ -56,13 +56,14 @@ vtkSmartPointer<vtkStaticPointLocator> locator(const std::vector<Mesh::Point>& p
 
 // Copies element `from` of every attribute array of `src` to the end of the arrays of `dst`.
 void append_values(MeshAttributes& dst, const MeshAttributes& src, int64_t from) {
-  for (const auto& [name, a] : src)
+  for (const auto& entry : src)
     std::visit([&](const auto& v) {
       using V = std::decay_t<decltype(v)>;
+      const std::string& name = entry.first;  // no structured binding: clang 14 cannot capture one
       auto it = dst.find(name);
       if (it == dst.end()) it = dst.emplace(name, V{}).first;
       std::get<V>(it->second).push_back(v[from]);
-    }, a);
+    }, entry.second);
 }
 
 }  // namespace
