@@ -72,14 +72,14 @@ int64_t border_locks(const VolumeU8& orig, const Dims& ob, const Dims& gdims, co
           if (lo_inner[a]) f = std::min(f, p[a] + 1);
           if (hi_inner[a]) f = std::min(f, os[a] - p[a]);
         }
-        const int64_t c = d(x + 1, y + 1, z + 1);
-        if (c < 3 * (f - 1)) continue;
-        locks(x, y, z) = 1;
         bool interior = true;
         for (int a = 0; a < 3; ++a) {
           const int64_t gpos = ob[a] + p[a];
           interior = interior && gpos >= interior_begin[a] && gpos < interior_begin[a] + interior_size[a];
         }
+        const int64_t c = d(x + 1, y + 1, z + 1);
+        if (c < 3 * (f - 1)) continue;
+        locks(x, y, z) = 1;
         unreached += interior;
       }
   return unreached;
