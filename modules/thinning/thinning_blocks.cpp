@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
@@ -44,18 +45,23 @@ int64_t border_locks(const VolumeU8& orig, const Dims& ob, const Dims& gdims, co
   // The sub-block padded by one voxel: inside the grid (beyond an inner face) object, outside the
   // grid background; beyond the padding object (border_is_object), never nearer than the padding.
   VolumeU8 padded(Dims{os[0] + 2, os[1] + 2, os[2] + 2}, 0);
+  const uint8_t pad_lo_x = lo_inner[0] ? 1 : 0, pad_hi_x = hi_inner[0] ? 1 : 0;
   for (int64_t z = 0; z < os[2] + 2; ++z)
-    for (int64_t y = 0; y < os[1] + 2; ++y)
-      for (int64_t x = 0; x < os[0] + 2; ++x) {
-        const int64_t p[3] = {x, y, z};
-        bool inside_block = true, inside_grid = true;
-        for (int a = 0; a < 3; ++a) {
-          const int64_t gpos = ob[a] + p[a] - 1;
-          inside_block = inside_block && p[a] >= 1 && p[a] <= os[a];
-          inside_grid = inside_grid && gpos >= 0 && gpos < gdims[a];
-        }
-        padded(x, y, z) = inside_block ? orig(x - 1, y - 1, z - 1) : (inside_grid ? 1 : 0);
+    for (int64_t y = 0; y < os[1] + 2; ++y) {
+      const bool in_yz = y >= 1 && y <= os[1] && z >= 1 && z <= os[2];
+      const int64_t gy = ob[1] + y - 1, gz = ob[2] + z - 1;
+      const bool grid_yz = gy >= 0 && gy < gdims[1] && gz >= 0 && gz < gdims[2];
+      uint8_t* row = &padded(0, y, z);
+      if (in_yz) {
+        std::memcpy(row + 1, &orig(0, y - 1, z - 1), static_cast<size_t>(os[0]));
+        row[0] = pad_lo_x;
+        row[os[0] + 1] = pad_hi_x;
+      } else if (grid_yz) {  // beyond an inner y or z face, inside the grid: unknown = object
+        std::memset(row + 1, 1, static_cast<size_t>(os[0]));
+        row[0] = pad_lo_x;
+        row[os[0] + 1] = pad_hi_x;
       }
+    }
   distance::ChamferOptions co;
   co.border_is_object = true;
   co.threads = threads;
@@ -207,6 +213,11 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
       const Block b = layout.at(bx, by, bz);
       const Dims& ob = b.outer_begin;
       const Dims& os = b.outer_size;
+      const VolumeU8 state = skeleton.read<uint8_t>(ob, os);
+      if (std::find(state.begin(), state.end(), uint8_t{1}) == state.end()) {  // no object: nothing to thin
+        report_blocks(irq, label, k + 1, total);
+        continue;
+      }
       const VolumeU8 orig = binary(read_block<uint8_t>(mask, ob, os, "input 'mask'"));
       VolumeU8 locks(os, 0);
       const int64_t unreached = border_locks(orig, ob, g.dims, b.begin, b.size, o.threads, locks);
@@ -222,7 +233,6 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
         const VolumeU8 user = read_block<uint8_t>(*locked, ob, os, "input 'locked'");
         for (int64_t i = 0; i < locks.size(); ++i) locks[i] = (locks[i] || user[i]) ? 1 : 0;
       }
-      const VolumeU8 state = skeleton.read<uint8_t>(ob, os);
       const double f0 = static_cast<double>(k) / static_cast<double>(total);
       to.interrupter = irq.sub(f0, static_cast<double>(k + 1) / static_cast<double>(total));
       ThinningResult r = visit_voxel_type(priority.type_id(), "input 'priority'", [&](auto tag) {
