@@ -44,22 +44,38 @@ int64_t border_locks(const VolumeU8& orig, const Dims& ob, const Dims& gdims, co
   if (!any_inner) return 0;  // the whole grid: no locks
   // The sub-block padded by one voxel: inside the grid (beyond an inner face) object, outside the
   // grid background; beyond the padding object (border_is_object), never nearer than the padding.
-  VolumeU8 padded(Dims{os[0] + 2, os[1] + 2, os[2] + 2}, 0);
-  const uint8_t pad_lo_x = lo_inner[0] ? 1 : 0, pad_hi_x = hi_inner[0] ? 1 : 0;
-  for (int64_t z = 0; z < os[2] + 2; ++z)
-    for (int64_t y = 0; y < os[1] + 2; ++y) {
-      const bool in_yz = y >= 1 && y <= os[1] && z >= 1 && z <= os[2];
-      const int64_t gy = ob[1] + y - 1, gz = ob[2] + z - 1;
+  // Only the box of the object voxels grown by one is computed: for an object voxel p, any background
+  // voxel outside that box has one inside it, outside the object's box along the same axis and inside
+  // the sub-block, that is not farther from p in the chamfer norm.
+  Dims lo{os[0], os[1], os[2]}, hi{-1, -1, -1};
+  for (int64_t z = 0; z < os[2]; ++z)
+    for (int64_t y = 0; y < os[1]; ++y) {
+      const uint8_t* row = &orig(0, y, z);
+      int64_t x0 = 0;
+      while (x0 < os[0] && !row[x0]) ++x0;
+      if (x0 == os[0]) continue;
+      int64_t x1 = os[0] - 1;
+      while (!row[x1]) --x1;
+      lo = {std::min(lo[0], x0), std::min(lo[1], y), std::min(lo[2], z)};
+      hi = {std::max(hi[0], x1), std::max(hi[1], y), std::max(hi[2], z)};
+    }
+  if (hi[0] < 0) return 0;  // no object
+  // Q in padded coordinates (sub-block voxel s is padded s + 1): [lo, hi + 2].
+  const Dims qd{hi[0] - lo[0] + 3, hi[1] - lo[1] + 3, hi[2] - lo[2] + 3};
+  VolumeU8 padded(qd, 0);
+  for (int64_t qz = 0; qz < qd[2]; ++qz)
+    for (int64_t qy = 0; qy < qd[1]; ++qy) {
+      const int64_t py = qy + lo[1], pz = qz + lo[2];
+      const bool in_yz = py >= 1 && py <= os[1] && pz >= 1 && pz <= os[2];
+      const int64_t gy = ob[1] + py - 1, gz = ob[2] + pz - 1;
       const bool grid_yz = gy >= 0 && gy < gdims[1] && gz >= 0 && gz < gdims[2];
-      uint8_t* row = &padded(0, y, z);
-      if (in_yz) {
-        std::memcpy(row + 1, &orig(0, y - 1, z - 1), static_cast<size_t>(os[0]));
-        row[0] = pad_lo_x;
-        row[os[0] + 1] = pad_hi_x;
-      } else if (grid_yz) {  // beyond an inner y or z face, inside the grid: unknown = object
-        std::memset(row + 1, 1, static_cast<size_t>(os[0]));
-        row[0] = pad_lo_x;
-        row[os[0] + 1] = pad_hi_x;
+      if (!grid_yz) continue;  // outside the grid: background
+      uint8_t* row = &padded(0, qy, qz);
+      for (int64_t qx = 0; qx < qd[0]; ++qx) {
+        const int64_t px = qx + lo[0];
+        if (px == 0) row[qx] = lo_inner[0] ? 1 : 0;
+        else if (px == os[0] + 1) row[qx] = hi_inner[0] ? 1 : 0;
+        else row[qx] = in_yz ? orig(px - 1, py - 1, pz - 1) : 1;
       }
     }
   distance::ChamferOptions co;
@@ -83,7 +99,7 @@ int64_t border_locks(const VolumeU8& orig, const Dims& ob, const Dims& gdims, co
           const int64_t gpos = ob[a] + p[a];
           interior = interior && gpos >= interior_begin[a] && gpos < interior_begin[a] + interior_size[a];
         }
-        const int64_t c = d(x + 1, y + 1, z + 1);
+        const int64_t c = d(x + 1 - lo[0], y + 1 - lo[1], z + 1 - lo[2]);
         if (c < 3 * (f - 1)) continue;
         locks(x, y, z) = 1;
         unreached += interior;
