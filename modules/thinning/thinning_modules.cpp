@@ -7,6 +7,7 @@
 #include "thinning/lee94.hpp"
 #include "thinning/names.hpp"
 #include "thinning/thinning.hpp"
+#include "thinning/thinning_blocks.hpp"
 #include "thinning/local_topology.hpp"
 
 namespace skel::thinning {
@@ -28,6 +29,11 @@ public:
         .param("end_point_length", &ThinningOptions::end_point_length,
                         "l: 0 keeps no end points; l > 0 keeps end points of side branches longer than l voxels (1 keeps noise spurs; 2 and more are robust)")
         .range(0, 1000000)
+        .unit("voxels")
+        .param("halo", &BlockThinningOptions::halo,
+               "under a memory budget only: halo H around each block (sub-blocks overlap by 2·H), at least the "
+               "object's largest distance to its border; 0 derives it from the priority's maximum")
+        .range(0, 100000)
         .unit("voxels")
         .details(R"(Thesis §2.3.1 (Algorithms 1 and 2, fig. 2.17, end-point importance, "Implementation of
 thinning"). Grid point model with **(26, 6) adjacency** (object 26-connected, background 6-connected; not a
@@ -70,9 +76,44 @@ locked voxel is counted as stuck; the module warns with the number of such compo
 
 Memory: the skeleton output (1 byte per voxel) doubles as the state array; the queue holds 8 bytes
 per queued voxel (at most the object voxels; typically the boundary layer); 1-2 bytes per voxel for
-the priority levels when there are at most 65536 of them; the input mask and priority are read only.)");
+the priority levels when there are at most 65536 of them; the input mask and priority are read only.
+
+Block-wise under a memory budget (thesis ch. 5.2, Algorithm 5): the mask is copied into the
+skeleton (on disk), then every block is thinned as a sub-block (the block plus a halo of H voxels on
+each side, clipped to the grid; neighbouring sub-blocks overlap by 2·H) by the same thinning with
+extra locks, and the sub-block is written back. Locked are the voxels nearer the sub-block border
+than the object border: the (3, 4, 5) chamfer distance to the background inside the sub-block
+(computed on the mask; beyond the grid background as in memory, beyond an inner face unknown) is at
+least 3·(f - 1), f the distance in voxels to the nearest inner face, so the outermost layer is always
+locked. A removed voxel is simple in a sub-block whose border is fixed, hence in the whole volume:
+the skeleton is homotopic to the mask (components, cavities, tunnels) for any halo, a subset of it,
+and thin. Medialness needs every voxel unlocked in its own block: H >= the object's largest distance
+d_max to its border. **halo** = 0 derives H = floor(1.11·d_max) + 1 from the priority's maximum
+over the object (one scan; float priorities as distance.euclidean gives them: maximum / smallest
+spacing; integer ones as distance.chamfer: maximum / 3; 1.11 > sqrt(11)/3 covers the chamfer's
+excess over the Euclidean distance). A block interior with a voxel farther from the object border
+than the halo is an error naming this parameter (a priority that is no distance, or a halo set too
+small), as is a sub-block that does not fit the budget. A later block can change the state inside an
+earlier block's sub-block (a branch retracting across a face, thesis fig. 5.8): such blocks run again
+in further passes until a pass changes nothing (progress "thinning k/n blocks", "thinning pass 2
+k/n blocks"). Block shape: the execution's block, else the largest cube whose sub-block takes a
+quarter of the budget. Differences to the in-memory skeleton: the order within a priority level and
+the direction cycle of the smooth variant restart per block, so single voxels near block faces
+differ (measured in tests/modules/thinning/thinning_blocks_test.cpp: see docs/architecture.md,
+"Out-of-core execution"). The table's tests, removed and sub_iterations are sums over the block
+runs, working_bytes the largest run's; priority_levels, kept_end_points, locked_voxels, stuck_* and
+interior_voxels are not computed block-wise (-1); the columns blocks, passes, block_runs and halo are
+added.
+Memory per sub-block voxel: mask and state 1 + 1, priority 4 (float32), locks 1 + 1, padded mask and
+uint32 chamfer of the lock test 1 + 4, skeleton 1, priority levels 2 and queue (budgeted) 4: 20
+bytes (24 for a float64 priority).)")
+        .blockwise(16, 20);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      run_blocks(ctx, *blocks);
+      return;
+    }
     auto mask = ctx.input<VolumeU8>("mask");
     DataPtr priority = ctx.input_data("priority");
     auto locked = ctx.optional_input<VolumeU8>("locked");
@@ -98,6 +139,37 @@ the priority levels when there are at most 65536 of them; the input mask and pri
     t.add("interior_voxels", std::vector<int64_t>{s.interior_voxels});
     t.add("working_bytes", std::vector<int64_t>{static_cast<int64_t>(s.bytes)}, "bytes");
     ctx.output("skeleton", std::move(r.skeleton));
+    ctx.output("table", std::move(t));
+  }
+
+private:
+  static void run_blocks(RunContext& ctx, const BlockPlan& blocks) {
+    DataPtr mask = ctx.input_data("mask");
+    DataPtr priority = ctx.input_data("priority");
+    DataPtr locked = ctx.input_data("locked");
+    auto out = ctx.scratch_volume("skeleton", type_ids::volume_u8, any_volume_grid(*mask, "input 'mask'"));
+    const BlockThinningResult r =
+        thin_doht_blocks(*mask, *priority, locked.get(), *out, ctx.options<BlockThinningOptions>(), blocks);
+    const ThinningStatistics& s = r.stats;
+    if (s.object_voxels == 0) ctx.warn("the mask is empty: the skeleton is empty");
+    Table t;
+    t.add("object_voxels", std::vector<int64_t>{s.object_voxels});
+    t.add("skeleton_voxels", std::vector<int64_t>{s.skeleton_voxels});
+    t.add("priority_levels", std::vector<int64_t>{-1});
+    t.add("tests", std::vector<int64_t>{s.tests});
+    t.add("removed", std::vector<int64_t>{s.removed});
+    t.add("sub_iterations", std::vector<int64_t>{s.sub_iterations});
+    t.add("kept_end_points", std::vector<int64_t>{-1});
+    t.add("locked_voxels", std::vector<int64_t>{-1});
+    t.add("stuck_components", std::vector<int64_t>{-1});
+    t.add("stuck_voxels", std::vector<int64_t>{-1});
+    t.add("interior_voxels", std::vector<int64_t>{-1});
+    t.add("working_bytes", std::vector<int64_t>{static_cast<int64_t>(s.bytes)}, "bytes");
+    t.add("blocks", std::vector<int64_t>{r.blocks});
+    t.add("passes", std::vector<int64_t>{r.passes});
+    t.add("block_runs", std::vector<int64_t>{r.block_runs});
+    t.add("halo", std::vector<int64_t>{r.halo}, "voxels");
+    ctx.output("skeleton", DataPtr(std::move(out)));
     ctx.output("table", std::move(t));
   }
 };

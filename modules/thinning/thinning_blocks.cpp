@@ -1,0 +1,305 @@
+// Block-wise distance ordered homotopic thinning (thesis ch. 5.2, Algorithm 5). One thinning
+// implementation: each sub-block is thinned by thin_doht with a lock mask; this file only cuts the
+// volume into sub-blocks, computes the locks and schedules the passes.
+#include "thinning/thinning_blocks.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "distance/distance.hpp"
+
+namespace skel::thinning {
+namespace {
+
+std::string dims_text(const Dims& d) {
+  return std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" + std::to_string(d[2]);
+}
+
+// 0/1 copy of a mask block (any value > 0 is object).
+VolumeU8 binary(VolumeU8 v) {
+  for (auto& x : v) x = x ? 1 : 0;
+  return v;
+}
+
+// Locks of one sub-block [ob, ob + os) of a grid of `gdims`, from the original mask `orig` of the
+// sub-block: object voxels whose (3, 4, 5) chamfer distance to the object border inside the
+// sub-block is at least 3·(f − 1), f the distance in voxels to the nearest inner face (a face that
+// is not on the grid's border: the outermost layer has f = 1 and is always locked). Beyond inner
+// faces the object is unknown (object); beyond the grid's border it is background, as in memory.
+// `interior_begin/size`: the block interior (global); returns the number of object voxels in it
+// that are locked (their object border may be beyond the halo).
+int64_t border_locks(const VolumeU8& orig, const Dims& ob, const Dims& gdims, const Dims& interior_begin,
+                     const Dims& interior_size, int threads, VolumeU8& locks) {
+  const Dims os = orig.dims();
+  bool lo_inner[3], hi_inner[3];
+  for (int a = 0; a < 3; ++a) {
+    lo_inner[a] = ob[a] > 0;
+    hi_inner[a] = ob[a] + os[a] < gdims[a];
+  }
+  const bool any_inner = lo_inner[0] || lo_inner[1] || lo_inner[2] || hi_inner[0] || hi_inner[1] || hi_inner[2];
+  if (!any_inner) return 0;  // the whole grid: no locks
+  // The sub-block padded by one voxel: inside the grid (beyond an inner face) object, outside the
+  // grid background; beyond the padding object (border_is_object), never nearer than the padding.
+  // Only the box of the object voxels grown by one is computed: for an object voxel p, any background
+  // voxel outside that box has one inside it, outside the object's box along the same axis and inside
+  // the sub-block, that is not farther from p in the chamfer norm.
+  Dims lo{os[0], os[1], os[2]}, hi{-1, -1, -1};
+  for (int64_t z = 0; z < os[2]; ++z)
+    for (int64_t y = 0; y < os[1]; ++y) {
+      const uint8_t* row = &orig(0, y, z);
+      int64_t x0 = 0;
+      while (x0 < os[0] && !row[x0]) ++x0;
+      if (x0 == os[0]) continue;
+      int64_t x1 = os[0] - 1;
+      while (!row[x1]) --x1;
+      lo = {std::min(lo[0], x0), std::min(lo[1], y), std::min(lo[2], z)};
+      hi = {std::max(hi[0], x1), std::max(hi[1], y), std::max(hi[2], z)};
+    }
+  if (hi[0] < 0) return 0;  // no object
+  // Q in padded coordinates (sub-block voxel s is padded s + 1): [lo, hi + 2].
+  const Dims qd{hi[0] - lo[0] + 3, hi[1] - lo[1] + 3, hi[2] - lo[2] + 3};
+  VolumeU8 padded(qd, 0);
+  for (int64_t qz = 0; qz < qd[2]; ++qz)
+    for (int64_t qy = 0; qy < qd[1]; ++qy) {
+      const int64_t py = qy + lo[1], pz = qz + lo[2];
+      const bool in_yz = py >= 1 && py <= os[1] && pz >= 1 && pz <= os[2];
+      const int64_t gy = ob[1] + py - 1, gz = ob[2] + pz - 1;
+      const bool grid_yz = gy >= 0 && gy < gdims[1] && gz >= 0 && gz < gdims[2];
+      if (!grid_yz) continue;  // outside the grid: background
+      uint8_t* row = &padded(0, qy, qz);
+      for (int64_t qx = 0; qx < qd[0]; ++qx) {
+        const int64_t px = qx + lo[0];
+        if (px == 0) row[qx] = lo_inner[0] ? 1 : 0;
+        else if (px == os[0] + 1) row[qx] = hi_inner[0] ? 1 : 0;
+        else row[qx] = in_yz ? orig(px - 1, py - 1, pz - 1) : 1;
+      }
+    }
+  distance::ChamferOptions co;
+  co.border_is_object = true;
+  co.threads = threads;
+  const VolumeU32 d = distance::chamfer_as<uint32_t>(padded, co);
+  constexpr int64_t kFar = std::numeric_limits<int64_t>::max() / 8;
+  int64_t unreached = 0;
+  for (int64_t z = 0; z < os[2]; ++z)
+    for (int64_t y = 0; y < os[1]; ++y)
+      for (int64_t x = 0; x < os[0]; ++x) {
+        if (!orig(x, y, z)) continue;
+        const int64_t p[3] = {x, y, z};
+        int64_t f = kFar;
+        for (int a = 0; a < 3; ++a) {
+          if (lo_inner[a]) f = std::min(f, p[a] + 1);
+          if (hi_inner[a]) f = std::min(f, os[a] - p[a]);
+        }
+        bool interior = true;
+        for (int a = 0; a < 3; ++a) {
+          const int64_t gpos = ob[a] + p[a];
+          interior = interior && gpos >= interior_begin[a] && gpos < interior_begin[a] + interior_size[a];
+        }
+        const int64_t c = d(x + 1 - lo[0], y + 1 - lo[1], z + 1 - lo[2]);
+        if (c < 3 * (f - 1)) continue;
+        locks(x, y, z) = 1;
+        unreached += interior;
+      }
+  return unreached;
+}
+
+// Index of block (bx, by, bz) in z, y, x order.
+int64_t block_index(const Dims& count, int64_t bx, int64_t by, int64_t bz) { return bx + count[0] * (by + count[1] * bz); }
+
+}  // namespace
+
+int64_t halo_for_distance(double d_max) {
+  if (!(d_max >= 0) || !std::isfinite(d_max)) return 1;
+  return static_cast<int64_t>(std::floor(1.11 * d_max)) + 1;
+}
+
+int64_t block_thinning_bytes_per_voxel(int64_t priority_voxel_bytes) {
+  return 1 + 1 + priority_voxel_bytes + 1 + 1 + 1 + 4 + 1 + 2 + 4;
+}
+
+double priority_max_distance(const DataObject& mask, const DataObject& priority, const Dims& block) {
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  const BlockLayout layout(g.dims, block);
+  double best = 0;
+  const bool is_float = priority.type_id() == type_ids::volume_f32 || priority.type_id() == type_ids::volume_f64;
+  visit_voxel_type(priority.type_id(), "input 'priority'", [&](auto tag) {
+    using T = decltype(tag);
+    const Dims c = layout.count();
+    for (int64_t bz = 0; bz < c[2]; ++bz)
+      for (int64_t by = 0; by < c[1]; ++by)
+        for (int64_t bx = 0; bx < c[0]; ++bx) {
+          const Block b = layout.at(bx, by, bz);
+          const VolumeU8 m = read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'");
+          const Volume<T> p = read_block<T>(priority, b.begin, b.size, "input 'priority'");
+          for (int64_t i = 0; i < m.size(); ++i)
+            if (m[i]) {
+              const double v = static_cast<double>(p[i]);
+              if (std::isnan(v)) throw InputError("priority: NaN at an object voxel; expected finite values");
+              best = std::max(best, v);
+            }
+        }
+  });
+  if (is_float) {
+    const double s = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
+    return s > 0 ? best / s : best;
+  }
+  return best / 3.0;
+}
+
+BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& priority, const DataObject* locked,
+                                     const ChunkedVolume& skeleton, const BlockThinningOptions& o,
+                                     const BlockPlan& plan) {
+  if (o.end_point_length < 0)
+    throw InputError("end_point_length: expected >= 0, got " + std::to_string(o.end_point_length));
+  if (o.halo < 0) throw InputError("param 'halo': expected >= 0 (0: from the priority), got " + std::to_string(o.halo));
+  const Grid& g = any_volume_grid(mask, "input 'mask'");
+  if (mask.type_id() != type_ids::volume_u8) throw InputError("input 'mask': expected volume.u8, got " + mask.type_id());
+  const Grid& pg = any_volume_grid(priority, "input 'priority'");
+  if (pg.dims != g.dims)
+    throw InputError("priority: dims " + dims_text(pg.dims) + " differ from the mask's " + dims_text(g.dims));
+  if (locked && any_volume_grid(*locked, "input 'locked'").dims != g.dims)
+    throw InputError("locked: dims " + dims_text(any_volume_grid(*locked, "input 'locked'").dims) +
+                     " differ from the mask's " + dims_text(g.dims));
+  if (skeleton.dims() != g.dims || skeleton.type_id() != type_ids::volume_u8)
+    throw Error("thin_doht_blocks: the skeleton must be volume.u8 on the mask's grid");
+
+  BlockThinningResult res;
+  res.bytes_per_voxel = block_thinning_bytes_per_voxel(voxel_bytes(priority.type_id()));
+  const Interrupter& irq = o.interrupter;
+  const Dims scan_block = plan.block;
+  double d_max = 0;
+  if (o.halo > 0) {
+    res.halo = o.halo;
+  } else {
+    d_max = priority_max_distance(mask, priority, scan_block);
+    res.halo = halo_for_distance(d_max);
+  }
+  const int64_t H = res.halo;
+  res.block = plan.block_from_user ? plan.block
+                                   : block_for_budget(plan.memory_budget, H, res.bytes_per_voxel, g.dims);
+  // The sub-block must fit the budget (the whole of it: one sub-block is in memory at a time).
+  {
+    double side[3];
+    for (int a = 0; a < 3; ++a)
+      side[a] = static_cast<double>(std::min(g.dims[a], std::min(res.block[a], g.dims[a]) + 2 * H));
+    const double need = side[0] * side[1] * side[2] * static_cast<double>(res.bytes_per_voxel);
+    if (plan.memory_budget > 0 && need > static_cast<double>(plan.memory_budget))
+      throw InputError("param 'halo': a halo of " + std::to_string(H) + " voxels" +
+                       (o.halo > 0 ? std::string() : " (the object's largest distance to its border, " +
+                                                         std::to_string(d_max) + " voxels, from the priority)") +
+                       " around blocks of " + dims_text(res.block) + " voxels needs " +
+                       format_byte_size(static_cast<uint64_t>(need)) + " per sub-block (" +
+                       std::to_string(res.bytes_per_voxel) + " bytes per voxel), more than the memory budget of " +
+                       format_byte_size(plan.memory_budget) + "; raise the budget or use a smaller block");
+  }
+
+  const BlockLayout layout(g.dims, res.block, H);
+  const Dims count = layout.count();
+  res.blocks = layout.total();
+
+  // The state: the mask as 0/1 in the skeleton volume.
+  {
+    const BlockLayout copy(g.dims, res.block);
+    for_each_block(copy, irq, "thinning (copy)", [&](const Block& b) {
+      const VolumeU8 m = binary(read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'"));
+      for (const uint8_t v : m) res.stats.object_voxels += v;
+      skeleton.write(m, b.begin);
+    });
+  }
+
+  ThinningOptions to = o;
+  std::vector<int64_t> order(static_cast<size_t>(res.blocks));
+  for (int64_t i = 0; i < res.blocks; ++i) order[static_cast<size_t>(i)] = i;
+  std::vector<int64_t> pos(static_cast<size_t>(res.blocks));
+  while (!order.empty()) {
+    ++res.passes;
+    std::fill(pos.begin(), pos.end(), -1);
+    for (size_t i = 0; i < order.size(); ++i) pos[static_cast<size_t>(order[i])] = static_cast<int64_t>(i);
+    std::vector<char> again(static_cast<size_t>(res.blocks), 0);
+    const int64_t total = static_cast<int64_t>(order.size());
+    const std::string label = res.passes == 1 ? "thinning" : "thinning pass " + std::to_string(res.passes);
+    report_blocks(irq, label, 0, total);
+    for (int64_t k = 0; k < total; ++k) {
+      const int64_t bi = order[static_cast<size_t>(k)];
+      const int64_t bx = bi % count[0], by = (bi / count[0]) % count[1], bz = bi / (count[0] * count[1]);
+      const Block b = layout.at(bx, by, bz);
+      const Dims& ob = b.outer_begin;
+      const Dims& os = b.outer_size;
+      const VolumeU8 state = skeleton.read<uint8_t>(ob, os);
+      if (std::find(state.begin(), state.end(), uint8_t{1}) == state.end()) {  // no object: nothing to thin
+        report_blocks(irq, label, k + 1, total);
+        continue;
+      }
+      const VolumeU8 orig = binary(read_block<uint8_t>(mask, ob, os, "input 'mask'"));
+      VolumeU8 locks(os, 0);
+      const int64_t unreached = border_locks(orig, ob, g.dims, b.begin, b.size, o.threads, locks);
+      if (unreached > 0)
+        throw InputError("param 'halo': " + std::to_string(unreached) + " object voxels of block " + dims_text(b.index) +
+                         " (voxels " + dims_text(b.begin) + " + " + dims_text(b.size) +
+                         ") lie farther from the object border than the halo of " + std::to_string(H) + " voxels" +
+                         (o.halo > 0 ? std::string("; raise 'halo' or set it to 0 (from the priority)")
+                                     : std::string("; the priority (") + priority.type_id() +
+                                           ") is no distance to the border in voxels: set 'halo' to the object's "
+                                           "largest radius in voxels"));
+      if (locked) {
+        const VolumeU8 user = read_block<uint8_t>(*locked, ob, os, "input 'locked'");
+        for (int64_t i = 0; i < locks.size(); ++i) locks[i] = (locks[i] || user[i]) ? 1 : 0;
+      }
+      const double f0 = static_cast<double>(k) / static_cast<double>(total);
+      to.interrupter = irq.sub(f0, static_cast<double>(k + 1) / static_cast<double>(total));
+      ThinningResult r = visit_voxel_type(priority.type_id(), "input 'priority'", [&](auto tag) {
+        using T = decltype(tag);
+        const Volume<T> p = read_block<T>(priority, ob, os, "input 'priority'");
+        return thin_doht(state, p, &locks, to);
+      });
+      ++res.block_runs;
+      res.stats.tests += r.stats.tests;
+      res.stats.removed += r.stats.removed;
+      res.stats.sub_iterations += r.stats.sub_iterations;
+      res.stats.bytes = std::max(res.stats.bytes, r.stats.bytes);
+      // The box of changed voxels (global coordinates).
+      Dims lo{os[0], os[1], os[2]}, hi{-1, -1, -1};
+      for (int64_t z = 0; z < os[2]; ++z)
+        for (int64_t y = 0; y < os[1]; ++y)
+          for (int64_t x = 0; x < os[0]; ++x)
+            if (state(x, y, z) != r.skeleton(x, y, z)) {
+              const int64_t p[3] = {x, y, z};
+              for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], p[a]);
+                hi[a] = std::max(hi[a], p[a]);
+              }
+            }
+      if (hi[0] >= 0) {
+        skeleton.write(r.skeleton, ob);
+        // Blocks whose sub-blocks hold a changed voxel and that this pass does not visit any more
+        // are run again in the next pass.
+        Dims blo{}, bhi{};
+        for (int a = 0; a < 3; ++a) {
+          const int64_t glo = ob[a] + lo[a] - H, ghi = ob[a] + hi[a] + H;
+          blo[a] = std::max<int64_t>(0, glo / res.block[a]);
+          bhi[a] = std::min<int64_t>(count[a] - 1, std::max<int64_t>(0, ghi) / res.block[a]);
+        }
+        for (int64_t z = blo[2]; z <= bhi[2]; ++z)
+          for (int64_t y = blo[1]; y <= bhi[1]; ++y)
+            for (int64_t x = blo[0]; x <= bhi[0]; ++x) {
+              const int64_t j = block_index(count, x, y, z);
+              if (j == bi) continue;
+              const int64_t pj = pos[static_cast<size_t>(j)];
+              if (pj < 0 || pj < k) again[static_cast<size_t>(j)] = 1;
+            }
+      }
+      report_blocks(irq, label, k + 1, total);
+    }
+    order.clear();
+    for (int64_t j = 0; j < res.blocks; ++j)
+      if (again[static_cast<size_t>(j)]) order.push_back(j);
+  }
+  res.stats.skeleton_voxels = res.stats.object_voxels - res.stats.removed;
+  return res;
+}
+
+}  // namespace skel::thinning
