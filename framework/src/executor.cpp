@@ -18,6 +18,7 @@
 
 #include "context.hpp"
 #include "resume.hpp"
+#include "skel/block_journal.hpp"
 #include "skel/fs.hpp"
 #include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
@@ -642,6 +643,10 @@ private:
   fs::path resume_dir_;
   detail::ResumeManifest manifest_;
   std::mutex manifest_m_;
+  // Per-block resume (skel/block_journal.hpp): the journal of each block-wise node while it runs.
+  std::map<size_t, std::unique_ptr<BlockJournalFile>> journals_;  // guarded by scratch_m_
+  BlockJournalFile* open_journal(size_t i);
+  void close_journal(size_t i, bool finished);
 
 public:
   void set_resume(fs::path dir, detail::ResumeManifest m) {
@@ -725,7 +730,10 @@ void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> in
   status(i, NodeState::Running, 0.0, {});
   auto mod = im_.registry.create(node.module);
   ++modules_run_;
-  mod->run(ctx);
+  {
+    const ScopedBlockJournal journal(plan_.nodes[i].blockwise && !resume_dir_.empty() ? open_journal(i) : nullptr);
+    mod->run(ctx);
+  }
   intr.check();
   std::lock_guard lock(m_);
   results_[i] = std::move(ctx.outputs());
@@ -749,6 +757,7 @@ void Executor::Scheduler::run_node(size_t i) {
         inputs = load_for_in_memory_module(std::move(inputs), plan_.memory_budget, node.module);
       run_module(i, std::move(inputs), nr);
       if (!resume_dir_.empty()) checkpoint(i, nr);
+      close_journal(i, true);
     }
     nr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     nr.peak_rss_mib = peak_rss_mib();
@@ -896,7 +905,51 @@ std::shared_ptr<ChunkedVolume> Executor::Scheduler::make_scratch(size_t i, const
                                : resume_dir_ / (stem + ".h5");
     scratch_files_.push_back(file);
   }
-  return std::make_shared<ChunkedVolume>(grid, type_id, create_volume_store(file, type_id, grid, chunk));
+  std::shared_ptr<VolumeStore> store = create_volume_store(file, type_id, grid, chunk);
+  {
+    std::lock_guard lock(scratch_m_);
+    if (auto j = journals_.find(i); j != journals_.end())
+      store = j->second->wrap(file.filename().string(), voxel_bytes(type_id), std::move(store));
+  }
+  return std::make_shared<ChunkedVolume>(grid, type_id, std::move(store));
+}
+
+// ---- per-block resume (skel/block_journal.hpp)
+// The journal of block-wise node i in the resume folder: an earlier killed run's committed blocks are
+// kept (and said so); a journal that cannot be made is a warning, the stage then resumes per stage.
+BlockJournalFile* Executor::Scheduler::open_journal(size_t i) {
+  const std::string& id = plan_.nodes[i].id;
+  try {
+    auto j = std::make_unique<BlockJournalFile>(resume_dir_ / (id + ".blocks"), plan_.nodes[i].cache_key);
+    if (const int64_t kept = j->kept_blocks(); kept > 0) {
+      const std::string note = "resumed node '" + id + "' from " + std::to_string(kept) + " finished block(s)";
+      std::lock_guard lock(m_);
+      report_.notes.push_back(note);
+      if (opt_.on_notice) opt_.on_notice(note);
+    }
+    std::lock_guard lock(scratch_m_);
+    return (journals_[i] = std::move(j)).get();
+  } catch (const Error& e) {
+    if (opt_.on_warning) opt_.on_warning(id, std::string("blocks not kept for --resume: ") + e.what());
+    return nullptr;
+  }
+}
+
+// Drops node i's journal; `finished`: the node's outputs are kept (or it ran to its end), so its
+// journal file goes too.
+void Executor::Scheduler::close_journal(size_t i, bool finished) {
+  std::unique_ptr<BlockJournalFile> j;
+  {
+    std::lock_guard lock(scratch_m_);
+    auto it = journals_.find(i);
+    if (it == journals_.end()) return;
+    j = std::move(it->second);
+    journals_.erase(it);
+  }
+  const fs::path f = j->file();
+  j.reset();
+  std::error_code ec;
+  if (finished) fs::remove(f, ec);
 }
 
 // Removes the run's scratch files; `keep_live`: leave those whose volumes are still held (the GUI's
@@ -933,7 +986,7 @@ void Executor::Scheduler::checkpoint(size_t i, const NodeReport& nr) {
       if (const auto* c = dynamic_cast<const ChunkedVolume*>(d.get())) {
         const fs::path f = c->store()->file();
         if (f.parent_path() != resume_dir_ || f.filename().string().rfind(id + ".", 0) != 0) return;  // not its own
-        io->flush(*c->store());
+        io->flush(BlockJournalFile::unwrap(*c->store()));
         o.kind = "volume";
         o.file = f.filename().string();
         o.type_id = c->type_id();

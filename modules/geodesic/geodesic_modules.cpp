@@ -1,5 +1,6 @@
 // Module wrappers of the geodesic family.
 #include "geodesic/geodesic.hpp"
+#include "geodesic/geodesic_blocks.hpp"
 #include "geodesic/names.hpp"
 #include "geodesic/surface.hpp"
 #include "skel/module.hpp"
@@ -46,11 +47,52 @@ Memory (beyond the input mask and the two outputs; the larger of two phases): 4 
 padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 bytes per object voxel and
 6 per boundary-layer voxel, for the searches 4 (b(p)) + 4 (bucket position) bytes per object voxel
 and 4 + 4 bytes per boundary-layer voxel plus 2 (t <= 203) or 3 per boundary-layer voxel and worker
-thread.)");
+thread.
+
+Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
+with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the
+background, found in the block and the block read again with a larger margin when needed; blocks
+whose margin does not fit the budget are halved), and only its interior is kept. Then every nearest
+point and every boundary path shorter than t lies in the block, and every path through the block's
+artificial outside is at least t long: importance and surface_skeleton equal the in-memory result.
+The table sums the statistics over the blocks with their margins. Memory: 28 bytes per voxel of the
+largest block with margin. Full mode has no finite margin: under a budget it runs in memory when the
+mask fits the budget at 28 bytes per voxel and is refused otherwise.)")
+        .blockwise(16, kBlockBytesPerVoxel);
   }
   void run(RunContext& ctx) override {
-    auto mask = ctx.input<VolumeU8>("mask");
-    Result r = boundary_distance(*mask, ctx.options<Options>());
+    const Options options = ctx.options<Options>();
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& mask = *ctx.input_data("mask");
+      const Grid& g = any_volume_grid(mask, "input 'mask'");
+      const uint64_t whole = static_cast<uint64_t>(g.voxel_count()) * static_cast<uint64_t>(kBlockBytesPerVoxel);
+      if (options.mode == Mode::Threshold || whole > blocks->memory_budget) {
+        auto importance = ctx.scratch_volume("importance", type_ids::volume_f32, g);
+        auto surface = ctx.scratch_volume("surface_skeleton", type_ids::volume_u8, g);
+        const BlockStatistics bs =
+            boundary_distance_blocks(mask, *importance, *surface, options, blocks->block, blocks->memory_budget);
+        if (bs.object_voxels == 0) ctx.warn("the mask is empty: importance is 0 everywhere");
+        Table t;
+        t.add("object_voxels", std::vector<int64_t>{bs.object_voxels});
+        t.add("layer_voxels", std::vector<int64_t>{bs.summed.layer_voxels});
+        t.add("base_points", std::vector<int64_t>{bs.summed.base_points});
+        t.add("searches", std::vector<int64_t>{bs.summed.searches});
+        t.add("saturated_by_pivot", std::vector<int64_t>{bs.summed.saturated_by_pivot});
+        t.add("visited", std::vector<int64_t>{bs.summed.visited});
+        t.add("working_bytes", std::vector<int64_t>{static_cast<int64_t>(bs.largest_block_bytes)}, "bytes");
+        t.add("blocks", std::vector<int64_t>{bs.blocks});
+        t.add("d_max", std::vector<int64_t>{bs.max_ring}, "voxels");
+        t.add("largest_margin", std::vector<int64_t>{bs.largest_margin}, "voxels");
+        ctx.output("importance", DataPtr(std::move(importance)));
+        ctx.output("surface_skeleton", DataPtr(std::move(surface)));
+        ctx.output("table", std::move(t));
+        return;
+      }
+    }
+    const DataPtr in = materialize(ctx.input_data("mask"));
+    const auto* mask = dynamic_cast<const VolumeU8*>(in.get());
+    if (mask == nullptr) throw InputError("input 'mask': expected " + std::string(type_ids::volume_u8) + ", got " + in->type_id());
+    Result r = boundary_distance(*mask, options);
     if (r.stats.object_voxels == 0) ctx.warn("the mask is empty: importance is 0 everywhere");
     Table t;
     t.add("object_voxels", std::vector<int64_t>{r.stats.object_voxels});

@@ -41,9 +41,28 @@ public:
             "(x-fastest order). Smoothing: Gaussian weights, sigma = kernel/4, end points fixed. Radius "
             "(§6.1 local thickness): point attribute `radius` = distance × radius_scale at each voxel; at a "
             "node the maximum over its voxels (also node attribute `radius`). Memory: the skeleton (1 B/voxel), "
-            "~60 B per skeleton voxel, plus 1 B/voxel for `manifold`. Deterministic for any thread count.");
+            "~65 B per skeleton voxel, plus 1 B/voxel for `manifold`. Deterministic for any thread count. "
+            "Block-wise under a memory budget (thesis ch. 5): the skeleton (and distance) are read in blocks "
+            "with a one-voxel halo and each skeleton voxel is gathered with its 27-neighbourhood, i.e. every "
+            "dual cube around it, so 1-cells, junctions, chains and loops crossing block faces, edges and "
+            "corners are those of the whole volume; the phases then run on the gathered voxels and the graph, "
+            "its radii and statistics are identical to in memory. Memory: one block with halo at 1 B/voxel "
+            "(+ the distance's bytes + 1 B/voxel for `manifold`) plus ~65 B per skeleton voxel, resident "
+            "(a 1 % skeleton of 1280³ voxels: ~1.4 GB; ~50 B while gathering), independent of the volume's size.")
+        .blockwise(1, 10);
   }
   void run(RunContext& ctx) override {
+    if (const BlockPlan* blocks = ctx.blocks()) {
+      const DataObject& skel_data = *ctx.input_data("skeleton");
+      DataPtr dist = ctx.input_data("distance");
+      const auto o = ctx.options<SkeletonToGraphOptions>();
+      std::shared_ptr<ChunkedVolume> manifold;
+      if (o.want_manifold)
+        manifold = ctx.scratch_volume("manifold", type_ids::volume_u8, any_volume_grid(skel_data, "input 'skeleton'"));
+      ctx.output("graph", skeleton_to_graph_blocks(skel_data, dist.get(), blocks->block, o, manifold.get()));
+      if (manifold) ctx.output("manifold", DataPtr(std::move(manifold)));
+      return;
+    }
     auto skel_in = ctx.input<VolumeU8>("skeleton");
     DataPtr dist = ctx.input_data("distance");
     const auto o = ctx.options<SkeletonToGraphOptions>();

@@ -4,12 +4,14 @@
 #include <bit>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <numeric>
 #include <set>
 #include <unordered_map>
 
 #include "geometry/skeleton_to_graph_phases.hpp"
 #include "skel/error.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
 #include "skel/union_find.hpp"
 
@@ -176,32 +178,30 @@ struct Accessor {
           if (fg(x + dx, y + dy, z + dz)) m |= 1u << bit;
     return m;
   }
-  // Configuration of the dual cube with lowest corner (x, y, z).
-  [[nodiscard]] int config(int64_t x, int64_t y, int64_t z) const {
-    int c = 0;
-    for (int k = 0; k < 8; ++k)
-      if (fg(x + (k & 1), y + (k >> 1 & 1), z + (k >> 2 & 1))) c |= 1 << k;
-    return c;
-  }
 };
 
-ManifoldType classify_voxel(const Accessor& acc, int64_t x, int64_t y, int64_t z,
-                            const std::vector<DualCubeEntry>& table) {
+// Configuration of the dual cube in which the voxel with 27-neighbourhood `hood` is corner k (the
+// cube's lowest corner lies at the voxel minus the bits of k).
+inline int cube_config(uint32_t hood, int k) {
+  const int ox = -(k & 1), oy = -(k >> 1 & 1), oz = -(k >> 2 & 1);
+  int cfg = 0;
+  for (int j = 0; j < 8; ++j)
+    if (hood >> nb_pos(ox + (j & 1), oy + (j >> 1 & 1), oz + (j >> 2 & 1)) & 1) cfg |= 1 << j;
+  return cfg;
+}
+
+ManifoldType classify_voxel(uint32_t hood, const std::vector<DualCubeEntry>& table) {
   const auto& pt = pair_table();
   uint32_t nb = 0;
   std::array<int, 27> count2{};
   std::array<uint32_t, 16> faces_seen{};
   int nfaces = 0;
   bool any2 = false, three = false;
-  const uint32_t hood = acc.neighbourhood(x, y, z);
   for (int c = 0; c < 8; ++c) {
     // v is corner k of the cube with lowest corner v - bits(k).
     const int k = c;
     const int ox = -(k & 1), oy = -(k >> 1 & 1), oz = -(k >> 2 & 1);
-    int cfg = 0;
-    for (int j = 0; j < 8; ++j)
-      if (hood >> nb_pos(ox + (j & 1), oy + (j >> 1 & 1), oz + (j >> 2 & 1)) & 1) cfg |= 1 << j;
-    const DualCubeEntry& t = table[cfg];
+    const DualCubeEntry& t = table[cube_config(hood, k)];
     auto corner_pos = [&](int j) { return nb_pos(ox + (j & 1), oy + (j >> 1 & 1), oz + (j >> 2 & 1)); };
     for (int j = 0; j < 8; ++j)
       if (j != k && (t.edges >> pt.index[k][j] & 1)) nb |= 1u << corner_pos(j);
@@ -289,7 +289,7 @@ VolumeU8 classify_manifold(const VolumeU8& skeleton, int threads, const Interrup
     for (int64_t i = b; i < e; ++i) {
       const int64_t idx = voxels[i];
       const int64_t x = idx % acc.nx, y = idx / acc.nx % acc.ny, z = idx / (acc.nx * acc.ny);
-      out[idx] = static_cast<uint8_t>(classify_voxel(acc, x, y, z, table));
+      out[idx] = static_cast<uint8_t>(classify_voxel(acc.neighbourhood(x, y, z), table));
     }
     interrupter.check();
   }, 4096);
@@ -327,32 +327,99 @@ namespace detail {
 
 SkeletonVoxels collect_voxels(const VolumeU8& skeleton, int threads, const Interrupter& intr) {
   SkeletonVoxels sv;
-  sv.skeleton = &skeleton;
+  sv.grid = skeleton.grid();
   sv.vox = object_voxels(skeleton, threads, intr);
+  const Accessor acc{skeleton.data(), skeleton.nx(), skeleton.ny(), skeleton.nz()};
+  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
+  const int64_t n = sv.size();
+  sv.hood.resize(static_cast<size_t>(n));
+  parallel_for(0, n, threads, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) {
+      const int64_t idx = sv.vox[i];
+      sv.hood[i] = acc.neighbourhood(idx % nx, idx / nx % acc.ny, idx / nxy);
+    }
+    intr.check();
+  }, 4096);
+  return sv;
+}
+
+SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& block, const DataObject* distance,
+                                     double scale, const Interrupter& intr) {
+  const Grid& grid = any_volume_grid(skeleton, "input 'skeleton'");
+  if (skeleton.type_id() != type_ids::volume_u8)
+    throw InputError("input 'skeleton': expected " + std::string(type_ids::volume_u8) + ", got " + skeleton.type_id());
+  if (distance != nullptr) {
+    const Grid& dg = any_volume_grid(*distance, "input 'distance'");
+    if (dg.dims != grid.dims)
+      throw InputError("input 'distance': dims " + std::to_string(dg.dims[0]) + "x" + std::to_string(dg.dims[1]) + "x" +
+                       std::to_string(dg.dims[2]) + " differ from the skeleton's " + std::to_string(grid.dims[0]) +
+                       "x" + std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]));
+  }
+  const int64_t nx = grid.dims[0], nxy = grid.dims[0] * grid.dims[1];
+  std::vector<int64_t> vox;
+  std::vector<uint32_t> hood;
+  std::vector<double> rad;
+  const BlockLayout layout(grid.dims, block, 1);
+  for_each_block(layout, intr, "skeleton_to_graph", [&](const Block& b) {
+    // The block with a one-voxel halo (clipped to the grid, where the in-core accessor sees
+    // background too): every interior voxel's 27-neighbourhood is the one of the whole volume.
+    const VolumeU8 v = read_block<uint8_t>(skeleton, b.outer_begin, b.outer_size, "input 'skeleton'");
+    const Accessor acc{v.data(), v.nx(), v.ny(), v.nz()};
+    const size_t first = vox.size();
+    for (int64_t z = 0; z < b.size[2]; ++z)
+      for (int64_t y = 0; y < b.size[1]; ++y)
+        for (int64_t x = 0; x < b.size[0]; ++x) {
+          const int64_t lx = x + b.begin[0] - b.outer_begin[0], ly = y + b.begin[1] - b.outer_begin[1],
+                        lz = z + b.begin[2] - b.outer_begin[2];
+          if (v(lx, ly, lz) == 0) continue;
+          vox.push_back((b.begin[0] + x) + nx * (b.begin[1] + y) + nxy * (b.begin[2] + z));
+          hood.push_back(acc.neighbourhood(lx, ly, lz));
+        }
+    if (distance == nullptr || vox.size() == first) return;
+    visit_voxel_type(distance->type_id(), "input 'distance'", [&](auto tag) {
+      using T = decltype(tag);
+      const Volume<T> d = read_block<T>(*distance, b.begin, b.size, "input 'distance'");
+      for (size_t k = first; k < vox.size(); ++k) {
+        const int64_t idx = vox[k];
+        const int64_t x = idx % nx - b.begin[0], y = idx / nx % grid.dims[1] - b.begin[1], z = idx / nxy - b.begin[2];
+        rad.push_back(static_cast<double>(d(x, y, z)) * scale);
+      }
+    });
+  });
+  // Blocks come in block order; the phases want raster order (ids ascending by linear index).
+  std::vector<int64_t> order(vox.size());
+  std::iota(order.begin(), order.end(), int64_t{0});
+  std::sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return vox[a] < vox[b]; });
+  SkeletonVoxels sv;
+  sv.grid = grid;
+  sv.vox.resize(vox.size());
+  sv.hood.resize(vox.size());
+  for (size_t k = 0; k < order.size(); ++k) {
+    sv.vox[k] = vox[order[k]];
+    sv.hood[k] = hood[order[k]];
+  }
+  if (distance != nullptr) {
+    sv.rad.resize(vox.size());
+    for (size_t k = 0; k < order.size(); ++k) sv.rad[k] = rad[order[k]];
+  }
   return sv;
 }
 
 void classify_voxels(SkeletonVoxels& sv, int threads, const Interrupter& intr) {
   const auto& table = dual_cube_table();
-  const Accessor acc{sv.skeleton->data(), sv.skeleton->nx(), sv.skeleton->ny(), sv.skeleton->nz()};
-  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
-  const std::vector<int64_t>& vox = sv.vox;
+  const std::vector<uint32_t>& hood = sv.hood;
   const int64_t n = sv.size();
   std::vector<uint8_t>& cls = sv.cls;
   cls.resize(n);
   parallel_for(0, n, threads, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) {
-      const int64_t idx = vox[i];
-      cls[i] = static_cast<uint8_t>(classify_voxel(acc, idx % nx, idx / nx % acc.ny, idx / nxy, table));
-    }
+    for (int64_t i = b; i < e; ++i) cls[i] = static_cast<uint8_t>(classify_voxel(hood[i], table));
     intr.check();
   }, 4096);
 }
 
 void connect_one_cells(SkeletonVoxels& sv, int threads, const Interrupter& intr) {
   const auto& table = dual_cube_table();
-  const Accessor acc{sv.skeleton->data(), sv.skeleton->nx(), sv.skeleton->ny(), sv.skeleton->nz()};
-  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
+  const int64_t nx = sv.grid.dims[0], ny = sv.grid.dims[1], nxy = nx * ny;
   const std::vector<int64_t>& vox = sv.vox;
   const int64_t n = sv.size();
   auto id_from = [&](int64_t i, int64_t idx) { return sv.id_from(i, idx); };
@@ -363,18 +430,18 @@ void connect_one_cells(SkeletonVoxels& sv, int threads, const Interrupter& intr)
     auto& out = part_edges[c];
     for (int64_t i = b; i < e; ++i) {
       const int64_t idx = vox[i];
-      const int64_t x = idx % nx, y = idx / nx % acc.ny, z = idx / nxy;
+      const int64_t x = idx % nx, y = idx / nx % ny, z = idx / nxy;
       for (int k = 0; k < 8; ++k) {
         const int64_t cx = x - (k & 1), cy = y - (k >> 1 & 1), cz = z - (k >> 2 & 1);
-        const int cfg = acc.config(cx, cy, cz);
+        const int cfg = cube_config(sv.hood[i], k);
         if (std::countr_zero(static_cast<unsigned>(cfg)) != k) continue;
         uint32_t m = table[cfg].reduced_edges;
         while (m) {
           const int p = std::countr_zero(m);
           m &= m - 1;
           const int a = pt.pairs[p][0], bb = pt.pairs[p][1];
-          const int64_t ia = (cx + (a & 1)) + nx * ((cy + (a >> 1 & 1)) + acc.ny * (cz + (a >> 2 & 1)));
-          const int64_t ib = (cx + (bb & 1)) + nx * ((cy + (bb >> 1 & 1)) + acc.ny * (cz + (bb >> 2 & 1)));
+          const int64_t ia = (cx + (a & 1)) + nx * ((cy + (a >> 1 & 1)) + ny * (cz + (a >> 2 & 1)));
+          const int64_t ib = (cx + (bb & 1)) + nx * ((cy + (bb >> 1 & 1)) + ny * (cz + (bb >> 2 & 1)));
           out.push_back({id_from(i, ia), id_from(i, ib)});
         }
       }
@@ -437,7 +504,7 @@ GraphBuild make_nodes(const SkeletonVoxels& sv, std::vector<int64_t>& parent, bo
   GraphBuild b;
   b.with_radius = with_radius;
   SpatialGraph& g = b.graph;
-  g.source_grid = sv.skeleton->grid();
+  g.source_grid = sv.grid;
   g.unit = g.source_grid.unit;
   std::vector<int64_t>& node_of = b.node_of;
   node_of.assign(n, -1);
@@ -521,8 +588,7 @@ void trace_chains(const SkeletonVoxels& sv, GraphBuild& b) {
 void tunnel_loops(const SkeletonVoxels& sv, GraphBuild& b) {
   const auto& table = dual_cube_table();
   const auto& pt = pair_table();
-  const Accessor acc{sv.skeleton->data(), sv.skeleton->nx(), sv.skeleton->ny(), sv.skeleton->nz()};
-  const int64_t nx = acc.nx, nxy = acc.nx * acc.ny;
+  const int64_t nx = sv.grid.dims[0], ny = sv.grid.dims[1], nxy = nx * ny;
   const int64_t n = sv.size();
   const std::vector<int64_t>& vox = sv.vox;
   const std::vector<uint8_t>& cls = sv.cls;
@@ -588,20 +654,23 @@ void tunnel_loops(const SkeletonVoxels& sv, GraphBuild& b) {
         auto it = ce_index.find(a * vc + b);
         return it == ce_index.end() ? -1 : it->second;
       };
-      std::set<std::array<int64_t, 3>> cubes;
+      // The dual cubes around the component's voxels with their configurations (from the
+      // neighbourhood of a voxel that is one of their corners).
+      std::map<std::array<int64_t, 3>, int> cubes;
       for (int64_t id : mem) {
         const int64_t idx = vox[id];
-        const int64_t x = idx % nx, y = idx / nx % acc.ny, z = idx / nxy;
-        for (int k = 0; k < 8; ++k) cubes.insert({x - (k & 1), y - (k >> 1 & 1), z - (k >> 2 & 1)});
+        const int64_t x = idx % nx, y = idx / nx % ny, z = idx / nxy;
+        for (int k = 0; k < 8; ++k)
+          cubes.emplace(std::array<int64_t, 3>{x - (k & 1), y - (k >> 1 & 1), z - (k >> 2 & 1)}, cube_config(sv.hood[id], k));
       }
-      for (const auto& c : cubes) {
-        const DualCubeEntry& t = table[acc.config(c[0], c[1], c[2])];
+      for (const auto& [c, cfg] : cubes) {
+        const DualCubeEntry& t = table[cfg];
         for (const auto& cell : t.cells2) {
           std::array<int64_t, 8> corner{};
           bool inside = true;
           for (int j = 0; j < 8 && inside; ++j) {
             if (!(cell.vertices >> j & 1)) continue;
-            const int64_t gi = (c[0] + (j & 1)) + nx * ((c[1] + (j >> 1 & 1)) + acc.ny * (c[2] + (j >> 2 & 1)));
+            const int64_t gi = (c[0] + (j & 1)) + nx * ((c[1] + (j >> 1 & 1)) + ny * (c[2] + (j >> 2 & 1)));
             auto it = local.find(id_from(0, gi));
             inside = it != local.end() && vox[it->first] == gi;
             if (inside) corner[j] = it->second;
@@ -711,6 +780,44 @@ void isolated_loops(const SkeletonVoxels& sv, GraphBuild& b) {
 
 }  // namespace detail
 
+namespace {
+
+// Phases 1-4 on gathered voxels (sv.rad set when with_radius), node labels and attributes, smoothing.
+SpatialGraph graph_from_voxels(detail::SkeletonVoxels& sv, bool with_radius, const SkeletonToGraphOptions& options,
+                               const Interrupter& intr) {
+  const int threads = options.threads;
+  detail::classify_voxels(sv, threads, intr);  // 1.
+  intr.check(0.4);
+  detail::connect_one_cells(sv, threads, intr);  // 2.
+  intr.check(0.6);
+  std::vector<int64_t> parent = detail::collapse_junctions(sv);  // 3.
+  detail::GraphBuild b = detail::make_nodes(sv, parent, with_radius);
+  intr.check(0.7);
+  detail::trace_chains(sv, b);  // 4.
+  detail::tunnel_loops(sv, b);
+  detail::isolated_loops(sv, b);
+  intr.check(0.9);
+
+  SpatialGraph g = std::move(b.graph);
+  auto& kind = g.ensure_node_label("kind");
+  for (size_t nd = 0; nd < kind.size(); ++nd) kind[nd] = b.node_kind[nd];
+  if (with_radius) {
+    auto& nr = g.ensure_node_attribute("radius");
+    for (size_t nd = 0; nd < nr.size(); ++nd) nr[nd] = static_cast<float>(b.node_rad[nd]);
+    g.point_attributes["radius"] = std::move(b.point_rad);
+  }
+  smooth_edges(g, options.smooth_passes, options.smooth_kernel);
+  return g;
+}
+
+void check_kernel(const SkeletonToGraphOptions& options) {
+  if (options.smooth_passes > 0 && options.smooth_kernel < 3)
+    throw InputError("parameter 'smooth_kernel': expected >= 3 points, got " +
+                     std::to_string(options.smooth_kernel));
+}
+
+}  // namespace
+
 SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject* distance,
                                       const SkeletonToGraphOptions& options) {
   const Grid& grid = skeleton.grid();
@@ -722,47 +829,60 @@ SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject
                        " differ from the skeleton's " + std::to_string(grid.dims[0]) + "x" +
                        std::to_string(grid.dims[1]) + "x" + std::to_string(grid.dims[2]));
   }
-  if (options.smooth_passes > 0 && options.smooth_kernel < 3)
-    throw InputError("parameter 'smooth_kernel': expected >= 3 points, got " +
-                     std::to_string(options.smooth_kernel));
+  check_kernel(options);
   const Interrupter& intr = options.interrupter;
-  const int threads = options.threads;
-
-  detail::SkeletonVoxels sv = detail::collect_voxels(skeleton, threads, intr.sub(0.0, 0.2));
-  detail::classify_voxels(sv, threads, intr);  // 1.
-  intr.check(0.4);
-  detail::connect_one_cells(sv, threads, intr);  // 2.
-  intr.check(0.6);
-  std::vector<int64_t> parent = detail::collapse_junctions(sv);  // 3.
+  detail::SkeletonVoxels sv = detail::collect_voxels(skeleton, options.threads, intr.sub(0.0, 0.2));
   const bool with_radius = distance != nullptr;
   if (with_radius) detail::read_radius(sv, *distance, options.radius_scale);
-  detail::GraphBuild b = detail::make_nodes(sv, parent, with_radius);
-  intr.check(0.7);
-  detail::trace_chains(sv, b);  // 4.
-  detail::tunnel_loops(sv, b);
-  detail::isolated_loops(sv, b);
-  intr.check(0.9);
-
   SkeletonGraphResult result;
-  result.graph = std::move(b.graph);
-  SpatialGraph& g = result.graph;
-  const std::vector<double>& node_rad = b.node_rad;
-  const std::vector<int32_t>& node_kind = b.node_kind;
-  const int64_t n = sv.size();
-  auto& kind = g.ensure_node_label("kind");
-  for (size_t nd = 0; nd < kind.size(); ++nd) kind[nd] = node_kind[nd];
-  if (with_radius) {
-    auto& nr = g.ensure_node_attribute("radius");
-    for (size_t nd = 0; nd < nr.size(); ++nd) nr[nd] = static_cast<float>(node_rad[nd]);
-    g.point_attributes["radius"] = std::move(b.point_rad);
-  }
-  smooth_edges(g, options.smooth_passes, options.smooth_kernel);
+  result.graph = graph_from_voxels(sv, with_radius, options, intr);
   if (options.want_manifold) {
     result.manifold = VolumeU8(grid, 0);
-    for (int64_t i = 0; i < n; ++i) result.manifold[sv.vox[i]] = sv.cls[i];
+    for (int64_t i = 0; i < sv.size(); ++i) result.manifold[sv.vox[i]] = sv.cls[i];
   }
   intr.check(1.0);
   return result;
+}
+
+SpatialGraph skeleton_to_graph_blocks(const DataObject& skeleton, const DataObject* distance, const Dims& block,
+                                      const SkeletonToGraphOptions& options, const ChunkedVolume* manifold) {
+  check_kernel(options);
+  const Interrupter& intr = options.interrupter;
+  detail::SkeletonVoxels sv =
+      detail::collect_voxels_blocks(skeleton, block, distance, options.radius_scale, intr.sub(0.0, 0.2));
+  SpatialGraph g = graph_from_voxels(sv, distance != nullptr, options, intr);
+  if (manifold != nullptr) {
+    if (manifold->dims() != sv.grid.dims || manifold->type_id() != type_ids::volume_u8)
+      throw Error("skeleton_to_graph_blocks: the manifold volume must be uint8 on the skeleton's grid");
+    // Voxel ids grouped by block (counting sort), then each block written once.
+    const BlockLayout layout(sv.grid.dims, block);
+    const Dims c = layout.count();
+    const int64_t nx = sv.grid.dims[0], ny = sv.grid.dims[1];
+    auto block_of = [&](int64_t idx) {
+      const int64_t x = idx % nx, y = idx / nx % ny, z = idx / (nx * ny);
+      return x / layout.block[0] + c[0] * (y / layout.block[1] + c[1] * (z / layout.block[2]));
+    };
+    std::vector<int64_t> start(static_cast<size_t>(layout.total()) + 1, 0);
+    for (int64_t v : sv.vox) ++start[static_cast<size_t>(block_of(v)) + 1];
+    for (size_t k = 1; k < start.size(); ++k) start[k] += start[k - 1];
+    std::vector<int64_t> ids(sv.vox.size());
+    {
+      std::vector<int64_t> fill(start.begin(), start.end() - 1);
+      for (int64_t i = 0; i < sv.size(); ++i) ids[static_cast<size_t>(fill[static_cast<size_t>(block_of(sv.vox[i]))]++)] = i;
+    }
+    int64_t k = 0;
+    for_each_block(layout, intr.sub(0.9, 1.0), "skeleton_to_graph manifold", [&](const Block& b) {
+      VolumeU8 out(manifold->box_grid(b.begin, b.size), 0);
+      for (int64_t a = start[static_cast<size_t>(k)]; a < start[static_cast<size_t>(k) + 1]; ++a) {
+        const int64_t i = ids[static_cast<size_t>(a)], idx = sv.vox[i];
+        out(idx % nx - b.begin[0], idx / nx % ny - b.begin[1], idx / (nx * ny) - b.begin[2]) = sv.cls[i];
+      }
+      manifold->write(out, b.begin);
+      ++k;
+    });
+  }
+  intr.check(1.0);
+  return g;
 }
 
 }  // namespace skel::geometry

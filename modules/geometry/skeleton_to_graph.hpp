@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "skel/interrupter.hpp"
+#include "skel/out_of_core.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/volume.hpp"
 
@@ -68,6 +69,17 @@ struct SkeletonGraphResult {
 // voxel gives the point attribute `radius` (× radius_scale). Throws InputError on a grid mismatch.
 SkeletonGraphResult skeleton_to_graph(const VolumeU8& skeleton, const DataObject* distance,
                                       const SkeletonToGraphOptions& options = {});
+
+// Block-wise (out-of-core, thesis ch. 5): the same graph as skeleton_to_graph, bit for bit, for a
+// volume.u8 skeleton in memory or on disk read in blocks of `block` voxels with a one-voxel halo.
+// Each object voxel is gathered with its 27-neighbourhood (all the dual cubes around it), so the
+// 1-cells, junctions, chains and loops that cross block faces, edges and corners are those of the
+// whole volume; the phases then run on the gathered voxels. `distance` (may be null) is read block
+// by block too. When `manifold` is given (volume.u8 on the skeleton's grid) the manifold types are
+// written to it block by block. Memory: one block with halo (1 B/voxel + the distance's bytes), plus
+// ~65 B per skeleton voxel while the graph is built (as in core, without the volume).
+SpatialGraph skeleton_to_graph_blocks(const DataObject& skeleton, const DataObject* distance, const Dims& block,
+                                      const SkeletonToGraphOptions& options, const ChunkedVolume* manifold = nullptr);
 
 // Gaussian smoothing of the interior points of every edge (end points fixed), window `kernel`
 // points (truncated symmetrically near the ends), sigma = kernel / 4.

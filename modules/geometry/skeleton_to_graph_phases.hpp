@@ -3,7 +3,9 @@
 // the module's API: names and signatures follow the implementation.
 //
 // skeleton_to_graph runs, in order:
-//   collect_voxels: the object voxels (ids = raster order);
+//   collect_voxels: the object voxels (ids = raster order) with their 27-neighbourhoods; every later
+//      phase reads only these, never the volume, so a skeleton on disk is gathered block by block
+//      (collect_voxels_blocks) and the same phases give the same graph;
 //   1. classify_voxels: manifold type per voxel (fig. 3.9);
 //   2. connect_one_cells: the 1-cells (fig. 3.6), each generated once by the reduced dual cube that
 //      contains it (fig. 3.12), as an adjacency between voxel ids;
@@ -26,8 +28,10 @@ namespace skel::geometry::detail {
 // The skeleton's object voxels and what the phases find for them. A voxel's id is its position in
 // `vox`.
 struct SkeletonVoxels {
-  const VolumeU8* skeleton = nullptr;
+  Grid grid;                      // the skeleton's grid (positions, linear indices)
   std::vector<int64_t> vox;       // linear indices, ascending
+  std::vector<uint32_t> hood;     // per id: 27-neighbourhood, bit (dx+1) + 3(dy+1) + 9(dz+1) set for
+                                  // object voxels inside the grid
   std::vector<uint8_t> cls;       // phase 1: ManifoldType per id
   std::vector<int64_t> off, adj;  // phase 2: the 1-cells, CSR: neighbours of id i are adj[off[i] .. off[i+1])
   std::vector<double> rad;        // radius per id (read_radius; empty without a distance volume)
@@ -47,8 +51,8 @@ struct SkeletonVoxels {
   }
   // Physical position of voxel id i.
   [[nodiscard]] Vec3 position(int64_t i) const {
-    const int64_t idx = vox[i], nx = skeleton->nx(), ny = skeleton->ny();
-    return skeleton->grid().position(static_cast<double>(idx % nx), static_cast<double>(idx / nx % ny),
+    const int64_t idx = vox[i], nx = grid.dims[0], ny = grid.dims[1];
+    return grid.position(static_cast<double>(idx % nx), static_cast<double>(idx / nx % ny),
                                      static_cast<double>(idx / (nx * ny)));
   }
   // A chain voxel or a chain's end: never merged into a junction node.
@@ -61,6 +65,13 @@ struct SkeletonVoxels {
 
 // The object voxels of `skeleton` (deterministic for any thread count).
 SkeletonVoxels collect_voxels(const VolumeU8& skeleton, int threads, const Interrupter& intr);
+// The same from a volume.u8 in memory or on disk (ChunkedVolume), read in blocks of `block` voxels
+// with a one-voxel halo: vox and hood equal collect_voxels' for any block shape. With `distance`
+// (any volume type on the skeleton's grid, in memory or on disk) also sv.rad as read_radius sets
+// it. Memory: two blocks with halo (1 B/voxel + the distance's) plus 20 B per object voxel gathered
+// (28 B while sorting).
+SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& block, const DataObject* distance,
+                                     double scale, const Interrupter& intr);
 // Phase 1: sv.cls.
 void classify_voxels(SkeletonVoxels& sv, int threads, const Interrupter& intr);
 // Phase 2: sv.off, sv.adj (each 1-cell in both directions; order fixed for any thread count).

@@ -230,3 +230,53 @@ TEST(OutOfCoreCli, ResumeAfterKillGivesTheSameBytesAndRefusesChangedParameters) 
   EXPECT_EQ(text_of(d / "out" / "dist.h5"), expected);
   EXPECT_TRUE(fs::is_empty(s));
 }
+
+TEST(OutOfCoreCli, ResumeAfterKillInTheMiddleOfAStageKeepsItsFinishedBlocks) {
+  // Gaussian blocks are independent: a run killed in the middle of the stage resumes from the blocks
+  // its journal committed (smooth.blocks in the resume folder), and the output is the uninterrupted
+  // run's bytes.
+  const fs::path d = scratch("resume_blocks");
+  std::ofstream(d / "p.yaml") << R"(skelflow: 1
+nodes:
+  phantom: {module: synthetic.network, params: {shape: rods, size: [32, 24, 24]}}
+  smooth: {module: segmentation.gaussian, inputs: {image: phantom.image}, params: {sigma: [1.5, 1.5, 1.5]}}
+  save: {module: io.write_volume, inputs: {volume: smooth.image}, params: {path: out/smooth.h5}}
+execution: {memory_budget: 1MiB, block: [8, 8, 8]}
+)";
+  const fs::path s = d / "scratch";
+  Result ref = run({"run", (d / "p.yaml").string(), "--output-dir", (d / "ref").string(), "--quiet"});
+  ASSERT_EQ(ref.code, 0) << ref.out;
+  const std::string expected = text_of(d / "ref" / "out" / "smooth.h5");
+  ASSERT_FALSE(expected.empty());
+
+  // Killed once the journal holds several committed blocks (36 blocks of 8³ float voxels, 2 KiB each).
+  const std::vector<std::string> args = {"run", (d / "p.yaml").string(), "--scratch", s.string(), "--quiet"};
+  const fs::path log = fs::temp_directory_path() / ("skel_ooc_kill_blocks_" + std::to_string(getpid()) + ".log");
+  const pid_t pid = start_slow(args, log, 30);
+  bool killed = false;
+  for (int i = 0; i < 3000 && !killed; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    int status = 0;
+    if (waitpid(pid, &status, WNOHANG) == pid) break;
+    const fs::path r = resume_dir(s);
+    std::error_code ec;
+    if (!r.empty() && fs::file_size(r / "smooth.blocks", ec) > 10 * 2048 && !ec) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      killed = WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+    }
+  }
+  fs::remove(log);
+  ASSERT_TRUE(killed) << "the run ended before it could be killed";
+  EXPECT_FALSE(fs::exists(d / "out" / "smooth.h5"));
+
+  Result ok = run({"run", (d / "p.yaml").string(), "--scratch", s.string(), "--resume"});
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  const size_t at = ok.out.find("resumed node 'smooth' from ");
+  ASSERT_NE(at, std::string::npos) << ok.out;
+  const int kept = std::stoi(ok.out.substr(at + std::string("resumed node 'smooth' from ").size()));
+  EXPECT_GE(kept, 10) << ok.out;
+  EXPECT_LT(kept, 36) << ok.out;
+  EXPECT_EQ(text_of(d / "out" / "smooth.h5"), expected);
+  EXPECT_TRUE(fs::is_empty(s)) << "scratch or resume state left behind";
+}
