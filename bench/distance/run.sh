@@ -23,8 +23,8 @@ echo "sequential). EDT: both sides use the same border convention (voxels outsid
 echo "as in SciPy); max |ours - scipy| is checked at 256³. Ratio = peer time / our time. Peak RSS is the"
 echo "peak of the whole process (input mask included)."
 echo
-echo "| volume | object | EDT ours (s) | voxels/s | peak MiB | scipy EDT (s) | peak MiB | ratio | max abs diff | feature transform (s) | chamfer (s) | memcpy warm (s) | memcpy new (s) | chamfer / memcpy warm | chamfer / memcpy new | chamfer b(p) (s) |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| volume | object | EDT ours (s) | EDT CPU s | voxels/s | peak MiB | scipy EDT (s) | peak MiB | ratio | max abs diff | feature transform (s) | chamfer (s) | memcpy warm (s) | memcpy new (s) | chamfer / memcpy warm | chamfer / memcpy new | chamfer b(p) (s) |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for n in $sizes; do
   for shape in rods plates; do
     d="$work/$n-$shape"
@@ -51,19 +51,19 @@ else:
     print("maxdiff=n/a")
 EOF
     obj=$(get object_fraction "$d/gen.txt")
-    te=$(get time "$d/edt.txt"); re=$(get peak_rss_mib "$d/edt.txt")
+    te=$(get time "$d/edt.txt"); ce=$(get cpu "$d/edt.txt"); re=$(get peak_rss_mib "$d/edt.txt")
     ts=$(get time "$d/scipy.txt"); rs=$(get peak_rss_mib "$d/scipy.txt"); md=$(get maxdiff "$d/scipy.txt")
     tf=$(get time "$d/ft.txt"); tc=$(get time "$d/chamfer.txt"); tm=$(get time "$d/memcpy.txt"); tn=$(get time "$d/memcpy_fresh.txt")
     tb=$(get time "$d/chamfer_bp.txt")
-    awk -v n="$n" -v s="$shape" -v obj="$obj" -v te="$te" -v re="$re" -v ts="$ts" -v rs="$rs" -v md="$md" \
+    awk -v n="$n" -v s="$shape" -v obj="$obj" -v te="$te" -v ce="$ce" -v re="$re" -v ts="$ts" -v rs="$rs" -v md="$md" \
         -v tf="$tf" -v tc="$tc" -v tm="$tm" -v tn="$tn" -v tb="$tb" 'BEGIN {
       v = n * n * n
-      printf "| %s %d³ | %.1f%% | %.3f | %.3g | %d | %.2f | %d | %.1f× | %s | %.3f | %.4f | %.4f | %.4f | %.1f× | %.1f× | %.3f |\n",
-        s, n, 100 * obj, te, v / te, re, ts, rs, ts / te, md, tf, tc, tm, tn, tc / tm, tc / tn, tb }'
+      printf "| %s %d³ | %.1f%% | %.3f | %.3f | %.3g | %d | %.2f | %d | %.1f× | %s | %.3f | %.4f | %.4f | %.4f | %.1f× | %.1f× | %.3f |\n",
+        s, n, 100 * obj, te, ce, v / te, re, ts, rs, ts / te, md, tf, tc, tm, tn, tc / tm, tc / tn, tb }'
   done
 done
 echo
-echo "EDT: separable exact lower envelopes (x rows, then y and z on 16-column blocks, only runs of"
+echo "EDT: separable exact lower envelopes (x rows and y on 16-column blocks plane by plane, z on 64-column blocks with the square root fused, only runs of"
 echo "non-zero values); chamfer: SSE4.1 uint16 raster scans skipping background blocks. memcpy copies"
 echo "the chamfer output's bytes (2 per voxel): \"warm\" between two touched buffers, \"new\" into a freshly"
 echo "allocated buffer (page faults included, as for any function returning a new volume; same huge-page"

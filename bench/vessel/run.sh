@@ -31,13 +31,34 @@ r = json.load(open(work + "/run.json"))
 print("## Vessel pipeline (whole, %d³)" % n)
 print()
 print("`pipelines/vessel_network.yaml` run by `skelflow run` with `%s`, %s threads." % (params, threads))
-print("Per stage: wall time and the process's peak RSS when the stage ended (from the run report).")
+print("Per stage: wall time and the process's peak RSS when the stage ended (from the run report);")
+print("floor: the stage's physical floor, one read of its volume inputs and one write of its volume output")
+print("at this machine's memory bandwidth measured in the same run (a NumPy copy of 1 GiB, best of 3:")
+print("bytes read + written per second), and the ratio time / floor.")
 print()
-print("| stage | module | time (s) | peak RSS (MiB) |")
-print("|---|---|---|---|")
+import numpy as np, time
+a = np.ones(1 << 28, dtype=np.float32); b = np.empty_like(a)
+best = min((lambda t0: (np.copyto(b, a), time.perf_counter() - t0)[1])(time.perf_counter()) for _ in range(3))
+bw = 2.0 * a.nbytes / best  # bytes moved per second (read + write)
+del a, b
+# Bytes per voxel read + written by each volume stage (inputs read once, output written once).
+floor_bytes = {"segmentation.gaussian": 4 + 4, "segmentation.threshold": 4 + 1,
+               "segmentation.connected_components": 1 + 1, "io.write_volume": 1 + 1,
+               "distance.euclidean": 1 + 4, "thinning.doht": 1 + 4 + 1}
+voxels = float(n) ** 3
+print("| stage | module | time (s) | peak RSS (MiB) | floor (s) | time / floor |")
+print("|---|---|---|---|---|---|")
+processing = 0.0
 for node in r["nodes"]:
-    print("| %s | %s | %.3f | %.0f |" % (node["id"], node["module"], node["seconds"], node["peak_rss_mib"]))
-print("| **total** | | **%.2f** | **%.0f** |" % (r["seconds"], r["peak_rss_mib"]))
+    fb = floor_bytes.get(node["module"])
+    fl = "%.3f | %.1f×" % (fb * voxels / bw, node["seconds"] / (fb * voxels / bw)) if fb else " | "
+    print("| %s | %s | %.3f | %.0f | %s |" % (node["id"], node["module"], node["seconds"], node["peak_rss_mib"], fl))
+    if node["module"] != "synthetic.vessel_tree":
+        processing += node["seconds"]
+print("| **total** | | **%.2f** | **%.0f** | | |" % (r["seconds"], r["peak_rss_mib"]))
+print()
+print("Processing (every stage but the phantom): %.1f s; peak RSS %.1f bytes per voxel; memory bandwidth %.1f GB/s."
+      % (processing, r["peak_rss_mib"] * 1048576.0 / voxels, bw / 1e9))
 print()
 def row(path):
     with open(path) as f:

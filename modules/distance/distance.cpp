@@ -521,184 +521,259 @@ bool envelope_run(const float* f, int64_t stride, int64_t a, int64_t e, int64_t 
 
 struct NoIndex {};
 
-// Pass x of squared_edt over a contiguous buffer of dims (nx, ny, nz): per row, the squared distance
-// along x to the nearest site (two scans). is_site(i) takes buffer indices; feat receives them.
+// Pass x of squared_edt, one z-plane of a contiguous buffer of dims (nx, ny, nz): per row, the squared
+// distance along x to the nearest site (two scans). is_site(i) takes buffer indices; feat receives
+// them. `left` and `dist_left` are per-thread scratch of nx elements.
 template <class Index, class IsSite>
-void edt_pass_x(const Dims& dims, IsSite is_site, bool outside_site, double wx, int threads,
-                const Interrupter& interrupter, float* sq, Index* feat) {
+void edt_plane_x(const Dims& dims, const IsSite& is_site, bool outside_site, double wx, int64_t z,
+                 std::vector<int64_t>& left, std::vector<int32_t>& dist_left, float* sq, Index* feat) {
   constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
   using Idx = std::conditional_t<with_feat, Index, uint32_t>;
   const Idx OUT = std::numeric_limits<Idx>::max();
   (void)OUT;
-  const int64_t nx = dims[0], ny = dims[1], nz = dims[2], plane = nx * ny;
-  parallel_for(0, nz, threads, [&](int64_t z0, int64_t z1) {
-    std::vector<int64_t> left(static_cast<size_t>(nx));
-    std::vector<int32_t> dist_left(static_cast<size_t>(nx));
+  const int64_t nx = dims[0], ny = dims[1], plane = nx * ny;
+  for (int64_t y = 0; y < ny; ++y) {
+    const int64_t base = y * nx + z * plane;
+    float* r = sq + base;
+    if constexpr (!with_feat) {
+      // distances only: two branch-free scans with 32-bit run lengths (kFar = no site on that side)
+      constexpr int32_t kFar = int32_t{1} << 30;
+      int32_t* dl = dist_left.data();
+      int32_t d = outside_site ? 0 : kFar;
+      for (int64_t x = 0; x < nx; ++x) {
+        d = is_site(base + x) ? 0 : d + 1;
+        dl[x] = d;
+      }
+      d = outside_site ? 0 : kFar;
+      for (int64_t x = nx - 1; x >= 0; --x) {
+        d = is_site(base + x) ? 0 : d + 1;
+        dl[x] = std::min(d, dl[x]);
+      }
+      // ascending, vectorisable store (fresh output pages are written front to back)
+      const float wxf = static_cast<float>(wx);
+      for (int64_t x = 0; x < nx; ++x) {
+        const float fe = static_cast<float>(dl[x]);
+        r[x] = dl[x] >= kFar / 2 ? kInf : wxf * fe * fe;
+      }
+      continue;
+    }
+    int64_t last = outside_site ? -1 : std::numeric_limits<int64_t>::min();
+    bool any = outside_site;
+    for (int64_t x = 0; x < nx; ++x) {
+      if (is_site(base + x)) {
+        last = x;
+        any = true;
+      }
+      left[static_cast<size_t>(x)] = last;
+    }
+    if (!any) {
+      std::fill(r, r + nx, kInf);
+      if constexpr (with_feat) std::fill(feat + base, feat + base + nx, OUT);
+      continue;
+    }
+    int64_t next = outside_site ? nx : std::numeric_limits<int64_t>::max();
+    for (int64_t x = nx - 1; x >= 0; --x) {
+      const int64_t l = left[static_cast<size_t>(x)];
+      if (l == x) {
+        next = x;
+        r[x] = 0.0f;
+        if constexpr (with_feat) feat[base + x] = static_cast<Idx>(base + x);
+        continue;
+      }
+      const bool has_l = l != std::numeric_limits<int64_t>::min();
+      const bool has_r = next != std::numeric_limits<int64_t>::max();
+      const int64_t dl = has_l ? x - l : std::numeric_limits<int64_t>::max();
+      const int64_t dr = has_r ? next - x : std::numeric_limits<int64_t>::max();
+      const bool use_l = dl <= dr;
+      const double dd = static_cast<double>(use_l ? dl : dr);
+      r[x] = static_cast<float>(wx * dd * dd);
+      if constexpr (with_feat) {
+        const int64_t s = use_l ? l : next;
+        feat[base + x] = (s < 0 || s >= nx) ? OUT : static_cast<Idx>(base + s);
+      }
+    }
+  }
+}
+
+// Pass x over the whole buffer, parallel over z-planes.
+template <class Index, class IsSite>
+void edt_pass_x(const Dims& dims, IsSite is_site, bool outside_site, double wx, int threads,
+                const Interrupter& interrupter, float* sq, Index* feat) {
+  parallel_for(0, dims[2], threads, [&](int64_t z0, int64_t z1) {
+    std::vector<int64_t> left(static_cast<size_t>(dims[0]));
+    std::vector<int32_t> dist_left(static_cast<size_t>(dims[0]));
     for (int64_t z = z0; z < z1; ++z) {
       interrupter.check();
-      for (int64_t y = 0; y < ny; ++y) {
-        const int64_t base = y * nx + z * plane;
-        float* r = sq + base;
-        if constexpr (!with_feat) {
-          // distances only: two branch-free scans with 32-bit run lengths (kFar = no site on that side)
-          constexpr int32_t kFar = int32_t{1} << 30;
-          int32_t* dl = dist_left.data();
-          int32_t d = outside_site ? 0 : kFar;
-          for (int64_t x = 0; x < nx; ++x) {
-            d = is_site(base + x) ? 0 : d + 1;
-            dl[x] = d;
-          }
-          d = outside_site ? 0 : kFar;
-          for (int64_t x = nx - 1; x >= 0; --x) {
-            d = is_site(base + x) ? 0 : d + 1;
-            dl[x] = std::min(d, dl[x]);
-          }
-          // ascending, vectorisable store (fresh output pages are written front to back)
-          const float wxf = static_cast<float>(wx);
-          for (int64_t x = 0; x < nx; ++x) {
-            const float fe = static_cast<float>(dl[x]);
-            r[x] = dl[x] >= kFar / 2 ? kInf : wxf * fe * fe;
-          }
-          continue;
-        }
-        int64_t last = outside_site ? -1 : std::numeric_limits<int64_t>::min();
-        bool any = outside_site;
-        for (int64_t x = 0; x < nx; ++x) {
-          if (is_site(base + x)) {
-            last = x;
-            any = true;
-          }
-          left[static_cast<size_t>(x)] = last;
-        }
-        if (!any) {
-          std::fill(r, r + nx, kInf);
-          if constexpr (with_feat) std::fill(feat + base, feat + base + nx, OUT);
-          continue;
-        }
-        int64_t next = outside_site ? nx : std::numeric_limits<int64_t>::max();
-        for (int64_t x = nx - 1; x >= 0; --x) {
-          const int64_t l = left[static_cast<size_t>(x)];
-          if (l == x) {
-            next = x;
-            r[x] = 0.0f;
-            if constexpr (with_feat) feat[base + x] = static_cast<Idx>(base + x);
-            continue;
-          }
-          const bool has_l = l != std::numeric_limits<int64_t>::min();
-          const bool has_r = next != std::numeric_limits<int64_t>::max();
-          const int64_t dl = has_l ? x - l : std::numeric_limits<int64_t>::max();
-          const int64_t dr = has_r ? next - x : std::numeric_limits<int64_t>::max();
-          const bool use_l = dl <= dr;
-          const double dd = static_cast<double>(use_l ? dl : dr);
-          r[x] = static_cast<float>(wx * dd * dd);
-          if constexpr (with_feat) {
-            const int64_t s = use_l ? l : next;
-            feat[base + x] = (s < 0 || s >= nx) ? OUT : static_cast<Idx>(base + s);
-          }
-        }
-      }
+      edt_plane_x<Index>(dims, is_site, outside_site, wx, z, left, dist_left, sq, feat);
     }
   });
 }
 
-// Pass y or z of squared_edt over a buffer whose rows are `nx` wide: n_outer groups of columns, each
-// of n_line elements `line_stride` apart; the lower envelope of the parabolas w (x - s)² + f(s) per
-// column. Blocks of 16 adjacent columns are gathered into contiguous line buffers.
-template <class Index>
-void edt_column_pass(float* sq, Index* feat, int64_t nx, int64_t n_outer, int64_t n_line, int64_t outer_stride,
-                     int64_t line_stride, double w, bool outside_site, int threads, const Interrupter& interrupter) {
+// No conversion of the squared distances after the last pass.
+struct NoFinish {
+  static constexpr bool active = false;
+  float operator()(float v) const { return v; }
+};
+
+// The conversion of finish_distances for one value (squared distances -> requested output); maps 0 to 0.
+struct Finish {
+  static constexpr bool active = true;
+  bool squared = false, isotropic = true;
+  float s1 = 1.0f, s2 = 1.0f;
+  float operator()(float v) const {
+    if (squared) return v * s2;
+    return isotropic ? std::sqrt(v) * s1 : std::sqrt(v);
+  }
+};
+
+// Per-thread scratch of a column pass with blocks of kB adjacent columns over lines of n_line.
+template <class Index, int64_t kB>
+struct ColumnScratch {
+  using Bits = std::conditional_t<(kB > 32), uint64_t, uint32_t>;
+  using Idx = std::conditional_t<std::is_same_v<Index, NoIndex>, uint32_t, Index>;
+  std::vector<float> blk, fout;  // blk[t * kB + b]: the block stored line-major
+  std::vector<Bits> nonzero;
+  std::vector<int64_t> site;
+  std::vector<Idx> iout;
+  Envelope env;
+  explicit ColumnScratch(int64_t n_line)
+      : blk(static_cast<size_t>(kB * n_line)), fout(static_cast<size_t>(n_line)), nonzero(static_cast<size_t>(n_line)),
+        site(static_cast<size_t>(n_line)),
+        iout(std::is_same_v<Index, NoIndex> ? 0 : static_cast<size_t>(n_line)), env(n_line) {}
+};
+
+// Pass y or z of squared_edt for one group `o` of columns of a buffer whose rows are `nx` wide: columns of
+// n_line elements `line_stride` apart, starting at o * outer_stride + x; the lower envelope of the
+// parabolas w (x - s)² + f(s) per column. Blocks of kB adjacent columns are gathered into contiguous
+// line buffers. `finish` (when active) converts every value of a block before it is written back.
+template <class Index, int64_t kB, class Fin>
+void edt_column_group(float* sq, Index* feat, int64_t nx, int64_t o, int64_t n_line, int64_t outer_stride,
+                      int64_t line_stride, double w, bool outside_site, ColumnScratch<Index, kB>& s, const Fin& finish) {
   constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
-  using Idx = std::conditional_t<with_feat, Index, uint32_t>;
+  using Idx = typename ColumnScratch<Index, kB>::Idx;
+  using Bits = typename ColumnScratch<Index, kB>::Bits;
   const Idx OUT = std::numeric_limits<Idx>::max();
   (void)OUT;
-  constexpr int64_t kB = 16;
+  for (int64_t x0 = 0; x0 < nx; x0 += kB) {
+    const int64_t nb = std::min(kB, nx - x0);
+    const int64_t base = o * outer_stride + x0;
+    Bits any = 0;
+    for (int64_t t = 0; t < n_line; ++t) {
+      const float* src = sq + base + t * line_stride;
+      float* dst = s.blk.data() + t * kB;
+      Bits bits = 0;
+      for (int64_t b = 0; b < nb; ++b) {
+        dst[b] = src[b];
+        bits |= static_cast<Bits>(src[b] != 0.0f) << b;
+      }
+      s.nonzero[static_cast<size_t>(t)] = bits;
+      any |= bits;
+    }
+    if (!any) continue;  // every voxel is a site: nothing changes (and finish maps 0 to 0)
+    bool changed = false;
+    for (int64_t b = 0; b < nb; ++b) {
+      if (!((any >> b) & 1u)) continue;
+      float* f = s.blk.data() + b;
+      const int64_t col = base + b;
+      for (int64_t a = 0; a < n_line;) {
+        if (!((s.nonzero[static_cast<size_t>(a)] >> b) & 1u)) {
+          ++a;
+          continue;
+        }
+        int64_t e = a + 1;
+        while (e < n_line && ((s.nonzero[static_cast<size_t>(e)] >> b) & 1u)) ++e;
+        if (envelope_run(f, kB, a, e, n_line, w, outside_site, s.env, s.fout.data(), s.site.data())) {
+          if constexpr (with_feat) {
+            for (int64_t x = a; x < e; ++x) {
+              const int64_t sx = s.site[static_cast<size_t>(x - a)];
+              s.iout[static_cast<size_t>(x - a)] =
+                  (sx < 0 || sx >= n_line) ? OUT
+                  : (f[sx * kB] == 0.0f)   ? static_cast<Idx>(col + sx * line_stride)
+                                           : feat[col + sx * line_stride];
+            }
+            for (int64_t x = a; x < e; ++x) feat[col + x * line_stride] = s.iout[static_cast<size_t>(x - a)];
+          }
+          for (int64_t x = a; x < e; ++x) f[x * kB] = s.fout[static_cast<size_t>(x - a)];
+          changed = true;
+        }
+        a = e;
+      }
+    }
+    if constexpr (Fin::active) {
+      for (size_t k = 0, ke = static_cast<size_t>(kB * n_line); k < ke; ++k) s.blk[k] = finish(s.blk[k]);
+    } else if (!changed) {
+      continue;
+    }
+    for (int64_t t = 0; t < n_line; ++t)
+      std::memcpy(sq + base + t * line_stride, s.blk.data() + t * kB, static_cast<size_t>(nb) * sizeof(float));
+  }
+}
+
+// Pass y or z over the whole buffer: n_outer groups of columns, parallel over the groups.
+template <class Index, int64_t kB = 16, class Fin = NoFinish>
+void edt_column_pass(float* sq, Index* feat, int64_t nx, int64_t n_outer, int64_t n_line, int64_t outer_stride,
+                     int64_t line_stride, double w, bool outside_site, int threads, const Interrupter& interrupter,
+                     const Fin& finish = {}) {
   parallel_for(0, n_outer, threads, [&](int64_t o0, int64_t o1) {
-    // block of kB adjacent columns, stored line-major: blk[t * kB + b] (one 64-byte row per t)
-    std::vector<float> blk(static_cast<size_t>(kB * n_line)), fout(static_cast<size_t>(n_line));
-    std::vector<uint32_t> nonzero(static_cast<size_t>(n_line));
-    std::vector<int64_t> site(static_cast<size_t>(n_line));
-    std::vector<Idx> iout(with_feat ? static_cast<size_t>(n_line) : 0);
-    Envelope env(n_line);
+    ColumnScratch<Index, kB> s(n_line);
     for (int64_t o = o0; o < o1; ++o) {
       interrupter.check();
-      for (int64_t x0 = 0; x0 < nx; x0 += kB) {
-        const int64_t nb = std::min(kB, nx - x0);
-        const int64_t base = o * outer_stride + x0;
-        uint32_t any = 0;
-        for (int64_t t = 0; t < n_line; ++t) {
-          const float* src = sq + base + t * line_stride;
-          float* dst = blk.data() + t * kB;
-          uint32_t bits = 0;
-          for (int64_t b = 0; b < nb; ++b) {
-            dst[b] = src[b];
-            bits |= static_cast<uint32_t>(src[b] != 0.0f) << b;
-          }
-          nonzero[static_cast<size_t>(t)] = bits;
-          any |= bits;
-        }
-        if (!any) continue;  // every voxel is a site: nothing changes
-        bool changed = false;
-        for (int64_t b = 0; b < nb; ++b) {
-          if (!((any >> b) & 1u)) continue;
-          float* f = blk.data() + b;
-          const int64_t col = base + b;
-          for (int64_t a = 0; a < n_line;) {
-            if (!((nonzero[static_cast<size_t>(a)] >> b) & 1u)) {
-              ++a;
-              continue;
-            }
-            int64_t e = a + 1;
-            while (e < n_line && ((nonzero[static_cast<size_t>(e)] >> b) & 1u)) ++e;
-            if (envelope_run(f, kB, a, e, n_line, w, outside_site, env, fout.data(), site.data())) {
-              if constexpr (with_feat) {
-                for (int64_t x = a; x < e; ++x) {
-                  const int64_t sx = site[static_cast<size_t>(x - a)];
-                  iout[static_cast<size_t>(x - a)] =
-                      (sx < 0 || sx >= n_line) ? OUT
-                      : (f[sx * kB] == 0.0f)   ? static_cast<Idx>(col + sx * line_stride)
-                                               : feat[col + sx * line_stride];
-                }
-                for (int64_t x = a; x < e; ++x) feat[col + x * line_stride] = iout[static_cast<size_t>(x - a)];
-              }
-              for (int64_t x = a; x < e; ++x) f[x * kB] = fout[static_cast<size_t>(x - a)];
-              changed = true;
-            }
-            a = e;
-          }
-        }
-        if (!changed) continue;
-        for (int64_t t = 0; t < n_line; ++t)
-          std::memcpy(sq + base + t * line_stride, blk.data() + t * kB, static_cast<size_t>(nb) * sizeof(float));
-      }
+      edt_column_group<Index, kB>(sq, feat, nx, o, n_line, outer_stride, line_stride, w, outside_site, s, finish);
     }
   });
 }
 
 // Squared distance (isotropic: voxel units; anisotropic: physical units) from every voxel to the
 // nearest site, plus optionally the site's index. is_site(i) decides sites inside the array;
-// `outside_site` whether the ring outside the array consists of sites.
-template <class Index, class IsSite>
-void squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotropic, int threads,
-                 const Interrupter& interrupter, float* sq, Index* feat) {
+// `outside_site` whether the ring outside the array consists of sites. Passes x and y run plane by
+// plane (the y pass reads a plane the x pass has just written, still in cache); the z pass gathers
+// blocks of 64 columns (256 contiguous bytes per plane) and applies `finish` to its output. Returns
+// whether `finish` was applied (false when there is no z pass: nz == 1 and no outside sites).
+template <class Index, class IsSite, class Fin = NoFinish>
+bool squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotropic, int threads,
+                 const Interrupter& interrupter, float* sq, Index* feat, const Fin& finish = {}) {
   const int64_t nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2], plane = nx * ny;
-  if (nx * ny * nz == 0) return;
+  if (nx * ny * nz == 0) return true;
   const double wx = isotropic ? 1.0 : grid.spacing[0] * grid.spacing[0];
   const double wy = isotropic ? 1.0 : grid.spacing[1] * grid.spacing[1];
   const double wz = isotropic ? 1.0 : grid.spacing[2] * grid.spacing[2];
 
-  // ---- pass x: contiguous rows, two scans.
+  // ---- passes x and y, plane by plane.
   interrupter.check(0.0);
-  edt_pass_x<Index>(grid.dims, is_site, outside_site, wx, threads, interrupter, sq, feat);
-  interrupter.check(1.0 / 3.0);
-
-  // ---- passes y and z: blocks of 16 adjacent columns gathered into contiguous line buffers.
-  if (ny > 1 || outside_site) edt_column_pass<Index>(sq, feat, nx, nz, ny, plane, nx, wy, outside_site, threads, interrupter);
+  const bool pass_y = ny > 1 || outside_site;
+  parallel_for(0, nz, threads, [&](int64_t z0, int64_t z1) {
+    std::vector<int64_t> left(static_cast<size_t>(nx));
+    std::vector<int32_t> dist_left(static_cast<size_t>(nx));
+    ColumnScratch<Index, 16> s(pass_y ? ny : 0);
+    for (int64_t z = z0; z < z1; ++z) {
+      interrupter.check();
+      edt_plane_x<Index>(grid.dims, is_site, outside_site, wx, z, left, dist_left, sq, feat);
+      if (pass_y) edt_column_group<Index, 16>(sq, feat, nx, z, ny, plane, nx, wy, outside_site, s, NoFinish{});
+    }
+  });
   interrupter.check(2.0 / 3.0);
-  if (nz > 1 || outside_site) edt_column_pass<Index>(sq, feat, nx, ny, nz, nx, plane, wz, outside_site, threads, interrupter);
+
+  // ---- pass z: blocks of 64 adjacent columns gathered into contiguous line buffers.
+  if (nz > 1 || outside_site) {
+    edt_column_pass<Index, 64>(sq, feat, nx, ny, nz, nx, plane, wz, outside_site, threads, interrupter, finish);
+    interrupter.check(1.0);
+    return true;
+  }
   interrupter.check(1.0);
+  return false;
 }
 
 bool is_isotropic(const Grid& g) { return g.spacing[0] == g.spacing[1] && g.spacing[1] == g.spacing[2]; }
+
+// The per-value conversion of finish_distances for a grid.
+Finish make_finish(const Grid& g, bool isotropic, bool squared) {
+  Finish f;
+  f.squared = squared;
+  f.isotropic = isotropic;
+  f.s2 = isotropic ? static_cast<float>(g.spacing[0] * g.spacing[0]) : 1.0f;
+  f.s1 = isotropic ? static_cast<float>(g.spacing[0]) : 1.0f;
+  return f;
+}
 
 // Converts squared distances in place to the requested output (physical units, optionally rooted).
 void finish_distances(VolumeF32& v, bool isotropic, bool squared, int threads) {
@@ -805,9 +880,11 @@ VolumeF32 euclidean(const VolumeU8& mask, const EuclideanOptions& options) {
   VolumeF32 out = new_output<float>(mask.grid());
   const uint8_t* m = mask.data();
   const bool iso = is_isotropic(mask.grid());
-  squared_edt<NoIndex>(mask.grid(), [m](int64_t i) { return m[i] == 0; }, !options.border_is_object, iso,
-                       options.threads, options.interrupter, out.data(), nullptr);
-  finish_distances(out, iso, options.squared, options.threads);
+  // The z pass converts its output on the fly (no separate pass over the 4 bytes per voxel).
+  if (!squared_edt<NoIndex>(mask.grid(), [m](int64_t i) { return m[i] == 0; }, !options.border_is_object, iso,
+                            options.threads, options.interrupter, out.data(), nullptr,
+                            make_finish(mask.grid(), iso, options.squared)))
+    finish_distances(out, iso, options.squared, options.threads);
   return out;
 }
 
@@ -834,9 +911,9 @@ VolumeF32 seeded(const VolumeU8& seeds, const SeededOptions& options) {
   VolumeF32 out = new_output<float>(seeds.grid());
   const uint8_t* s = seeds.data();
   const bool iso = is_isotropic(seeds.grid());
-  squared_edt<NoIndex>(seeds.grid(), [s](int64_t i) { return s[i] != 0; }, false, iso, options.threads,
-                       options.interrupter, out.data(), nullptr);
-  finish_distances(out, iso, options.squared, options.threads);
+  if (!squared_edt<NoIndex>(seeds.grid(), [s](int64_t i) { return s[i] != 0; }, false, iso, options.threads,
+                            options.interrupter, out.data(), nullptr, make_finish(seeds.grid(), iso, options.squared)))
+    finish_distances(out, iso, options.squared, options.threads);
   return out;
 }
 

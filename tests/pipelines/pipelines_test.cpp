@@ -6,7 +6,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "io/mesh_io.hpp"
 #include "skel/executor.hpp"
@@ -85,6 +88,19 @@ TEST(Pipelines, VesselPipelineRecoversTheGroundTruth) {
   EXPECT_LE(std::abs(rb - static_cast<double>(branch)), 0.05 * static_cast<double>(branch));
   EXPECT_LE(std::abs(re - static_cast<double>(ends)), std::max(1.0, 0.05 * static_cast<double>(ends)));
   EXPECT_LE(std::abs(rl - length), 0.05 * length);
+}
+
+// The float volumes of the vessel pipeline have one reader each, so the executor frees each one after
+// its only consumer: the phantom's image after the Gaussian (the report projects the mask), the
+// Gaussian's output after the threshold. Before, the report read phantom.image and kept 4 bytes per
+// voxel alive through the distance and thinning stages (15.1 bytes per voxel peak at 1024³).
+TEST(Pipelines, VesselPipelineReadsEachFloatVolumeOnce) {
+  const Pipeline p = Pipeline::load_file(pipeline("vessel_network.yaml"));
+  std::map<std::string, std::vector<std::string>> readers;
+  for (const PipelineNode& n : p.nodes())
+    for (const auto& [port, from] : n.inputs) readers[from.str()].push_back(n.id + "." + port);
+  EXPECT_EQ(readers["phantom.image"], (std::vector<std::string>{"smooth.image"}));
+  EXPECT_EQ(readers["smooth.image"], (std::vector<std::string>{"seg.image"}));
 }
 
 // The bone pipelines run end to end and write their meshes: the mixed skeleton's plates as

@@ -140,6 +140,46 @@ TEST(Euclidean, EqualsBruteForceAnisotropic) {
   }
 }
 
+// Rows wider than the column blocks of the y and z passes (16 and 64 columns): several blocks per row,
+// the last one partial; distances, squared distances, feature transform and seeded distances against
+// brute force for both border conventions, isotropic and anisotropic, 1 and 2 threads.
+TEST(Euclidean, EqualsBruteForceOnRowsWiderThanTheColumnBlocks) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int64_t> wide(65, 150), narrow(1, 6);
+  for (int trial = 0; trial < 12; ++trial) {
+    const bool border = trial % 2 == 1;
+    const Vec3 spacing = trial % 3 == 2 ? Vec3{0.7, 1.3, 2.0} : Vec3{1.5, 1.5, 1.5};
+    const Dims dims{wide(rng), narrow(rng), trial < 2 ? 1 : narrow(rng) + 2};
+    VolumeU8 m = random_mask(rng, dims, trial % 4 == 3 ? 0.97 : 0.75, spacing);
+    const uint8_t* md = m.data();
+    const BruteResult ref = brute_force(m.grid(), [&](int64_t i) { return md[i] == 0; }, !border);
+    for (int threads : {1, 2}) {
+      EuclideanOptions o;
+      o.border_is_object = border;
+      o.threads = threads;
+      const VolumeF32 d = euclidean(m, o);
+      o.squared = true;
+      const VolumeF32 d2 = euclidean(m, o);
+      DistanceOptions fo;
+      fo.border_is_object = border;
+      fo.threads = threads;
+      const VolumeU32 ft = feature_transform_as<uint32_t>(m, fo);
+      for (int64_t i = 0; i < m.size(); ++i) {
+        expect_close(std::sqrt(ref.sq[static_cast<size_t>(i)]), d[i], "distance", i);
+        expect_close(ref.sq[static_cast<size_t>(i)], d2[i], "squared", i);
+        if (spacing[0] == spacing[2]) EXPECT_EQ(ref.nearest[static_cast<size_t>(i)], ft[i]) << "trial " << trial;
+      }
+      SeededOptions so;
+      so.threads = threads;
+      VolumeU8 seeds(m.dims(), 0, spacing);  // the background as seeds: sparse
+      for (int64_t i = 0; i < m.size(); ++i) seeds[i] = md[i] == 0;
+      const VolumeF32 sd = seeded(seeds, so);
+      const BruteResult sref = brute_force(m.grid(), [&](int64_t i) { return md[i] == 0; }, false);
+      for (int64_t i = 0; i < m.size(); ++i) expect_close(std::sqrt(sref.sq[static_cast<size_t>(i)]), sd[i], "seeded", i);
+    }
+  }
+}
+
 TEST(Seeded, EqualsBruteForce) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> sp(0.5, 2.0);
