@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
@@ -401,7 +402,7 @@ void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const Ga
   const Interrupter inner;
   visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
     using T = decltype(tag);
-    for_each_block(layout, o.interrupter, "gaussian", [&](const Block& b) {
+    for_each_owned_block(layout, o.interrupter, "gaussian", [&](const Block& b) {
       // The block with the kernel's radius around it (clipped to the grid, where the border value
       // is replicated as in memory): every interior voxel sees the same taps as in memory.
       Dims ob{}, os{};
@@ -431,7 +432,7 @@ void median_blocks(const DataObject& image, const ChunkedVolume& out, const Medi
   inner.interrupter = Interrupter();
   visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
     using T = decltype(tag);
-    for_each_block(layout, o.interrupter, "median", [&](const Block& b) {
+    for_each_owned_block(layout, o.interrupter, "median", [&](const Block& b) {
       // The block with `radius` voxels around it (clipped to the grid, where the border value is
       // replicated as in memory): every interior voxel sees the same cube as in memory.
       const Volume<T> v = read_block<T>(image, b.outer_begin, b.outer_size, "input 'image'");
