@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/executor.hpp"
 #include "skel/fs.hpp"
@@ -597,7 +598,8 @@ int cmd_run(const std::vector<std::string>& args) {
   };
 
   auto write_report = [&](const RunReport& r) {
-    if (report_path.empty()) return;
+    // Several ranks (skelflow-mpi): rank 0 writes it (every rank's outcome is in it).
+    if (report_path.empty() || communicator().rank() != 0) return;
     write_atomically(report_path, [&](const fs::path& tmp) {
       std::ofstream o(tmp);
       o << r.to_json();

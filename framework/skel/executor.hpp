@@ -69,6 +69,18 @@ struct NodeReport {
   std::vector<std::string> warnings;
 };
 
+// One rank of a run on several processes (skelflow-mpi; skel/distributed.hpp).
+struct RankReport {
+  int rank = 0;
+  bool ok = true;
+  double seconds = 0;          // wall time of its run
+  double seconds_blocks = 0;   // computing its share of the distributed block loops
+  double seconds_waiting = 0;  // inside collectives (waiting for other ranks, transfers)
+  int64_t blocks = 0;          // blocks it computed in distributed loops
+  int64_t collectives = 0;
+  uint64_t bytes_sent = 0, bytes_received = 0;  // by its collectives
+};
+
 struct RunReport {
   std::string pipeline;
   bool ok = false;
@@ -80,6 +92,7 @@ struct RunReport {
   // What the run did besides its nodes: stale temporaries removed before it ran, outputs taken back
   // when moving them into place failed.
   std::vector<std::string> notes;
+  std::vector<RankReport> ranks;  // several processes only (skelflow-mpi): one per rank
   [[nodiscard]] std::string to_json() const;
 };
 

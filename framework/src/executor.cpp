@@ -19,6 +19,7 @@
 #include "context.hpp"
 #include "resume.hpp"
 #include "skel/block_journal.hpp"
+#include "skel/distributed.hpp"
 #include "skel/fs.hpp"
 #include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
@@ -120,7 +121,23 @@ std::string RunReport::to_json() const {
       o << (j ? ", " : "") << "\"" << json_escape(n.warnings[j]) << "\"";
     o << "]}";
   }
-  o << "\n  ],\n  \"notes\": [";
+  o << "\n  ]";
+  if (!ranks.empty()) {
+    // skelflow-mpi: per rank its wall time, its time in distributed block loops and in collectives
+    // (idle share = waiting / seconds) and the bytes its collectives moved.
+    o << ",\n  \"ranks\": [";
+    for (size_t i = 0; i < ranks.size(); ++i) {
+      const auto& r = ranks[i];
+      o << (i ? ",\n" : "\n") << "    {\"rank\": " << r.rank << ", \"ok\": " << (r.ok ? "true" : "false")
+        << ", \"seconds\": " << num(r.seconds) << ", \"seconds_blocks\": " << num(r.seconds_blocks)
+        << ", \"seconds_waiting\": " << num(r.seconds_waiting)
+        << ", \"idle_share\": " << num(r.seconds > 0 ? r.seconds_waiting / r.seconds : 0.0) << ", \"blocks\": " << r.blocks
+        << ", \"collectives\": " << r.collectives << ", \"bytes_sent\": " << r.bytes_sent
+        << ", \"bytes_received\": " << r.bytes_received << "}";
+    }
+    o << "\n  ]";
+  }
+  o << ",\n  \"notes\": [";
   for (size_t j = 0; j < notes.size(); ++j) o << (j ? ", " : "") << "\"" << json_escape(notes[j]) << "\"";
   o << "]\n}\n";
   return o.str();
@@ -439,6 +456,12 @@ detail::ResumeManifest Executor::Impl::prepare_resume(ExecutionPlan& plan, const
                        "SIZE} in the pipeline) keep what they finished");
     return {};
   }
+  if (communicator().size() > 1) {  // skelflow-mpi: the ranks would share one resume folder
+    if (opt.resume)
+      throw InputError("--resume: not available with several ranks yet (skelflow-mpi with " +
+                       std::to_string(communicator().size()) + " ranks); run again without --resume");
+    return {};
+  }
   if (opt.keep_outputs) {  // the GUI keeps volumes in its cache; it has nothing to resume
     if (opt.resume) throw InputError("--resume: not available while outputs are kept for viewing");
     return {};
@@ -602,6 +625,7 @@ private:
   std::shared_ptr<ChunkedVolume> make_scratch(size_t i, const std::string& port, const std::string& type_id,
                                               const Grid& grid, const Dims& chunk);
   void remove_scratch(bool keep_live);
+  void agree_with_ranks(bool& cancelled);
   void checkpoint(size_t i, const NodeReport& nr);
   void remove_resume_dir();
 
@@ -1034,14 +1058,59 @@ void Executor::Scheduler::store_in_cache() {
   im_.last = report_;
 }
 
+// Several ranks (skelflow-mpi, skel/distributed.hpp): every rank says how its run ended and what
+// its collectives cost; a rank whose run succeeded takes the first failed rank's error as its own
+// (so rank 0 reports it at the node's place and writes nothing), and the report lists every rank.
+void Executor::Scheduler::agree_with_ranks(bool& cancelled) {
+  RankOutcome mine;
+  mine.ok = !first_error_ && !cancelled;
+  mine.seconds = report_.seconds;
+  if (!mine.ok) {
+    mine.node = first_error_node_;
+    mine.error = "cancelled";
+    if (first_error_) try {
+        std::rethrow_exception(first_error_);
+      } catch (const Cancelled&) {
+      } catch (const std::exception& e) {
+        mine.error = e.what();
+      }
+  }
+  const std::vector<RankOutcome> all = agree_outcome(mine);
+  for (size_t r = 0; r < all.size(); ++r) {
+    const RankOutcome& o = all[r];
+    RankReport rr;
+    rr.rank = static_cast<int>(r);
+    rr.ok = o.ok;
+    rr.seconds = o.seconds;
+    rr.seconds_blocks = o.stats.seconds_blocks;
+    rr.seconds_waiting = o.stats.seconds_waiting;
+    rr.blocks = o.stats.blocks;
+    rr.collectives = o.stats.collectives;
+    rr.bytes_sent = o.stats.bytes_sent;
+    rr.bytes_received = o.stats.bytes_received;
+    report_.ranks.push_back(rr);
+  }
+  if (!mine.ok) return;
+  for (size_t r = 0; r < all.size(); ++r)
+    if (!all[r].ok) {
+      first_error_ = std::make_exception_ptr(RankFailed(static_cast<int>(r), all[r].error));
+      first_error_node_ = all[r].node;
+      if (all[r].error == "cancelled") cancelled = true;
+      return;
+    }
+}
+
 void Executor::Scheduler::conclude(double seconds) {
   report_.seconds = seconds;
   report_.peak_rss_mib = peak_rss_mib();
-  const bool cancelled = im_.cancel.load() || (opt_.cancel && opt_.cancel->load());
+  bool cancelled = im_.cancel.load() || (opt_.cancel && opt_.cancel->load());
+  if (communicator().reports_ranks()) agree_with_ranks(cancelled);
   if (!first_error_ && !cancelled) {
     std::vector<std::string> notes;
     try {
-      files_.commit(&notes);
+      // Several ranks (skelflow-mpi): every rank ran the pipeline; rank 0 alone writes the outputs.
+      if (communicator().rank() == 0) files_.commit(&notes);
+      else files_.rollback();
     } catch (const std::exception& e) {
       report_.ok = false;
       report_.error = e.what();
@@ -1113,6 +1182,9 @@ RunReport Executor::run(const Pipeline& pipeline, const ExecOptions& opt) {
   report.pipeline = plan.pipeline.file();
   report.threads = plan.threads;
   report.notes = remove_stale_outputs(plan);
+  // Several ranks (skelflow-mpi): no rank makes files before every rank has removed the leftovers of
+  // dead runs (on a cluster another node's live process looks dead).
+  if (communicator().size() > 1) sync_ranks();
   auto results = im.lookup_cache(plan);
   fs::path resume_dir;
   detail::ResumeManifest manifest = im.prepare_resume(plan, opt, results, report.notes, resume_dir);

@@ -13,6 +13,7 @@
 #include <smmintrin.h>
 #endif
 
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/mask.hpp"
 #include "skel/parallel.hpp"
@@ -1077,6 +1078,13 @@ void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const Eu
   const int64_t total = sx.total() + sy.total() + sz.total();
   int64_t done = 0;
   auto each = [&](const BlockLayout& l, auto&& f) {
+    if (distributing()) {  // skelflow-mpi: the slabs of a pass are independent; each rank does its own
+      for_each_owned_block(l, Interrupter(), "euclidean", [&](const Block& b) {
+        f(b);
+        report_blocks(o.interrupter, "euclidean", ++done, total);
+      });
+      return;
+    }
     const Dims c = l.count();
     for (int64_t bz = 0; bz < c[2]; ++bz)
       for (int64_t by = 0; by < c[1]; ++by)

@@ -5,6 +5,7 @@
 
 #include "distance/distance.hpp"
 #include "distance/names.hpp"
+#include "skel/distributed.hpp"
 #include "skel/mask.hpp"
 #include "skel/module.hpp"
 
@@ -76,11 +77,14 @@ weights obeying the conditions above. Memory per block: 1 (mask) + 4 (distance) 
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      // skelflow-mpi: Algorithm 4's scans carry values from block to block in a fixed order, so
+      // rank 0 computes them into a volume shared by all ranks while the others wait.
+      const DistributedStage stage;
       DataPtr mask = ctx.input_data("mask");
       const auto options = ctx.options<ChamferOptions>();
       const Grid& g = any_volume_grid(*mask, "input 'mask'");
       auto out = ctx.scratch_volume("distance", chamfer_output_type(g, options), g);
-      chamfer_blocks(*mask, *out, options, blocks->block);
+      on_root_rank([&] { chamfer_blocks(*mask, *out, options, blocks->block); });
       ctx.output("distance", DataPtr(std::move(out)));
       return;
     }
@@ -123,6 +127,7 @@ longest axis fits a quarter of the budget, or is the `block` of the pipeline's `
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // slabs split over the ranks (skelflow-mpi)
       DataPtr mask = ctx.input_data("mask");
       const Grid& g = any_volume_grid(*mask, "input 'mask'");
       auto out = ctx.scratch_volume("distance", type_ids::volume_f32, g);

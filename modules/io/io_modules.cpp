@@ -3,6 +3,7 @@
 
 #include "io/volume_format.hpp"
 #include "io/names.hpp"
+#include "skel/distributed.hpp"
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/out_of_core.hpp"
@@ -172,10 +173,11 @@ private:
     const VolumeHeader h = read_volume_header(path, o);
     const std::string stored = volume_type_for_dtype(h.dtype);
     const std::string type = dt == "keep" ? stored : volume_type_for_dtype(dt);
+    const DistributedStage stage;  // skelflow-mpi: each rank reads its slabs into one shared volume
     auto out = ctx.scratch_volume("volume", type, h.grid);
     const int64_t bpv = voxel_bytes(stored) + (dt == "keep" ? 0 : voxel_bytes(type));
     const Dims shape = blocks.block_from_user ? blocks.block : read_shape(h.grid.dims, blocks.memory_budget, bpv);
-    for_each_block(BlockLayout(h.grid.dims, shape), ctx.progress(), "read", [&](const Block& b) {
+    for_each_owned_block(BlockLayout(h.grid.dims, shape), ctx.progress(), "read", [&](const Block& b) {
       const DataPtr box = convert(read_any_volume_box(path, o, b.begin, b.size));
       visit_volume(*box, "volume", [&](const auto& v) { out->write(v, b.begin); });
     });

@@ -6,11 +6,14 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <cstring>
 #include <functional>
+#include <map>
 #include <numeric>
 #include <vector>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/mask.hpp"
 #include "skel/units.hpp"
@@ -310,20 +313,76 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
 namespace {
 
 // Components of the object (or of the background) of a mask in memory or on disk, found block by
-// block: inside every block by union-find over runs as in memory, each piece with a provisional id
-// (1-based, written to `work`), its statistics in global coordinates and whether it touches a face
-// of the array; then the pieces that touch across block faces, edges and corners (per
-// connectivity) are united. Two passes over the blocks.
+// block: inside every block by union-find over runs as in memory, each piece with an id local to its
+// block (1-based, written to `work`; its global id is offset[block] + local - 1, pieces numbered in
+// block order), its statistics in global coordinates and whether it touches a face of the array;
+// then the pieces that touch across block faces, edges and corners (per connectivity) are united.
+// Two passes over the blocks. When distributing (skel/distributed.hpp) each rank does its own
+// blocks of both passes; the pieces and the union lists are exchanged, so every rank ends with the
+// same ids and roots as one process.
 struct Provisional {
   std::vector<ComponentInfo> info;  // per piece
   std::vector<uint8_t> border;      // per piece: a voxel on a face of the array
   std::vector<int64_t> root;        // per piece: its component's smallest piece id
+  std::vector<int64_t> offset;      // per block (z, y, x order): global id of its first piece
+  Dims count{0, 0, 0};              // blocks along x, y, z
+  // Global id of the piece with local id `local` (> 0) of block (bx, by, bz).
+  [[nodiscard]] int64_t global(int64_t bx, int64_t by, int64_t bz, uint64_t local) const {
+    return offset[static_cast<size_t>((bz * count[1] + by) * count[0] + bx)] + static_cast<int64_t>(local) - 1;
+  }
 };
+
+struct BlockPieces {
+  std::vector<ComponentInfo> info;
+  std::vector<uint8_t> border;
+};
+
+std::string pack_pieces(const std::map<int64_t, BlockPieces>& pieces) {
+  std::string s;
+  auto put = [&](const void* p, size_t n) { s.append(static_cast<const char*>(p), n); };
+  for (const auto& [k, bp] : pieces) {
+    const int64_t n = static_cast<int64_t>(bp.info.size());
+    put(&k, sizeof k);
+    put(&n, sizeof n);
+    put(bp.info.data(), bp.info.size() * sizeof(ComponentInfo));
+    put(bp.border.data(), bp.border.size());
+  }
+  return s;
+}
+
+void unpack_pieces(const std::string& s, std::map<int64_t, BlockPieces>& pieces) {
+  size_t pos = 0;
+  auto get = [&](void* p, size_t n) {
+    if (pos + n > s.size()) throw Error("components: truncated piece list from another rank");
+    std::memcpy(p, s.data() + pos, n);
+    pos += n;
+  };
+  while (pos < s.size()) {
+    int64_t k = 0, n = 0;
+    get(&k, sizeof k);
+    get(&n, sizeof n);
+    BlockPieces& bp = pieces[k];
+    bp.info.resize(static_cast<size_t>(n));
+    bp.border.resize(static_cast<size_t>(n));
+    get(bp.info.data(), bp.info.size() * sizeof(ComponentInfo));
+    get(bp.border.data(), bp.border.size());
+  }
+}
+
 Provisional provisional_components(const DataObject& mask, const ChunkedVolume& work, int conn, bool background,
                                    const BlockLayout& layout, int threads, const std::function<void()>& block_done) {
   const Grid& g = work.grid();
   const Dims n = layout.count();
+  auto linear = [&](const Block& b) { return (b.index[2] * n[1] + b.index[1]) * n[0] + b.index[0]; };
+  // Every block here, or this rank's blocks when distributing (then a sync at the end).
   auto each = [&](auto&& f) {
+    if (distributing()) {
+      for_each_owned_block(layout, Interrupter(), "components", [&](const Block& b) {
+        f(b);
+        block_done();
+      });
+      return;
+    }
     for (int64_t bz = 0; bz < n[2]; ++bz)
       for (int64_t by = 0; by < n[1]; ++by)
         for (int64_t bx = 0; bx < n[0]; ++bx) {
@@ -331,15 +390,15 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
           block_done();
         }
   };
-  Provisional pv;
-  std::vector<ComponentInfo>& info = pv.info;
+  std::map<int64_t, BlockPieces> pieces;
   each([&](const Block& b) {
     const VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
     const Runs r = extract_runs(m, threads, background);
     std::vector<int64_t> parent = union_runs(r, b.size[1], b.size[2], conn, threads, Interrupter());
     const auto nruns = static_cast<int64_t>(r.x0.size());
     std::vector<int64_t> comp(static_cast<size_t>(nruns));
-    const auto base = static_cast<int64_t>(info.size());
+    BlockPieces& bp = pieces[linear(b)];
+    std::vector<ComponentInfo>& info = bp.info;
     VolumeU64 w(m.grid(), 0);
     for (int64_t row = 0; row < b.size[1] * b.size[2]; ++row) {
       const int64_t y = row % b.size[1], z = row / b.size[1];
@@ -349,24 +408,40 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
         const auto si = static_cast<size_t>(i);
         const int64_t p = parent[si];
         if (p == i) {
-          comp[si] = static_cast<int64_t>(info.size()) - base;
+          comp[si] = static_cast<int64_t>(info.size());
           info.emplace_back();
           info.back().first = g.index(b.begin[0] + r.x0[si], gy, gz);
-          pv.border.push_back(0);
+          bp.border.push_back(0);
         } else {
           comp[si] = comp[static_cast<size_t>(p)];
         }
         parent[si] = parent[static_cast<size_t>(p)];
-        const int64_t id = base + comp[si];
+        const int64_t id = comp[si];
         const int64_t x0 = b.begin[0] + r.x0[si], x1 = b.begin[0] + r.x1[si];
         add_run(info[static_cast<size_t>(id)], x0, x1 - 1, gy, gz);
-        if (face_row || x0 == 0 || x1 == g.dims[0]) pv.border[static_cast<size_t>(id)] = 1;
+        if (face_row || x0 == 0 || x1 == g.dims[0]) bp.border[static_cast<size_t>(id)] = 1;
         std::fill(&w(r.x0[si], y, z), &w(r.x0[si], y, z) + (r.x1[si] - r.x0[si]), static_cast<uint64_t>(id + 1));
       }
     }
     work.write(w, b.begin);
   });
-  UnionFind uf(static_cast<int64_t>(info.size()));
+  if (distributing()) {
+    const std::vector<std::string> all = exchange(pack_pieces(pieces));
+    pieces.clear();
+    for (const auto& s : all) unpack_pieces(s, pieces);
+  }
+  Provisional pv;
+  pv.count = n;
+  pv.offset.assign(static_cast<size_t>(layout.total()), 0);
+  for (int64_t k = 0; k < layout.total(); ++k) {
+    pv.offset[static_cast<size_t>(k)] = static_cast<int64_t>(pv.info.size());
+    const auto it = pieces.find(k);
+    if (it == pieces.end()) continue;
+    pv.info.insert(pv.info.end(), it->second.info.begin(), it->second.info.end());
+    pv.border.insert(pv.border.end(), it->second.border.begin(), it->second.border.end());
+  }
+  pieces.clear();
+  UnionFind uf(static_cast<int64_t>(pv.info.size()));
   std::vector<std::array<int, 3>> steps;
   for (int dz = -1; dz <= 1; ++dz)
     for (int dy = -1; dy <= 1; ++dy)
@@ -374,12 +449,18 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
         const int k = std::abs(dx) + std::abs(dy) + std::abs(dz);
         if (k > 0 && (k == 1 || (k == 2 && conn >= 18) || conn == 26)) steps.push_back({dx, dy, dz});
       }
+  std::vector<int64_t> pairs;  // (a, b) of global piece ids that touch
   each([&](const Block& b) {
     const VolumeU64 w = work.read<uint64_t>(b.outer_begin, b.outer_size);
     const Dims lo{b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]};
     const Dims hi{lo[0] + b.size[0], lo[1] + b.size[1], lo[2] + b.size[2]};
     auto inside = [&](int64_t x, int64_t y, int64_t z) {
       return x >= lo[0] && y >= lo[1] && z >= lo[2] && x < hi[0] && y < hi[1] && z < hi[2];
+    };
+    // The global id of the piece at (x, y, z) of the read box.
+    auto id_at = [&](int64_t x, int64_t y, int64_t z, uint64_t local) {
+      return pv.global((b.outer_begin[0] + x) / layout.block[0], (b.outer_begin[1] + y) / layout.block[1],
+                       (b.outer_begin[2] + z) / layout.block[2], local);
     };
     for (int64_t z = lo[2]; z < hi[2]; ++z)
       for (int64_t y = lo[1]; y < hi[1]; ++y)
@@ -391,13 +472,29 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
           }
           const uint64_t a = w(x, y, z);
           if (!a) continue;
+          const int64_t ga = id_at(x, y, z, a);
           for (const auto& d : steps) {
             const int64_t qx = x + d[0], qy = y + d[1], qz = z + d[2];
             if (!w.grid().contains(qx, qy, qz) || inside(qx, qy, qz)) continue;
-            if (const uint64_t q = w(qx, qy, qz)) uf.unite(static_cast<int64_t>(a - 1), static_cast<int64_t>(q - 1));
+            if (const uint64_t q = w(qx, qy, qz)) {
+              const int64_t gq = id_at(qx, qy, qz, q);
+              if (uf.unite(ga, gq) && distributing()) {
+                pairs.push_back(ga);
+                pairs.push_back(gq);
+              }
+            }
           }
         }
   });
+  if (distributing()) {
+    // Every rank's unions (a union-find links under the smaller root: the same roots in any order).
+    std::string mine(reinterpret_cast<const char*>(pairs.data()), pairs.size() * sizeof(int64_t));
+    for (const auto& s : exchange(mine)) {
+      std::vector<int64_t> p(s.size() / sizeof(int64_t));
+      std::memcpy(p.data(), s.data(), p.size() * sizeof(int64_t));
+      for (size_t i = 0; i + 1 < p.size(); i += 2) uf.unite(p[i], p[i + 1]);
+    }
+  }
   uf.flatten();
   pv.root = std::move(uf).release();
   return pv;
@@ -464,22 +561,26 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
   std::vector<uint32_t> label_of_provisional(info.size());
   for (size_t i = 0; i < info.size(); ++i)
     label_of_provisional[i] = label_of[rank[static_cast<size_t>(index_of_root[static_cast<size_t>(root[i])])]];
-  // Final labels and the mask of the kept components.
-  for (int64_t bz = 0; bz < n[2]; ++bz)
-    for (int64_t by = 0; by < n[1]; ++by)
-      for (int64_t bx = 0; bx < n[0]; ++bx) {
-        const Block b = layout.at(bx, by, bz);
-        const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
-        VolumeU32 l = VolumeU32::uninitialized(w.grid());
-        VolumeU8 k = VolumeU8::uninitialized(w.grid());
-        for (int64_t i = 0; i < w.size(); ++i) {
-          l[i] = w[i] ? label_of_provisional[static_cast<size_t>(w[i] - 1)] : 0u;
-          k[i] = l[i] ? 1 : 0;
-        }
-        labels.write(l, b.begin);
-        kept.write(k, b.begin);
-        block_done();
-      }
+  // Final labels and the mask of the kept components (each rank its blocks when distributing).
+  auto label_block = [&](const Block& b) {
+    const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
+    VolumeU32 l = VolumeU32::uninitialized(w.grid());
+    VolumeU8 k = VolumeU8::uninitialized(w.grid());
+    for (int64_t i = 0; i < w.size(); ++i) {
+      l[i] = w[i] ? label_of_provisional[static_cast<size_t>(pv.global(b.index[0], b.index[1], b.index[2], w[i]))] : 0u;
+      k[i] = l[i] ? 1 : 0;
+    }
+    labels.write(l, b.begin);
+    kept.write(k, b.begin);
+    block_done();
+  };
+  if (distributing()) {
+    for_each_owned_block(layout, Interrupter(), "components", label_block);
+  } else {
+    for (int64_t bz = 0; bz < n[2]; ++bz)
+      for (int64_t by = 0; by < n[1]; ++by)
+        for (int64_t bx = 0; bx < n[0]; ++bx) label_block(layout.at(bx, by, bz));
+  }
   BlockComponentsResult res;
   res.count = count;
   res.warning = std::move(warning);
@@ -589,7 +690,7 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
         const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
         VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
         for (int64_t i = 0; i < w.size(); ++i)
-          if (w[i] && !open[static_cast<size_t>(pv.root[static_cast<size_t>(w[i] - 1)])]) {
+          if (w[i] && !open[static_cast<size_t>(pv.root[static_cast<size_t>(pv.global(bx, by, bz, w[i]))])]) {
             m[i] = 1;
             ++filled;
           }

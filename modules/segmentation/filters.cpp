@@ -6,6 +6,7 @@
 
 #include "segmentation/segmentation.hpp"
 #include "skel/block_journal.hpp"
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
@@ -402,7 +403,8 @@ void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const Ga
   const Interrupter inner;
   visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
     using T = decltype(tag);
-    for_each_block_resumable(layout, o.interrupter, "gaussian", [&](const Block& b) {
+    // Split over MPI ranks when there are several; else resumable per block (--resume).
+    const auto body = [&](const Block& b) {
       // The block with the kernel's radius around it (clipped to the grid, where the border value
       // is replicated as in memory): every interior voxel sees the same taps as in memory.
       Dims ob{}, os{};
@@ -416,7 +418,9 @@ void gaussian_blocks(const DataObject& image, const ChunkedVolume& out, const Ga
       if (f.size() > 0) gaussian_in_place(f, s, o.truncate, GaussianSum::paired, o.threads, inner);
       VolumeF32 interior = read_block<float>(f, {b.begin[0] - ob[0], b.begin[1] - ob[1], b.begin[2] - ob[2]}, b.size, "block");
       out.write(interior, b.begin);
-    });
+    };
+    if (distributing()) for_each_owned_block(layout, o.interrupter, "gaussian", body);
+    else for_each_block_resumable(layout, o.interrupter, "gaussian", body);
   });
 }
 
@@ -432,7 +436,8 @@ void median_blocks(const DataObject& image, const ChunkedVolume& out, const Medi
   inner.interrupter = Interrupter();
   visit_voxel_type(image.type_id(), "input 'image'", [&](auto tag) {
     using T = decltype(tag);
-    for_each_block_resumable(layout, o.interrupter, "median", [&](const Block& b) {
+    // Split over MPI ranks when there are several; else resumable per block (--resume).
+    const auto body = [&](const Block& b) {
       // The block with `radius` voxels around it (clipped to the grid, where the border value is
       // replicated as in memory): every interior voxel sees the same cube as in memory.
       const Volume<T> v = read_block<T>(image, b.outer_begin, b.outer_size, "input 'image'");
@@ -440,7 +445,9 @@ void median_blocks(const DataObject& image, const ChunkedVolume& out, const Medi
       out.write(read_block<T>(m, {b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]},
                               b.size, "block"),
                 b.begin);
-    });
+    };
+    if (distributing()) for_each_owned_block(layout, o.interrupter, "median", body);
+    else for_each_block_resumable(layout, o.interrupter, "median", body);
   });
 }
 

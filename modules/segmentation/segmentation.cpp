@@ -4,8 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <tuple>
 #include <vector>
 
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
 
@@ -130,7 +132,7 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
     if (otsu) {
       if (grid.voxel_count() == 0) throw InputError("input 'image' is empty");
       double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for_each_block(layout, interrupter.sub(0.0, 1.0 / 3.0), "threshold (range)", [&](const Block& b) {
+      for_each_owned_block(layout, interrupter.sub(0.0, 1.0 / 3.0), "threshold (range)", [&](const Block& b) {
         const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
         for (int64_t i = 0; i < v.size(); ++i) {
           const double x = static_cast<double>(v[i]);
@@ -139,6 +141,8 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
           hi = std::max(hi, x);
         }
       });
+      // Several ranks: each saw its own blocks.
+      std::tie(lo, hi) = minmax_over_ranks(lo, hi);
       if (!(hi > lo)) {
         r.low = std::nextafter(lo, std::numeric_limits<double>::infinity());
       } else {
@@ -147,26 +151,28 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
         const double scale = byte ? 1.0 : (bins - 1) / (hi - lo);
         const double base = byte ? 0.0 : lo;
         std::vector<int64_t> h(bins, 0);
-        for_each_block(layout, interrupter.sub(1.0 / 3.0, 2.0 / 3.0), "threshold (histogram)", [&](const Block& b) {
+        for_each_owned_block(layout, interrupter.sub(1.0 / 3.0, 2.0 / 3.0), "threshold (histogram)", [&](const Block& b) {
           const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
           for (int64_t i = 0; i < v.size(); ++i) {
             const double x = static_cast<double>(v[i]);
             if (!std::isnan(x)) ++h[otsu_bin(x, base, scale, bins)];
           }
         });
+        h = sum_over_ranks(h);
         r.low = std::nextafter(otsu_from_histogram(h, base, scale, byte), std::numeric_limits<double>::infinity());
       }
       r.high = std::numeric_limits<double>::infinity();
     }
     if (r.low > r.high)
       throw InputError("threshold: low (" + std::to_string(r.low) + ") is above high (" + std::to_string(r.high) + ")");
-    for_each_block(layout, work, "threshold", [&](const Block& b) {
+    for_each_owned_block(layout, work, "threshold", [&](const Block& b) {
       const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
       VolumeU8 m = VolumeU8::uninitialized(v.grid());
       threshold_span(v.data(), m.data(), v.size(), r.low, r.high);
       for (uint8_t x : m) r.object_voxels += x;
       mask.write(m, b.begin);
     });
+    r.object_voxels = sum_over_ranks(r.object_voxels);
   });
   return r;
 }

@@ -5,6 +5,7 @@
 
 #include "segmentation/names.hpp"
 #include "segmentation/segmentation.hpp"
+#include "skel/distributed.hpp"
 #include "skel/mask.hpp"
 #include "skel/module.hpp"
 #include "skel/units.hpp"
@@ -43,6 +44,7 @@ first reads the image twice more (value range, histogram). The same mask and tab
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // blocks split over the ranks (skelflow-mpi)
       const DataObject& image = *ctx.input_data("image");
       auto mask = ctx.scratch_volume("mask", type_ids::volume_u8, any_volume_grid(image, "input 'image'"));
       const BlockThresholdResult r =
@@ -92,6 +94,7 @@ voxel.)")
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // blocks split over the ranks (skelflow-mpi)
       const DataObject& image = *ctx.input_data("image");
       auto out = ctx.scratch_volume("image", type_ids::volume_f32, any_volume_grid(image, "input 'image'"));
       gaussian_blocks(image, *out, ctx.options<GaussianOptions>(), blocks->block);
@@ -142,6 +145,7 @@ component piece.)")
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // blocks split over the ranks (skelflow-mpi)
       const DataObject& mask = *ctx.input_data("mask");
       const Grid& g = any_volume_grid(mask, "input 'mask'");
       auto labels = ctx.scratch_volume("labels", type_ids::volume_u32, g);
@@ -187,6 +191,7 @@ the input's bytes per voxel.)")
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // blocks split over the ranks (skelflow-mpi)
       const DataObject& image = *ctx.input_data("image");
       auto out = ctx.scratch_volume("image", image.type_id(), any_volume_grid(image, "input 'image'"));
       median_blocks(image, *out, ctx.options<MedianOptions>(), blocks->block);
