@@ -144,7 +144,7 @@ TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
   EXPECT_EQ(B.start.back(), static_cast<uint32_t>(P.k));
   std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
   for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
-    if (P.obj.test(pos)) expect[P.b[P.obj.rank(pos)]].push_back(pos);
+    if (P.obj.test(pos)) expect[P.base_of(pos)].push_back(pos);  // b is kept only as offsets here
   for (int64_t l = 0; l < P.nl; ++l) {
     std::vector<int64_t> got;
     for (uint32_t m = B.start[static_cast<size_t>(l)]; m < B.start[static_cast<size_t>(l) + 1]; ++m)
@@ -178,14 +178,48 @@ TEST(GeodesicPhases, OwnSearchMeasuresSixPathsInTheLayer) {
   Scratch S(static_cast<size_t>(s.P.nl), 0);
   const uint32_t src = s.lid(3, 3, 2);
   const std::vector<uint32_t> want = {s.lid(3, 3, 4), s.lid(2, 3, 2), s.lid(2, 3, 3)};
+  const std::vector<int64_t> want_pos = {s.P.dom.pos(3, 3, 4), s.P.dom.pos(2, 3, 2), s.P.dom.pos(2, 3, 3)};
   std::vector<uint32_t> wd;
   // Around the voxel to the opposite side: 4 steps; a neighbour: 1; an edge-adjacent voxel: 2.
-  EXPECT_GT(own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, wd), 0);
+  const int64_t visited = own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, want_pos, wd);
   EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
-  for (uint8_t m : S.mark) EXPECT_EQ(m, 0);  // marks cleared
-  // With limit 3 the opposite side is not reached.
-  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 3, want, wd);
+  // A* closes only voxels on shortest paths towards the targets: at most the 26 of L, at least the
+  // 5 of one shortest path to the far side.
+  EXPECT_GE(visited, 5);
+  EXPECT_LE(visited, 26);
+  // Range encoding: the closed voxels carry this search's stamp, nothing else does, and nothing is
+  // cleared; the next search takes the next stamp, so these marks mean "open" to it.
+  const uint16_t st = S.cur;
+  int64_t stamped = 0;
+  for (uint16_t m : S.stamp) {
+    EXPECT_TRUE(m == 0 || m == st);
+    stamped += m == st;
+  }
+  EXPECT_EQ(stamped, visited);
+  for (const auto& b : S.buckets) EXPECT_TRUE(b.empty());  // the queue is left empty
+  // With limit 3 the opposite side is not reached (and the search stops at key 3).
+  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 3, want, want_pos, wd);
   EXPECT_EQ(wd, (std::vector<uint32_t>{kNone, 1, 2}));
+  EXPECT_EQ(S.cur, st + 1);
+  // Limit exactly the distance: reached.
+  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 4, want, want_pos, wd);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
+}
+
+TEST(GeodesicPhases, OwnSearchStampWrapsByClearingOnce) {
+  const SingleVoxel s;
+  Scratch S(static_cast<size_t>(s.P.nl), 0);
+  const uint32_t src = s.lid(3, 3, 2);
+  const std::vector<uint32_t> want = {s.lid(3, 3, 4)};
+  const std::vector<int64_t> want_pos = {s.P.dom.pos(3, 3, 4)};
+  std::vector<uint32_t> wd;
+  S.cur = 0xFFFE;  // the second search wraps
+  for (int i = 0; i < 3; ++i) {
+    own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, want_pos, wd);
+    EXPECT_EQ(wd, (std::vector<uint32_t>{4}));  // stale stamps of the search before never count
+  }
+  EXPECT_EQ(S.stamp_resets, 1);
+  EXPECT_EQ(S.cur, 2);  // 0xFFFF, wrap to 1, 2
 }
 
 TEST(GeodesicPhases, PivotSearchKeepsDistancesInOrder) {
