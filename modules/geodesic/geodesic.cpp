@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -245,7 +246,8 @@ void compact_bases(Prepared& P, int threads) {
   for (auto& f : far) P.bfar.insert(P.bfar.end(), f.begin(), f.end());  // chunks in order: sorted by id
 }
 
-void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords) {
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
+             bool components) {
   build_bitmaps(mask, P, threads, intr);
   layer_coordinates(P, threads);
   intr.check(0.08);
@@ -257,7 +259,7 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
     std::vector<Coord>().swap(P.lcoord);
     std::vector<uint32_t>().swap(P.b);
   }
-  layer_components(P);
+  if (components) layer_components(P);
   intr.check(0.22);
 }
 
@@ -505,7 +507,7 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   want_index.clear();
   mark_needed(base_id);
   for (size_t i = 0; i < targets.size(); ++i)
-    if (tdist[i] == kNone && needed[i] && P.lcomp[targets[i]] == P.lcomp[base_id]) {
+    if (tdist[i] == kNone && needed[i] && (P.lcomp.empty() || P.lcomp[targets[i]] == P.lcomp[base_id])) {
       want.push_back(targets[i]);
       want_pos_.push_back(tpos[i]);
       want_index.push_back(i);
@@ -671,20 +673,27 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   Result res = empty_result(mask);
   if (mask.size() == 0) return res;
 
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
   Prepared P(mask.dims());
-  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0), false);
+  // L's components only in full mode: they spare searches that would run through a whole component
+  // to prove "no path"; in threshold mode the bounded search stops at t anyway (4 bytes per L voxel).
+  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0), false, full);
   res.stats.object_voxels = P.k;
   res.stats.layer_voxels = P.nl;
   if (P.k == 0) return res;
 
   const Buckets B = bucket_by_base(P);
   opt.interrupter.check(0.25);
+  const auto t1 = clock::now();
 
   // Importance goes straight into the output (written once per voxel: each voxel is in exactly one
   // bucket, so threads never write the same element).
   SearchShared sh(P, B, mask, res.importance.data(), t, full);
   const uint64_t scratch_bytes = search_bases(sh, opt.threads, opt.interrupter.sub(0.25, 0.97));
   threshold_surface(res.importance, res.surface_skeleton, t, opt.threads);
+  res.stats.seconds_prepare = std::chrono::duration<double>(t1 - t0).count();
+  res.stats.seconds_search = std::chrono::duration<double>(clock::now() - t1).count();
   res.stats.base_points = sh.n_bases.load();
   res.stats.searches = sh.n_search.load();
   res.stats.pivots = sh.n_pivots.load();

@@ -119,9 +119,11 @@ struct Prepared {
 // The 26 neighbour offsets in the padded domain.
 std::vector<int64_t> offsets26(const Domain& d);
 
-// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform and L's components (the
-// four steps below). L coordinates are freed afterwards unless `keep_coords`.
-void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords);
+// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform, its compact form and
+// (if `components`) L's components (the steps below). L coordinates and the L-ids of b are freed
+// afterwards unless `keep_coords`. Without components (P.lcomp empty) every target is searched.
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
+             bool components = true);
 // 1a: P.obj and P.layer (L = dilate26(O) minus O over the padded domain) with their ranks, P.k, P.nl.
 void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr);
 // 1b: P.lcoord (padded coordinates of every L voxel).
