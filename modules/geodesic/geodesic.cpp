@@ -325,6 +325,7 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
     rem[nrem++] = t;
   }
   auto h = [&](int32_t x, int32_t y, int32_t z) {
+    if (nrem == 1) return static_cast<uint32_t>(std::abs(x - rem[0].x) + std::abs(y - rem[0].y) + std::abs(z - rem[0].z));
     uint32_t m = std::numeric_limits<uint32_t>::max();
     for (size_t j = 0; j < nrem; ++j) {
       const uint32_t d = static_cast<uint32_t>(std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z));
@@ -335,8 +336,11 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
   const uint16_t st = S.next_stamp();
   auto& bk = S.buckets;
   uint32_t lo = 0, hi = 0;  // keys in use: [lo, hi]
+  // Keys never exceed the limit: with a small limit the buckets are allocated once for all searches.
+  const bool sized = limit < 65536;
+  if (sized && bk.size() < static_cast<size_t>(limit) + 1) bk.resize(static_cast<size_t>(limit) + 1);
   auto push = [&](uint32_t key, const Scratch::Entry& e) {
-    if (key >= bk.size()) bk.resize(static_cast<size_t>(key) + 1);
+    if (!sized && key >= bk.size()) bk.resize(static_cast<size_t>(key) + 1);
     bk[key].push_back(e);
     hi = std::max(hi, key);
   };
