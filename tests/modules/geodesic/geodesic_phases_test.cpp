@@ -206,6 +206,33 @@ TEST(GeodesicPhases, OwnSearchMeasuresSixPathsInTheLayer) {
   EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
 }
 
+TEST(GeodesicPhases, OwnSearchGoesStraightAlongAFlatSurface) {
+  // A 40 x 40 x 4 slab: from a voxel of L above the slab to one 15 steps away in x, also above it.
+  // A* closes the 16 voxels of the straight path and nothing else (a breadth-first search would
+  // close the ~2 * 15^2 voxels within 15 steps); across the slab (around the rim) the distance is
+  // long, and with limit 20 the search proves "> 20" without closing more than the keys <= 20 allow.
+  VolumeU8 m(Dims{40, 40, 12}, 0);
+  for (int64_t z = 4; z < 8; ++z)
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 40; ++x) m(x, y, z) = 1;
+  Prepared P(m.dims());
+  prepare(m, P, 1, {}, false);
+  Scratch S(static_cast<size_t>(P.nl), 0);
+  const int64_t src = P.dom.pos(10 + 2, 20 + 2, 8 + 2), far = P.dom.pos(25 + 2, 20 + 2, 8 + 2);
+  const int64_t below = P.dom.pos(10 + 2, 20 + 2, 3 + 2);  // under the slab: around the rim, > 20
+  ASSERT_TRUE(P.layer.test(src) && P.layer.test(far) && P.layer.test(below));
+  const uint32_t sid = static_cast<uint32_t>(P.layer.rank(src));
+  std::vector<uint32_t> wd;
+  EXPECT_EQ(own_bfs(P, S, sid, src, 100, {static_cast<uint32_t>(P.layer.rank(far))}, {far}, wd), 16);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{15}));
+  const int64_t v = own_bfs(P, S, sid, src, 20, {static_cast<uint32_t>(P.layer.rank(below))}, {below}, wd);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{kNone}));
+  // Keys g + h <= 20 with h >= 5 (the slab is 4 thick): g <= 15 on the top face, a diamond of
+  // 2 * 15^2 + 2 * 15 + 1 = 481 voxels at most near x = 10 (the rims are 10 and more away).
+  EXPECT_GT(v, 0);
+  EXPECT_LE(v, 481);
+}
+
 TEST(GeodesicPhases, OwnSearchStampWrapsByClearingOnce) {
   const SingleVoxel s;
   Scratch S(static_cast<size_t>(s.P.nl), 0);
