@@ -2,6 +2,7 @@
 // phantoms, memory per object voxel, and the project's own Euclidean DT on the same volume as the
 // yardstick (there is no external implementation of this measure to compare with).
 #include <cstdio>
+#include <sys/resource.h>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -13,9 +14,45 @@
 
 using namespace skel;
 
+namespace {
+// CPU seconds (user + system, all threads) of this process so far: on a shared machine the wall
+// time depends on the load, the CPU time much less.
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+}  // namespace
+
 int main(int argc, char** argv) {
   const int threads = argc > 1 ? std::atoi(argv[1]) : 2;
-  const bool big = argc > 2 && std::string(argv[2]) == "big";
+  // Second argument: "big" (256³ and 512³), or the sizes to run, comma-separated (e.g. 1024); default 256.
+  std::vector<int64_t> sizes = {256};
+  if (argc > 2 && std::string(argv[2]) == "big") sizes.push_back(512);
+  else if (argc > 2 && std::string(argv[2]) != "small") {
+    sizes.clear();
+    for (const char* p = argv[2]; *p;) {
+      char* e = nullptr;
+      const long long n = std::strtoll(p, &e, 10);
+      if (e == p || n < 16 || n > 4096) {
+        std::fprintf(stderr, "bench_geodesic: sizes must be 16..4096, e.g. 512,1024 (or big / small)\n");
+        return 2;
+      }
+      sizes.push_back(n);
+      p = *e == ',' ? e + 1 : e;
+    }
+  }
+  // Fourth argument: the phantoms, comma-separated (default plates,mixed).
+  std::vector<std::string> shapes = {"plates", "mixed"};
+  if (argc > 4) {
+    shapes.clear();
+    std::string all = argv[4];
+    for (size_t b = 0; b <= all.size();) {
+      const size_t e = std::min(all.find(',', b), all.size());
+      shapes.push_back(all.substr(b, e - b));
+      b = e + 1;
+    }
+  }
   // Optional third argument: the thresholds to run, comma-separated (default 20,40,80), for quick
   // before/after comparisons.
   std::vector<int64_t> thresholds = {20, 40, 80};
@@ -34,13 +71,11 @@ int main(int argc, char** argv) {
   }
   std::printf("## Geodesic boundary distance\n\n");
   std::printf("Threshold mode, %d threads. Yardstick: `distance.euclidean` (exact EDT) on the same mask in the same run. "
-              "k = object voxels, |L| = boundary-layer voxels; searches = breadth-first searches run (one per base point, "
-              "plus pivots), of them pivots and long (own searches that ran to t); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
-  std::printf("| phantom | size | t | object %% | time (s) | EDT (s) | time / EDT | |L| / k | searches | pivots | long | visited / k | bytes / k |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-  for (const char* shape : {"plates", "mixed"}) {
-    std::vector<int64_t> sizes = {256};
-    if (big) sizes.push_back(512);
+              "CPU = user + system seconds of all threads (the machine is shared: wall times depend on the load, CPU times much less); prepare/search = the algorithm's own phase timers (wall); k = object voxels, |L| = boundary-layer voxels; searches = searches run (one A* search per base point with targets left, "
+              "plus pivots: breadth-first to t + t/4), of them pivots and long (own searches that ended at t with targets left); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
+  std::printf("| phantom | size | t | object %% | time (s) | CPU (s) | prepare (s) | search (s) | EDT (s) | EDT CPU (s) | time / EDT | CPU / EDT CPU | |L| / k | searches | pivots | long | visited / k | bytes / k |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const std::string& shape : shapes) {
     for (int64_t n : sizes) {
       synthetic::NetworkOptions no;
       no.shape = parse_enum<synthetic::Shape>(shape, "shape");
@@ -51,17 +86,21 @@ int main(int argc, char** argv) {
       for (auto v : ph.mask) k += v;
       distance::EuclideanOptions eo;
       eo.threads = threads;
+      const double c0 = cpu_seconds();
       const double edt = bench::best_of(1, [&] { (void)distance::euclidean(ph.mask, eo); });
+      const double edt_cpu = cpu_seconds() - c0;
       for (int64_t t : thresholds) {
-        if (n == 512 && t == 80) continue;  // minutes; the trend is clear from the rest
+        if (n >= 512 && t == 80) continue;  // minutes; the trend is clear from the rest
         geodesic::Options go;
         go.threshold = t;
         go.threads = threads;
         geodesic::Result r;
+        const double c1 = cpu_seconds();
         const double s = bench::best_of(1, [&] { r = geodesic::boundary_distance(ph.mask, go); });
-        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.0f | %.2f | %lld | %lld | %lld | %.0f | %.1f |\n", shape,
+        const double cpu = cpu_seconds() - c1;
+        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %lld | %lld | %lld | %.0f | %.1f |\n", shape.c_str(),
                     static_cast<long long>(n), static_cast<long long>(t), 100.0 * static_cast<double>(k) / static_cast<double>(ph.mask.size()),
-                    s, edt, s / edt, static_cast<double>(r.stats.layer_voxels) / static_cast<double>(k),
+                    s, cpu, r.stats.seconds_prepare, r.stats.seconds_search, edt, edt_cpu, s / edt, cpu / edt_cpu, static_cast<double>(r.stats.layer_voxels) / static_cast<double>(k),
                     static_cast<long long>(r.stats.searches), static_cast<long long>(r.stats.pivots),
                     static_cast<long long>(r.stats.long_searches),
                     static_cast<double>(r.stats.visited) / static_cast<double>(k), static_cast<double>(r.stats.bytes) / static_cast<double>(k));

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -218,13 +219,47 @@ void layer_components(Prepared& P) {
   for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = find(static_cast<uint32_t>(i));
 }
 
-void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords) {
+void compact_bases(Prepared& P, int threads) {
+  const Domain& D = P.dom;
+  P.boff.resize(static_cast<size_t>(P.k));
+  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
+  std::vector<std::vector<std::pair<uint32_t, int64_t>>> far(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
+  parallel_chunks(0, nwords, static_cast<int64_t>(far.size()), threads, [&](int64_t c, int64_t w0, int64_t w1) {
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t bits = P.obj.word(static_cast<size_t>(w));
+      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+      for (; bits; bits &= bits - 1, ++id) {
+        const int64_t pos = w * 64 + std::countr_zero(bits);
+        const int64_t z = pos / D.plane, rem = pos % D.plane;
+        const Coord& q = P.lcoord[P.b[id]];
+        const int64_t dx = q.x - rem % D.BX, dy = q.y - rem / D.BX, dz = q.z - z;
+        if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) <= 127) {
+          P.boff[id] = BaseOffset{static_cast<int8_t>(dx), static_cast<int8_t>(dy), static_cast<int8_t>(dz)};
+        } else {
+          P.boff[id] = BaseOffset{kFar, 0, 0};
+          far[static_cast<size_t>(c)].emplace_back(static_cast<uint32_t>(id), D.pos(q.x, q.y, q.z));
+        }
+      }
+    }
+  });
+  P.bfar.clear();
+  for (auto& f : far) P.bfar.insert(P.bfar.end(), f.begin(), f.end());  // chunks in order: sorted by id
+}
+
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
+             bool components) {
   build_bitmaps(mask, P, threads, intr);
   layer_coordinates(P, threads);
   intr.check(0.08);
   nearest_points(mask.spacing(), P, threads, intr);
-  if (!keep_coords) std::vector<Coord>().swap(P.lcoord);
-  layer_components(P);
+  compact_bases(P, threads);
+  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) +
+                                                  P.b.size() * 4 + P.base_bytes());
+  if (!keep_coords) {
+    std::vector<Coord>().swap(P.lcoord);
+    std::vector<uint32_t>().swap(P.b);
+  }
+  if (components) layer_components(P);
   intr.check(0.22);
 }
 
@@ -234,64 +269,141 @@ Buckets bucket_by_base(const Prepared& P) {
   std::vector<uint32_t>& start = bk.start;
   Members& members = bk.members;
   start.assign(static_cast<size_t>(P.nl) + 1, 0);
-  for (uint32_t l : P.b) ++start[l + 1];
-  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
-  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
-  {
-    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+  // The L-id of every object voxel's base, in object order (one walk; reused by the fill below).
+  auto for_each_base = [&](auto&& f) {
     const size_t nwords = P.obj.word_count();
     for (size_t w = 0; w < nwords; ++w) {
       uint64_t bits = P.obj.word(w);
       uint64_t id = P.obj.prefix(w);
-      while (bits) {
+      for (; bits; bits &= bits - 1, ++id) {
         const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
-        bits &= bits - 1;
-        members.set(fill[P.b[id++]]++, pos);
+        f(pos, static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos))));
       }
     }
+  };
+  for_each_base([&](int64_t, uint32_t l) { ++start[l + 1]; });
+  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
+  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
+  {
+    // Shifted by one (start[l + 1] = first slot of l), then start[l + 1] counts up to the end of l,
+    // which is the start of l + 1 (no second array of |L| counters).
+    for (int64_t i = P.nl; i > 0; --i) start[static_cast<size_t>(i)] = start[static_cast<size_t>(i) - 1];
+    start[0] = 0;
+    for_each_base([&](int64_t pos, uint32_t l) { members.set(start[l + 1]++, pos); });
   }
   return bk;
 }
 
 int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
-                const std::vector<uint32_t>& want, std::vector<uint32_t>& wd) {
-  S.queue.clear();
-  S.queue.push_back(src);
-  S.qpos.clear();
-  S.qpos.push_back(src_pos);
-  S.mark[src] |= Scratch::kVisited;
-  int64_t left = static_cast<int64_t>(want.size());
+                const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
+  const Domain& D = P.dom;
   wd.assign(want.size(), kNone);
-  for (uint32_t w : want) S.mark[w] |= Scratch::kTarget;
-  auto check_target = [&](uint32_t v, uint32_t d) {
-    if (!(S.mark[v] & Scratch::kTarget)) return;
-    for (size_t i = 0; i < want.size(); ++i)
-      if (want[i] == v && wd[i] == kNone) {
-        wd[i] = d;
-        --left;
-      }
+  if (want.empty()) return 0;
+  // Targets not reached yet: coordinates and index in `want`.
+  struct Tgt {
+    int32_t x, y, z;
+    uint32_t i;
   };
-  check_target(src, 0);
-  int64_t visited = 0;
-  uint32_t dv = 0;
-  size_t level_end = 1;  // queue[.. level_end) has distance <= dv
-  for (size_t head = 0; head < S.queue.size() && left > 0; ++head) {
-    if (head == level_end) {
-      ++dv;
-      level_end = S.queue.size();
-    }
-    ++visited;
-    if (dv >= limit) continue;
-    for_each_layer_neighbour(P, S.qpos[head], [&](uint32_t u, int64_t q) {
-      if (S.mark[u] & Scratch::kVisited) return;
-      S.mark[u] |= Scratch::kVisited;
-      S.queue.push_back(u);
-      S.qpos.push_back(q);
-      check_target(u, dv + 1);
-    });
+  Tgt tg[64];
+  std::vector<Tgt> tg_heap;
+  Tgt* rem = tg;
+  if (want.size() > 64) {
+    tg_heap.resize(want.size());
+    rem = tg_heap.data();
   }
-  for (uint32_t v : S.queue) S.mark[v] = 0;
-  for (uint32_t w : want) S.mark[w] = 0;
+  size_t nrem = 0;
+  auto coords = [&](int64_t pos, int32_t& x, int32_t& y, int32_t& z) {
+    z = static_cast<int32_t>(pos / D.plane);
+    const int64_t r = pos % D.plane;
+    y = static_cast<int32_t>(r / D.BX);
+    x = static_cast<int32_t>(r % D.BX);
+  };
+  for (size_t i = 0; i < want.size(); ++i) {
+    Tgt t{};
+    coords(want_pos[i], t.x, t.y, t.z);
+    t.i = static_cast<uint32_t>(i);
+    rem[nrem++] = t;
+  }
+  auto h = [&](int32_t x, int32_t y, int32_t z) {
+    if (nrem == 1) return static_cast<uint32_t>(std::abs(x - rem[0].x) + std::abs(y - rem[0].y) + std::abs(z - rem[0].z));
+    uint32_t m = std::numeric_limits<uint32_t>::max();
+    for (size_t j = 0; j < nrem; ++j) {
+      const uint32_t d = static_cast<uint32_t>(std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z));
+      m = std::min(m, d);
+    }
+    return m;
+  };
+  const uint16_t st = S.next_stamp();
+  auto& bk = S.buckets;
+  uint32_t lo = 0, hi = 0;  // keys in use: [lo, hi]
+  // Keys never exceed the limit: with a small limit the buckets are allocated once for all searches.
+  const bool sized = limit < 65536;
+  if (sized && bk.size() < static_cast<size_t>(limit) + 1) bk.resize(static_cast<size_t>(limit) + 1);
+  auto push = [&](uint32_t key, const Scratch::Entry& e) {
+    if (!sized && key >= bk.size()) bk.resize(static_cast<size_t>(key) + 1);
+    bk[key].push_back(e);
+    hi = std::max(hi, key);
+  };
+  uint16_t gen = 0;  // targets reached so far, mod 2^16 (h changes only then)
+  const bool track_gen = want.size() < 0xFFFF;  // else every pop recomputes h
+  {
+    int32_t x, y, z;
+    coords(src_pos, x, y, z);
+    const Scratch::Entry e{src, 0, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen};
+    const uint32_t f = h(x, y, z);
+    if (f <= limit) {
+      lo = hi = f;
+      push(f, e);
+    }
+  }
+  int64_t visited = 0;
+  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
+  const int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
+  uint32_t key = lo;
+  const uint32_t last = std::min(limit, std::numeric_limits<uint32_t>::max() - 8);
+  while (nrem > 0 && key <= hi && key <= last) {
+    if (bk[key].empty()) {
+      ++key;
+      continue;
+    }
+    Scratch::Entry e = bk[key].back();  // last in, first out: the deepest voxel of the key first
+    bk[key].pop_back();
+    if (S.stamp[e.id] == st) continue;  // closed already
+    uint32_t hv = key - e.g;
+    if (!track_gen || e.gen != gen) {  // h grew since the voxel was queued (a target was reached): requeue by its key
+      hv = h(e.x, e.y, e.z);
+      e.gen = gen;
+      if (e.g + hv > key) {
+        if (e.g + hv <= last) push(e.g + hv, e);
+        continue;
+      }
+    }
+    S.stamp[e.id] = st;
+    ++visited;
+    if (hv == 0) {  // a target (exact: g is final when a voxel is closed with a consistent h)
+      for (size_t j = 0; j < nrem; ++j)
+        if (rem[j].x == e.x && rem[j].y == e.y && rem[j].z == e.z) {
+          wd[rem[j].i] = e.g;
+          rem[j] = rem[--nrem];
+          break;
+        }
+      if (nrem == 0) break;
+      ++gen;
+      // Expanded now (its g is final; its neighbours are queued by the new h).
+    }
+    const int64_t pos = e.x + D.BX * (e.y + D.BY * static_cast<int64_t>(e.z));
+    for (int n = 0; n < 6; ++n) {
+      const int64_t q = pos + nb[n];
+      if (!P.layer.test(q)) continue;
+      const uint32_t u = static_cast<uint32_t>(P.layer.rank(q));
+      if (S.stamp[u] == st) continue;
+      const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
+      const uint32_t nf = e.g + 1 + h(x, y, z);
+      if (nf <= last)
+        push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
+    }
+  }
+  for (uint32_t k2 = lo; k2 <= hi && k2 < bk.size(); ++k2) bk[k2].clear();
   return visited;
 }
 
@@ -334,9 +446,13 @@ void BaseWork::gather(uint32_t base_id) {
   const std::vector<uint32_t>& start = sh_.B.start;
   const Members& members = sh_.B.members;
   targets.clear();
+  tpos.clear();
   for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m)
-    for_each_target(P, members[m], [&](uint32_t c) {
-      if (std::find(targets.begin(), targets.end(), c) == targets.end()) targets.push_back(c);
+    for_each_target_at(P, members[m], [&](uint32_t c, int64_t cpos) {
+      if (std::find(targets.begin(), targets.end(), c) == targets.end()) {
+        targets.push_back(c);
+        tpos.push_back(cpos);
+      }
     });
   tdist.assign(targets.size(), kNone);
 }
@@ -391,16 +507,18 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   std::vector<uint32_t>& wd = wd_;
   std::vector<size_t>& want_index = want_index_;
   want.clear();
+  want_pos_.clear();
   want_index.clear();
   mark_needed(base_id);
   for (size_t i = 0; i < targets.size(); ++i)
-    if (tdist[i] == kNone && needed[i] && P.lcomp[targets[i]] == P.lcomp[base_id]) {
+    if (tdist[i] == kNone && needed[i] && (P.lcomp.empty() || P.lcomp[targets[i]] == P.lcomp[base_id])) {
       want.push_back(targets[i]);
+      want_pos_.push_back(tpos[i]);
       want_index.push_back(i);
     }
   if (want.empty()) return false;
   const uint32_t limit = sh_.full ? static_cast<uint32_t>(std::min<int64_t>(P.nl, kNone / 2)) : sh_.t;
-  sh_.n_visited += own_bfs(P, S_, base_id, base_pos, limit, want, wd);
+  sh_.n_visited += own_bfs(P, S_, base_id, base_pos, limit, want, want_pos_, wd);
   ++sh_.n_search;
   bool open = false;
   for (size_t j = 0; j < want.size(); ++j) {
@@ -559,20 +677,27 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   Result res = empty_result(mask);
   if (mask.size() == 0) return res;
 
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
   Prepared P(mask.dims());
-  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0), false);
+  // L's components only in full mode: they spare searches that would run through a whole component
+  // to prove "no path"; in threshold mode the bounded search stops at t anyway (4 bytes per L voxel).
+  prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0), false, full);
   res.stats.object_voxels = P.k;
   res.stats.layer_voxels = P.nl;
   if (P.k == 0) return res;
 
   const Buckets B = bucket_by_base(P);
   opt.interrupter.check(0.25);
+  const auto t1 = clock::now();
 
   // Importance goes straight into the output (written once per voxel: each voxel is in exactly one
   // bucket, so threads never write the same element).
   SearchShared sh(P, B, mask, res.importance.data(), t, full);
   const uint64_t scratch_bytes = search_bases(sh, opt.threads, opt.interrupter.sub(0.25, 0.97));
   threshold_surface(res.importance, res.surface_skeleton, t, opt.threads);
+  res.stats.seconds_prepare = std::chrono::duration<double>(t1 - t0).count();
+  res.stats.seconds_search = std::chrono::duration<double>(clock::now() - t1).count();
   res.stats.base_points = sh.n_bases.load();
   res.stats.searches = sh.n_search.load();
   res.stats.pivots = sh.n_pivots.load();
@@ -581,7 +706,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.visited = sh.n_visited.load();
   // Peak of the two phases: the nearest-point transform (with L coordinates and the ring marks) and
   // the searches (with components, buckets, claims and the workers' scratch).
-  const uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.b.size() * 4 + P.lcomp.size() * 4 +
+  const uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.base_bytes() + P.lcomp.size() * 4 +
                                 B.start.size() * 4 + B.members.bytes() + sh.claimed.size() * 8 + scratch_bytes;
   res.stats.bytes = std::max(P.prepare_bytes, search_bytes);
   opt.interrupter.check(1.0);

@@ -34,12 +34,14 @@ struct Statistics {
   int64_t object_voxels = 0;
   int64_t layer_voxels = 0;       // |L|
   int64_t base_points = 0;        // distinct b(p) with work to do
-  int64_t searches = 0;           // breadth-first searches run
+  int64_t searches = 0;           // searches run: own A* searches (one per base with targets left) + pivots
   int64_t pivots = 0;             // searches extended to t + t/4 to settle neighbouring bases
   int64_t long_searches = 0;      // own searches that ran to t with targets left
   int64_t saturated_by_pivot = 0; // targets proved >= t by a neighbouring base's search
-  int64_t visited = 0;            // layer voxels visited over all searches
+  int64_t visited = 0;            // layer voxels closed (A*) or dequeued (pivot BFS) over all searches
   uint64_t bytes = 0;             // peak working memory of the algorithm (without input/output)
+  double seconds_prepare = 0;     // wall time of the bitmaps, b(p), L's components and the buckets
+  double seconds_search = 0;      // wall time of the searches (and the importance)
 };
 
 struct Result {

@@ -32,33 +32,27 @@ g(b(p), b(q)) over its three lower 6-neighbours q, and over its three upper 6-ne
 background. Voxels outside the array count as background: the one-voxel ring around the array belongs
 to L where it touches the object.
 
-Implementation: object voxels are grouped by base point b(p); one breadth-first search per base point
-serves all its voxels and stops when all their targets are reached or at t (threshold mode). Searches
-run level by level, so they need only a visited mark per boundary voxel, reset through the list of
-visited voxels (a search costs what it visits, never the size of L). When a search runs to t, it is
-extended to t + t/4 and settles, by the triangle inequality, the far targets of every base point within
-t/4 of it (a pivot), which saves most long searches on plates; voxels with a target so proved to
-saturate need no further search. Targets in another component of L are known to be infinite without
-searching. Results, and the search counts (searches, pivots, saturated targets, visited voxels), are
-identical for any thread count: the grid is cut into blocks (z-slabs x y-bands at least 2·t/4 + 2
-voxels thick) run in four passes by the parity of (slab, band), so no two workers reach the same base.
+Implementation: object voxels are grouped by base point b(p); one search per base point serves all
+its voxels. Searches are A* over L: the key of a voxel v is g(b, v) + h(v), h = the smallest 1-norm
+distance to a target not reached yet (a lower bound on any 6-path, and consistent, so a voxel's
+distance is final when it is closed). Only voxels with a key <= t are ever queued (threshold mode), and
+a search stops as soon as all its targets are reached or no key <= t is left: a target not reached is
+>= t. Closed voxels are marked by range encoding (thesis §2.3.2): each search takes the next 16-bit
+stamp, so nothing is cleared after a search (the marks once every 65535 searches). When a search ends
+with targets left, a breadth-first search to t + t/4 from the same base settles, by the triangle
+inequality, the far targets of every base point within t/4 of it (a pivot), which saves most long
+searches on plates; voxels with a target so proved to saturate need no further search. In full mode,
+targets in another 6-component of L are known to be infinite without searching. Results, and the
+search counts (searches, pivots, saturated targets, visited voxels), are identical for any thread
+count: the grid is cut into blocks (z-slabs x y-bands at least 2·t/4 + 2 voxels thick) run in four
+passes by the parity of (slab, band), so no two workers reach the same base.
 
 Memory (beyond the input mask and the two outputs; the larger of two phases): 4 bits per voxel of the
-padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 bytes per object voxel and
-6 per boundary-layer voxel, for the searches 4 (b(p)) + 4 (bucket position) bytes per object voxel
-and 4 + 4 bytes per boundary-layer voxel plus 2 (t <= 203) or 3 per boundary-layer voxel and worker
-thread.
-
-Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
-with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the
-background, found in the block and the block read again with a larger margin when needed; blocks
-whose margin does not fit the budget are halved), and only its interior is kept. Then every nearest
-point and every boundary path shorter than t lies in the block, and every path through the block's
-artificial outside is at least t long: importance and surface_skeleton equal the in-memory result.
-The table sums the statistics over the blocks with their margins. Memory: 28 bytes per voxel of the
-largest block with margin. Full mode has no finite margin: under a budget it runs in memory when the
-mask fits the budget at 28 bytes per voxel and is refused otherwise.)")
-        .blockwise(16, kBlockBytesPerVoxel);
+padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 + 3 bytes per object voxel
+and 6 per boundary-layer voxel, for the searches 3 (b(p) as an offset) + 4 (bucket position) bytes per
+object voxel and 4 (bucket start; + 4 for L's components in full mode) per boundary-layer voxel, plus
+per worker thread 2 (stamp) + 1 (t + t/4 <= 254, else 2: pivot distances) bytes per boundary-layer
+voxel and the queues.)");
   }
   void run(RunContext& ctx) override {
     const Options options = ctx.options<Options>();

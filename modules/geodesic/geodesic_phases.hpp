@@ -10,6 +10,7 @@
 //      its voxels (own_bfs), and where that runs to the threshold a pivot search (pivot_bfs) that
 //      settles the far targets of the bases near it (process_base); the importance of every voxel;
 //   4. threshold_surface: the surface skeleton (importance >= t).
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cstdint>
@@ -74,31 +75,55 @@ struct Domain {
   [[nodiscard]] int64_t row_words() const { return BX / 64; }
 };
 
+// b(p) as the offset from p to its nearest background point, 3 bytes per object voxel (the L-id
+// would take 4 and give no position). Offsets beyond +-127 on an axis (objects more than 127 voxels
+// thick) are marked by dx == kFar and kept in a sorted side table (object id, padded position of b).
+struct BaseOffset {
+  int8_t dx, dy, dz;
+};
+constexpr int8_t kFar = -128;
+
 struct Prepared {
   Domain dom;
   RankBits obj, layer;
   std::vector<Coord> lcoord;  // L-id -> padded coordinates (freed after the nearest-point transform
                               // unless kept for the reference; searches carry positions instead)
-  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point
+  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point (freed after
+                              // compact_bases unless kept for the reference and tests)
+  std::vector<BaseOffset> boff;  // object id -> offset to b(p) (compact_bases)
+  std::vector<std::pair<uint32_t, int64_t>> bfar;  // object id -> position of b(p), where kFar
   std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
   int64_t k = 0, nl = 0;
   uint64_t prepare_bytes = 0;  // peak working memory of prepare()
   explicit Prepared(const Dims& d) : dom(d) {}
   [[nodiscard]] int64_t lpos(uint32_t l) const { return dom.pos(lcoord[l].x, lcoord[l].y, lcoord[l].z); }
-  // L-id of the nearest background point of the voxel at `pos` (object or layer voxel).
-  [[nodiscard]] uint32_t base_of(int64_t pos) const {
-    if (obj.test(pos)) return b[obj.rank(pos)];
-    return static_cast<uint32_t>(layer.rank(pos));
+  // Padded position of the nearest background point of object voxel `oid` at `pos`.
+  [[nodiscard]] int64_t base_pos_of_object(uint64_t oid, int64_t pos) const {
+    const BaseOffset o = boff[oid];
+    if (o.dx == kFar) {
+      const auto it = std::lower_bound(bfar.begin(), bfar.end(), std::pair<uint32_t, int64_t>{static_cast<uint32_t>(oid), std::numeric_limits<int64_t>::min()});
+      return it->second;
+    }
+    return pos + o.dx + dom.BX * (o.dy + dom.BY * static_cast<int64_t>(o.dz));
   }
+  // Padded position of the nearest background point of the voxel at `pos` (object or layer voxel).
+  [[nodiscard]] int64_t base_pos(int64_t pos) const {
+    return obj.test(pos) ? base_pos_of_object(obj.rank(pos), pos) : pos;
+  }
+  // L-id of the nearest background point of the voxel at `pos` (object or layer voxel).
+  [[nodiscard]] uint32_t base_of(int64_t pos) const { return static_cast<uint32_t>(layer.rank(base_pos(pos))); }
+  [[nodiscard]] uint64_t base_bytes() const { return boff.size() * sizeof(BaseOffset) + bfar.size() * 16; }
 };
 
 
 // The 26 neighbour offsets in the padded domain.
 std::vector<int64_t> offsets26(const Domain& d);
 
-// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform and L's components (the
-// four steps below). L coordinates are freed afterwards unless `keep_coords`.
-void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords);
+// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform, its compact form and
+// (if `components`) L's components (the steps below). L coordinates and the L-ids of b are freed
+// afterwards unless `keep_coords`. Without components (P.lcomp empty) every target is searched.
+void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
+             bool components = true);
 // 1a: P.obj and P.layer (L = dilate26(O) minus O over the padded domain) with their ranks, P.k, P.nl.
 void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr);
 // 1b: P.lcoord (padded coordinates of every L voxel).
@@ -109,30 +134,52 @@ void layer_coordinates(Prepared& P, int threads);
 void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr);
 // 1d: P.lcomp, the 6-connected component of every L voxel (its smallest L-id).
 void layer_components(Prepared& P);
+// 1e: P.boff and P.bfar from P.b and P.lcoord.
+void compact_bases(Prepared& P, int threads);
 
-// Scratch of one worker. Own searches need only "visited" and "target" marks (one byte per L voxel:
-// the search runs level by level, so the distance is the level); pivot searches keep 8- or 16-bit
-// distances (d + 1, 0 = unvisited; none without pivots) because targets of neighbouring bases are
-// looked up afterwards. Both are reset through the lists of voxels they touched, so a search costs
-// O(visited), never O(|L|).
+// Scratch of one worker.
+// Own searches (A*, own_bfs) mark the voxels they closed by range encoding (thesis §2.3.2): a
+// 16-bit stamp per L voxel, and each search takes the next stamp value, so a voxel is closed in the
+// current search iff its stamp equals the search's value; nothing is cleared after a search, the
+// array only once every 65535 searches (when the stamp wraps). The open voxels wait in a bucket
+// queue by their key g + h (h = 6-step lower bound to the nearest remaining target).
+// Pivot searches keep 8- or 16-bit distances (d + 1, 0 = unvisited; none without pivots) because
+// targets of neighbouring bases are looked up afterwards; they are reset through their list.
 struct Scratch {
-  static constexpr uint8_t kVisited = 1, kTarget = 2;
-  std::vector<uint8_t> mark;      // own search: kVisited | kTarget
+  struct Entry {  // 16 bytes; the padded position is x + BX * (y + BY * z)
+    uint32_t id, g;
+    uint16_t x, y, z, gen;  // gen: targets reached when queued (the key is stale once more are)
+  };
+  std::vector<uint16_t> stamp;   // own search: closed iff == cur
+  uint16_t cur = 0;
+  int64_t stamp_resets = 0;
+  std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
   std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
   std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
-  std::vector<uint32_t> queue;  // own search: visited voxels in distance order (cleared after the search)
   std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
-  std::vector<int64_t> qpos;    // padded positions of the current search's queue
-  Scratch(size_t nl, uint32_t pivot_limit) : mark(nl, 0) {
+  std::vector<int64_t> qpos;    // padded positions of the pivot search's queue
+  Scratch(size_t nl, uint32_t pivot_limit) : stamp(nl, 0) {
     if (pivot_limit == 0) return;
     if (pivot_limit <= 254) pdist8.assign(nl, 0);
     else pdist16.assign(nl, 0);
+  }
+  // The stamp of a new own search.
+  uint16_t next_stamp() {
+    if (cur == 0xFFFF) {
+      std::fill(stamp.begin(), stamp.end(), uint16_t{0});
+      cur = 0;
+      ++stamp_resets;
+    }
+    return ++cur;
   }
   [[nodiscard]] uint32_t pdist(uint32_t v) const { return pdist8.empty() ? pdist16[v] : pdist8[v]; }
   [[nodiscard]] bool pivot_visited(uint32_t v) const { return pdist(v) != 0; }
   [[nodiscard]] uint32_t pivot_at(uint32_t v) const { return pdist(v) - 1; }
   [[nodiscard]] uint64_t bytes() const {
-    return mark.size() + pdist8.size() + pdist16.size() * 2 + (queue.capacity() + pqueue.capacity()) * 4 + qpos.capacity() * 8;
+    uint64_t qb = 0;
+    for (const auto& b : buckets) qb += b.capacity() * sizeof(Entry);
+    return stamp.size() * 2 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
+           buckets.capacity() * sizeof(buckets[0]) + qb;
   }
 };
 
@@ -154,16 +201,22 @@ struct Members {
   [[nodiscard]] uint64_t bytes() const { return narrow.size() * 4 + full.size() * 8; }
 };
 
-// The considered neighbours of object voxel `pos` and their base points.
+// The considered neighbours of object voxel `pos` and their base points: f(L-id, padded position).
 template <class F>
-void for_each_target(const Prepared& P, int64_t pos, F&& f) {
+void for_each_target_at(const Prepared& P, int64_t pos, F&& f) {
   const int64_t offs[3] = {1, P.dom.BX, P.dom.plane};
   for (int64_t o : offs) {
     // Lower neighbour: always (object or layer).
-    f(P.base_of(pos - o));
+    const int64_t bp = P.base_pos(pos - o);
+    f(static_cast<uint32_t>(P.layer.rank(bp)), bp);
     // Upper neighbour: only if background (then it is in L).
-    if (!P.obj.test(pos + o)) f(static_cast<uint32_t>(P.layer.rank(pos + o)));
+    if (!P.obj.test(pos + o)) f(static_cast<uint32_t>(P.layer.rank(pos + o)), pos + o);
   }
+}
+// The same, L-ids only.
+template <class F>
+void for_each_target(const Prepared& P, int64_t pos, F&& f) {
+  for_each_target_at(P, pos, [&](uint32_t c, int64_t) { f(c); });
 }
 
 // Phase 2: object voxels grouped by base point b(p) (counting sort): the voxels of base l are
@@ -184,11 +237,15 @@ inline void for_each_layer_neighbour(const Prepared& P, int64_t pos, F&& f) {
     if (P.layer.test(q)) f(static_cast<uint32_t>(P.layer.rank(q)), q);
 }
 
-// Own search: breadth-first over L from `src`, level by level up to distance `limit`, stopping once
-// every target in `want` is reached; writes their distances to `wd` (kNone = not reached). Returns
-// the number of visited voxels. The marks are cleared again before returning.
+// Own search: A* over L from `src` towards the targets `want` (L-ids, at padded positions
+// `want_pos`), with h = the smallest 1-norm distance to a target not reached yet (a lower bound on
+// any 6-path, and consistent), so only voxels v with g(src, v) + h(v) <= limit are ever queued (the
+// bounded search) and the search stops as soon as every target is reached or no open voxel has a key
+// <= limit (early termination). Writes the exact distances <= limit to `wd` (kNone = farther than
+// `limit`: no 6-path in L that short). Returns the number of voxels closed (visited). Nothing needs
+// clearing afterwards (range-encoded marks, see Scratch).
 int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
-                const std::vector<uint32_t>& want, std::vector<uint32_t>& wd);
+                const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd);
 
 // Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
 // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
@@ -238,12 +295,14 @@ public:
   void finish(uint32_t base_id);
 
   std::vector<uint32_t> targets, tdist;
+  std::vector<int64_t> tpos;  // padded positions of the targets
   std::vector<uint8_t> needed;
 
 private:
   SearchShared& sh_;
   Scratch& S_;
   std::vector<uint32_t> want_, wd_;
+  std::vector<int64_t> want_pos_;
   std::vector<size_t> want_index_;
 };
 

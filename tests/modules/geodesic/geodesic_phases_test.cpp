@@ -144,7 +144,7 @@ TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
   EXPECT_EQ(B.start.back(), static_cast<uint32_t>(P.k));
   std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
   for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
-    if (P.obj.test(pos)) expect[P.b[P.obj.rank(pos)]].push_back(pos);
+    if (P.obj.test(pos)) expect[P.base_of(pos)].push_back(pos);  // b is kept only as offsets here
   for (int64_t l = 0; l < P.nl; ++l) {
     std::vector<int64_t> got;
     for (uint32_t m = B.start[static_cast<size_t>(l)]; m < B.start[static_cast<size_t>(l) + 1]; ++m)
@@ -178,14 +178,75 @@ TEST(GeodesicPhases, OwnSearchMeasuresSixPathsInTheLayer) {
   Scratch S(static_cast<size_t>(s.P.nl), 0);
   const uint32_t src = s.lid(3, 3, 2);
   const std::vector<uint32_t> want = {s.lid(3, 3, 4), s.lid(2, 3, 2), s.lid(2, 3, 3)};
+  const std::vector<int64_t> want_pos = {s.P.dom.pos(3, 3, 4), s.P.dom.pos(2, 3, 2), s.P.dom.pos(2, 3, 3)};
   std::vector<uint32_t> wd;
   // Around the voxel to the opposite side: 4 steps; a neighbour: 1; an edge-adjacent voxel: 2.
-  EXPECT_GT(own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, wd), 0);
+  const int64_t visited = own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, want_pos, wd);
   EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
-  for (uint8_t m : S.mark) EXPECT_EQ(m, 0);  // marks cleared
-  // With limit 3 the opposite side is not reached.
-  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 3, want, wd);
+  // A* closes only voxels on shortest paths towards the targets: at most the 26 of L, at least the
+  // 5 of one shortest path to the far side.
+  EXPECT_GE(visited, 5);
+  EXPECT_LE(visited, 26);
+  // Range encoding: the closed voxels carry this search's stamp, nothing else does, and nothing is
+  // cleared; the next search takes the next stamp, so these marks mean "open" to it.
+  const uint16_t st = S.cur;
+  int64_t stamped = 0;
+  for (uint16_t m : S.stamp) {
+    EXPECT_TRUE(m == 0 || m == st);
+    stamped += m == st;
+  }
+  EXPECT_EQ(stamped, visited);
+  for (const auto& b : S.buckets) EXPECT_TRUE(b.empty());  // the queue is left empty
+  // With limit 3 the opposite side is not reached (and the search stops at key 3).
+  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 3, want, want_pos, wd);
   EXPECT_EQ(wd, (std::vector<uint32_t>{kNone, 1, 2}));
+  EXPECT_EQ(S.cur, st + 1);
+  // Limit exactly the distance: reached.
+  own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 4, want, want_pos, wd);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
+}
+
+TEST(GeodesicPhases, OwnSearchGoesStraightAlongAFlatSurface) {
+  // A 40 x 40 x 4 slab: from a voxel of L above the slab to one 15 steps away in x, also above it.
+  // A* closes the 16 voxels of the straight path and nothing else (a breadth-first search would
+  // close the ~2 * 15^2 voxels within 15 steps); across the slab (around the rim) the distance is
+  // long, and with limit 20 the search proves "> 20" without closing more than the keys <= 20 allow.
+  VolumeU8 m(Dims{40, 40, 12}, 0);
+  for (int64_t z = 4; z < 8; ++z)
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 40; ++x) m(x, y, z) = 1;
+  Prepared P(m.dims());
+  prepare(m, P, 1, {}, false);
+  Scratch S(static_cast<size_t>(P.nl), 0);
+  const int64_t src = P.dom.pos(10 + 2, 20 + 2, 8 + 2), far = P.dom.pos(25 + 2, 20 + 2, 8 + 2);
+  const int64_t below = P.dom.pos(10 + 2, 20 + 2, 3 + 2);  // under the slab: around the rim, > 20
+  ASSERT_TRUE(P.layer.test(src) && P.layer.test(far) && P.layer.test(below));
+  const uint32_t sid = static_cast<uint32_t>(P.layer.rank(src));
+  std::vector<uint32_t> wd;
+  EXPECT_EQ(own_bfs(P, S, sid, src, 100, {static_cast<uint32_t>(P.layer.rank(far))}, {far}, wd), 16);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{15}));
+  const int64_t v = own_bfs(P, S, sid, src, 20, {static_cast<uint32_t>(P.layer.rank(below))}, {below}, wd);
+  EXPECT_EQ(wd, (std::vector<uint32_t>{kNone}));
+  // Keys g + h <= 20 with h >= 5 (the slab is 4 thick): g <= 15 on the top face, a diamond of
+  // 2 * 15^2 + 2 * 15 + 1 = 481 voxels at most near x = 10 (the rims are 10 and more away).
+  EXPECT_GT(v, 0);
+  EXPECT_LE(v, 481);
+}
+
+TEST(GeodesicPhases, OwnSearchStampWrapsByClearingOnce) {
+  const SingleVoxel s;
+  Scratch S(static_cast<size_t>(s.P.nl), 0);
+  const uint32_t src = s.lid(3, 3, 2);
+  const std::vector<uint32_t> want = {s.lid(3, 3, 4)};
+  const std::vector<int64_t> want_pos = {s.P.dom.pos(3, 3, 4)};
+  std::vector<uint32_t> wd;
+  S.cur = 0xFFFE;  // the second search wraps
+  for (int i = 0; i < 3; ++i) {
+    own_bfs(s.P, S, src, s.P.dom.pos(3, 3, 2), 100, want, want_pos, wd);
+    EXPECT_EQ(wd, (std::vector<uint32_t>{4}));  // stale stamps of the search before never count
+  }
+  EXPECT_EQ(S.stamp_resets, 1);
+  EXPECT_EQ(S.cur, 2);  // 0xFFFF, wrap to 1, 2
 }
 
 TEST(GeodesicPhases, PivotSearchKeepsDistancesInOrder) {
