@@ -245,9 +245,15 @@ private:
 }  // namespace
 
 GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
-                                       const GridCellThinningOptions& o) {
+                                       const GridCellThinningOptions& o, const GridCells* locked_cells_in) {
   if (o.end_point_length < 0) throw InputError("end_point_length: must be >= 0, got " + std::to_string(o.end_point_length));
   if (locked && locked->dims() != mask.dims()) throw InputError("locked: dims differ from the mask's");
+  if (locked_cells_in && locked_cells_in->grid().dims != mask.dims()) {
+    const Dims d = locked_cells_in->grid().dims;
+    throw InputError("locked_cells: complex of " + std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" +
+                     std::to_string(d[2]) + " voxels differs from the mask's " + std::to_string(mask.nx()) + "x" +
+                     std::to_string(mask.ny()) + "x" + std::to_string(mask.nz()));
+  }
   GridCellThinningResult r;
   auto& st = r.stats;
   const VolumeF32 w = voxel_weights(mask, priority);
@@ -257,7 +263,14 @@ GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& p
   o.interrupter.check(0.05);
   GridCells locked_cells;
   if (locked) locked_cells = GridCells::from_mask(*locked, o.threads);
-  Thinner th(w, locked ? &locked_cells : nullptr, r.skeleton, o.end_point_length);
+  if (locked_cells_in) {
+    if (!locked) locked_cells = GridCells(mask.grid());
+    auto& lb = locked_cells.bytes_data();
+    const auto& ib = locked_cells_in->bytes_data();
+    for (size_t i = 0; i < lb.size(); ++i) lb[i] = static_cast<uint8_t>(lb[i] | ib[i]);
+  }
+  const bool any_locked = locked || locked_cells_in;
+  Thinner th(w, any_locked ? &locked_cells : nullptr, r.skeleton, o.end_point_length);
   // Line 2-9: every 2-cell incident with a background 3-cell (or the outside) is queued, raster order.
   // Raster order of the Khalimsky cells (kz, ky, kx ascending): kz = 2l + c, ky = 2j + b, kx = 2i + a; only
   // lattice bytes holding a 2-cell are looked at.
@@ -282,12 +295,12 @@ GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& p
   th.run(o.threads, o.interrupter, st);
   st.cells_after = r.skeleton.counts();
   st.kept_end_points = th.count_kept_end_points();
-  if (locked) {
+  if (any_locked) {
     const auto& a = r.skeleton.bytes_data();
     const auto& b = locked_cells.bytes_data();
     for (size_t i = 0; i < a.size(); ++i) st.locked_cells += __builtin_popcount(static_cast<unsigned>(a[i] & b[i]));
   }
-  st.bytes = th.working_bytes() + (locked ? locked_cells.bytes() : 0);
+  st.bytes = th.working_bytes() + (any_locked ? locked_cells.bytes() : 0);
   o.interrupter.check(1.0);
   return r;
 }

@@ -20,6 +20,7 @@ public:
         .input<AnyVolume>("priority",
                           "removal order, same dims as mask: lower values are removed first (usually a distance transform)")
         .optional_input<VolumeU8>("locked", "voxels (> 0) whose closed cubes (all their cells) are never removed")
+        .optional_input<GridCells>("locked_cells", "cells never removed, same voxel dims as mask (e.g. geodesic.plate_cells: a homotopic plate or mixed skeleton, thesis §2.3.3)")
         .output<GridCells>("skeleton", "the grid cell skeleton: a sub-complex of the object's grid cell complex")
         .output<Table>("table", "one row: voxels, cells per dimension before and after, tests, removed pairs, kept end points")
         .param("end_point_length", &GridCellThinningOptions::end_point_length,
@@ -47,6 +48,11 @@ point; its importance is the number of 0-cells along its (0,1)-cell path that ar
 (each after removing the pairs before it); with end_point_length l > 0 an end point of importance > l
 is kept. With l = 0 a tree retracts to one 0-cell.
 
+With `locked_cells` (e.g. the geodesic plate skeleton Y_t of geodesic.plate_cells) those cells are kept
+as well: the result is Y_t (within the object) plus what the object's homotopy needs - the plate
+skeleton of fig. 4.5 made homotopic, or with rods the mixed skeleton of fig. 4.7 (thesis §2.3.3: "its
+elements are locked during a subsequent thinning step").
+
 The result contains no 3-cell unless locked: one-dimensional parts are 0- and 1-cells, closed surfaces
 around cavities stay as 2-cells. Configurations that lock voxel thinning (figs. 2.21 and 2.23: two
 rings meeting at a junction, towers enclosing tunnels) retract. Results are deterministic and
@@ -62,7 +68,9 @@ at 256³, against 1.7-3 for thinning.doht (bench/RESULTS.md); the inputs are rea
     auto mask = ctx.input<VolumeU8>("mask");
     DataPtr priority = ctx.input_data("priority");
     auto locked = ctx.optional_input<VolumeU8>("locked");
-    GridCellThinningResult r = thin_grid_cells(*mask, *priority, locked.get(), ctx.options<GridCellThinningOptions>());
+    auto locked_cells = ctx.optional_input<GridCells>("locked_cells");
+    GridCellThinningResult r =
+        thin_grid_cells(*mask, *priority, locked.get(), ctx.options<GridCellThinningOptions>(), locked_cells.get());
     const auto& s = r.stats;
     if (s.object_voxels == 0) ctx.warn("the mask is empty: the skeleton is empty");
     Table t;
