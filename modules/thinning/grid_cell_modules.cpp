@@ -60,8 +60,8 @@ identical for any thread count.
 
 Memory: the skeleton (grid cells: 1 byte per voxel corner, (X+1)(Y+1)(Z+1) bytes, eight cells per
 byte), the queued flags (1 byte per voxel corner), the voxel weights (float, 4 bytes per voxel), 8 bytes
-per queued cell (typically the boundary layer), and with `locked` the locked cells (1 byte per voxel
-corner): 6 bytes per voxel plus the queue - measured 9 (rods) to 14 (plates) bytes per voxel in all
+per queued cell (typically the boundary layer), and with `locked` or `locked_cells` the locked cells
+(1 byte per voxel corner): 6 bytes per voxel plus the queue - measured 9 (rods) to 14 (plates) bytes per voxel in all
 at 256³, against 1.7-3 for thinning.doht (bench/RESULTS.md); the inputs are read only.)");
   }
   void run(RunContext& ctx) override {
