@@ -5,8 +5,9 @@
 // The object's grid cell complex X(P) (skel::GridCells) is shrunk by removing simple pairs of cells
 // {c^d, c^(d+1)}: c^d is incident with c^(d+1) and with no other cell of the complex (Proposition 1),
 // so what remains is a sub-complex and a deformation retract. Components, cavities, tunnels and the
-// Euler characteristic are kept exactly; configurations that lock thinning in the grid point model
-// (figs. 2.21, 2.23) retract.
+// Euler characteristic are kept exactly; the junction that locks thinning in the grid point model
+// (fig. 2.21) retracts to one 0-cell; the towers of fig. 2.23 end as the 2-D Bing's house, which has no
+// simple pair (contractible, not collapsible).
 #include <cstdint>
 
 #include "skel/data.hpp"

@@ -54,9 +54,13 @@ skeleton of fig. 4.5 made homotopic, or with rods the mixed skeleton of fig. 4.7
 elements are locked during a subsequent thinning step").
 
 The result contains no 3-cell unless locked: one-dimensional parts are 0- and 1-cells, closed surfaces
-around cavities stay as 2-cells. Configurations that lock voxel thinning (figs. 2.21 and 2.23: two
-rings meeting at a junction, towers enclosing tunnels) retract. Results are deterministic and
-identical for any thread count.
+around cavities stay as 2-cells. The junction of fig. 2.21 (two rings meeting), which leaves a
+cluster of voxels in voxel thinning, retracts to one 0-cell of degree 4. The towers of fig. 2.23 (a
+voxel Bing's house) do not retract to a point: removing cells in distance order leaves the medial
+surface, the two-dimensional Bing's house, in which every 1-cell bounds two or three 2-cells - no cell
+has exactly one coface, so no simple pair exists (it is contractible but not collapsible). A collapse
+of the object's complex to a point would have to leave the medial surface before reaching it, which no
+removal order by distance does. Results are deterministic and identical for any thread count.
 
 Memory: the skeleton (grid cells: 1 byte per voxel corner, (X+1)(Y+1)(Z+1) bytes, eight cells per
 byte), the queued flags (1 byte per voxel corner), the voxel weights (float, 4 bytes per voxel), 8 bytes
