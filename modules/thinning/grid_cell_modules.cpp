@@ -63,10 +63,13 @@ of the object's complex to a point would have to leave the medial surface before
 removal order by distance does. Results are deterministic and identical for any thread count.
 
 Memory: the skeleton (grid cells: 1 byte per voxel corner, (X+1)(Y+1)(Z+1) bytes, eight cells per
-byte), the queued flags (1 byte per voxel corner), the voxel weights (float, 4 bytes per voxel), 8 bytes
-per queued cell (typically the boundary layer), and with `locked` or `locked_cells` the locked cells
-(1 byte per voxel corner): 6 bytes per voxel plus the queue - measured 9 (rods) to 14 (plates) bytes per voxel in all
-at 256³, against 1.7-3 for thinning.doht (bench/RESULTS.md); the inputs are read only.)");
+byte), the queued flags (1 byte per voxel corner), 4 bytes per queued cell (8 where the Khalimsky box
+has 2^32 cells or more, beyond about 810³ voxels) - on thin structures nearly every cell of the object
+is queued at some time, up to about one per voxel at once on plates - the buckets (about 72 bytes
+each), and with `locked` or `locked_cells` the locked cells (1 byte per voxel corner): 2 bytes per voxel
+plus the queue - measured 3.6 (rods) and 5.9 (plates) bytes per voxel in all at 256³, against 1.7-3
+for thinning.doht (bench/RESULTS.md). Priorities are read from the input (no copy); the inputs are
+read only.)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
