@@ -5,5 +5,6 @@ namespace skel::geodesic::names {
 
 inline constexpr const char* boundary_distance = "geodesic.boundary_distance";
 inline constexpr const char* thin_surface = "geodesic.thin_surface";
+inline constexpr const char* plate_cells = "geodesic.plate_cells";
 
 }  // namespace skel::geodesic::names

@@ -3,7 +3,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
+#include <limits>
+#include <type_traits>
+#include <bit>
+#include <functional>
+#include <queue>
+#include <unordered_map>
 #include <numeric>
 #include <vector>
 
@@ -59,39 +64,49 @@ int end_point_importance(const GridCells& c, int64_t kx, int64_t ky, int64_t kz,
 
 namespace {
 
-// Voxel weights for cell priorities: priority - min + 1 at object voxels (>= 1), 0 at background.
-VolumeF32 voxel_weights(const VolumeU8& mask, const DataObject& priority) {
-  return visit_volume(priority, "priority", [&](const auto& pr) {
-    if (pr.dims() != mask.dims())
-      throw InputError("priority: dims " + std::to_string(pr.nx()) + "x" + std::to_string(pr.ny()) + "x" +
-                       std::to_string(pr.nz()) + " differ from the mask's " + std::to_string(mask.nx()) + "x" +
-                       std::to_string(mask.ny()) + "x" + std::to_string(mask.nz()));
-    double lo = INFINITY;
-    for (int64_t i = 0; i < mask.size(); ++i)
-      if (mask[i]) {
-        const auto p = static_cast<double>(pr[i]);
-        if (std::isnan(p)) throw InputError("priority: NaN at an object voxel (index " + std::to_string(i) + ")");
-        lo = std::min(lo, p);
-      }
-    VolumeF32 w(mask.grid(), 0.0f);
-    for (int64_t i = 0; i < mask.size(); ++i)
-      if (mask[i]) w[i] = static_cast<float>(static_cast<double>(pr[i]) - lo + 1.0);
-    return w;
-  });
-}
-
-// Bucket of the queue: cell priority, then the dimension of the (lower) cell.
-struct BucketKey {
-  float priority;
-  int dim;
-  bool operator<(const BucketKey& o) const { return priority < o.priority || (priority == o.priority && dim < o.dim); }
+// Voxel weights for cell priorities, read from the priority volume when needed (no copy): priority -
+// min + 1 at object voxels (>= 1), 0 at background.
+template <class PV>
+struct Weights {
+  const VolumeU8& mask;
+  const PV& pr;
+  double lo;
+  [[nodiscard]] float operator[](int64_t i) const {
+    return mask[i] ? static_cast<float>(static_cast<double>(pr[i]) - lo + 1.0) : 0.0f;
+  }
+  [[nodiscard]] const Dims& dims() const { return mask.dims(); }
 };
 
+// The lowest priority at an object voxel; InputError on other dims or a NaN at an object voxel.
+template <class PV>
+double lowest_priority(const VolumeU8& mask, const PV& pr) {
+  if (pr.dims() != mask.dims())
+    throw InputError("priority: dims " + std::to_string(pr.nx()) + "x" + std::to_string(pr.ny()) + "x" +
+                     std::to_string(pr.nz()) + " differ from the mask's " + std::to_string(mask.nx()) + "x" +
+                     std::to_string(mask.ny()) + "x" + std::to_string(mask.nz()));
+  double lo = INFINITY;
+  for (int64_t i = 0; i < mask.size(); ++i)
+    if (mask[i]) {
+      const auto p = static_cast<double>(pr[i]);
+      if (std::isnan(p)) throw InputError("priority: NaN at an object voxel (index " + std::to_string(i) + ")");
+      lo = std::min(lo, p);
+    }
+  return lo;
+}
+
+// Bucket of the queue: cell priority, then the dimension of the (lower) cell, as one integer with the
+// same order: priorities are >= 0 (or +inf), whose float bit patterns ascend with their values.
+inline uint64_t bucket_key(float priority, int dim) {
+  return (static_cast<uint64_t>(std::bit_cast<uint32_t>(priority)) << 2) | static_cast<uint64_t>(dim);
+}
+
+// Code: a cell's linear Khalimsky index, 32-bit where the Khalimsky box allows (queue memory).
+template <class PV, class Code>
 class Thinner {
 public:
-  Thinner(const VolumeF32& weights, const GridCells* locked, GridCells& cells, int l)
-      : w_(weights), locked_(locked), c_(cells), l_(l), kd_(cells.cell_dims()),
-        queued_(static_cast<size_t>(cells.lattice_size()), 0) {}
+  Thinner(const Weights<PV>& weights, const GridCells* locked, GridCells& cells, int l)
+      : w_(weights), locked_(locked), c_(cells), l_(l), kd_(cells.cell_dims()), lx_(cells.lattice_dims()[0]),
+        ly_(cells.lattice_dims()[1]), queued_(static_cast<size_t>(cells.lattice_size()), 0) {}
 
   // Priority of cell k: the voxel priority interpolated at the cell's centre - the mean over the 2^(3-d)
   // voxels sharing it (the cell sits at their mean position, thesis §2.3.1), background voxels counting
@@ -108,16 +123,24 @@ public:
       lo[a] = std::max<int64_t>(lo[a], 0);
       hi[a] = std::min<int64_t>(hi[a], w_.dims()[static_cast<size_t>(a)] - 1);
     }
+    const int64_t nx = w_.dims()[0], nxy = nx * w_.dims()[1];
     double sum = 0;
     for (int64_t z = lo[2]; z <= hi[2]; ++z)
       for (int64_t y = lo[1]; y <= hi[1]; ++y)
-        for (int64_t x = lo[0]; x <= hi[0]; ++x) sum += w_[w_.grid().index(x, y, z)];
+        for (int64_t x = lo[0]; x <= hi[0]; ++x) sum += w_[x + nx * y + nxy * z];
     return static_cast<float>(sum / n);
   }
-  [[nodiscard]] uint64_t code(int64_t kx, int64_t ky, int64_t kz) const {
-    return static_cast<uint64_t>(kx + kd_[0] * (ky + kd_[1] * kz));
+  // GridCells::has, inlined here (the hot path: compilers do not always inline it into this class).
+  [[gnu::always_inline]] inline bool has(const GridCells& g, int64_t kx, int64_t ky, int64_t kz) const {
+    if (static_cast<uint64_t>(kx) >= static_cast<uint64_t>(kd_[0]) || static_cast<uint64_t>(ky) >= static_cast<uint64_t>(kd_[1]) ||
+        static_cast<uint64_t>(kz) >= static_cast<uint64_t>(kd_[2]))
+      return false;
+    return (g.bytes_data()[static_cast<size_t>((kx >> 1) + lx_ * ((ky >> 1) + ly_ * (kz >> 1)))] >> GridCells::bit(kx, ky, kz)) & 1;
   }
-  [[nodiscard]] std::array<int64_t, 3> decode(uint64_t c) const {
+  [[nodiscard]] Code code(int64_t kx, int64_t ky, int64_t kz) const {
+    return static_cast<Code>(kx + kd_[0] * (ky + kd_[1] * kz));
+  }
+  [[nodiscard]] std::array<int64_t, 3> decode(Code c) const {
     const auto v = static_cast<int64_t>(c);
     return {v % kd_[0], (v / kd_[0]) % kd_[1], v / (kd_[0] * kd_[1])};
   }
@@ -131,7 +154,17 @@ public:
   }
   void push(int64_t kx, int64_t ky, int64_t kz) {
     const int dim = static_cast<int>((kx & 1) + (ky & 1) + (kz & 1));
-    q_[BucketKey{priority(kx, ky, kz), dim}].push_back(code(kx, ky, kz));
+    const uint64_t key = bucket_key(priority(kx, ky, kz), dim);
+    auto [it, fresh] = q_.try_emplace(key);
+    if (fresh) {
+      heap_.push(key);
+      if (!spare_.empty()) {
+        it->second = std::move(spare_.back());
+        spare_.pop_back();
+      }
+      peak_buckets_ = std::max(peak_buckets_, static_cast<int64_t>(q_.size()));
+    }
+    it->second.push_back(code(kx, ky, kz));
     set_queued(kx, ky, kz, true);
     peak_ = std::max(peak_, ++size_);
   }
@@ -139,21 +172,21 @@ public:
   // The coface u of a deletable pair {k, u}, or false: k is present, has exactly one coface, neither is
   // locked, and a 0-cell is not a kept end point.
   bool deletable(const std::array<int64_t, 3>& k, std::array<int64_t, 3>& u) const {
-    if (!c_.has(k[0], k[1], k[2])) return false;
+    if (!has(c_, k[0], k[1], k[2])) return false;
     int n = 0;
     for (int a = 0; a < 3 && n < 2; ++a) {
       if (k[static_cast<size_t>(a)] & 1) continue;
       for (int s = -1; s <= 1; s += 2) {
         std::array<int64_t, 3> e = k;
         e[static_cast<size_t>(a)] += s;
-        if (c_.has(e[0], e[1], e[2])) {
+        if (has(c_, e[0], e[1], e[2])) {
           u = e;
           ++n;
         }
       }
     }
     if (n != 1) return false;
-    if (locked_ && (locked_->has(k[0], k[1], k[2]) || locked_->has(u[0], u[1], u[2]))) return false;
+    if (locked_ && (has(*locked_, k[0], k[1], k[2]) || has(*locked_, u[0], u[1], u[2]))) return false;
     return l_ == 0 || ((k[0] | k[1] | k[2]) & 1) || end_point_importance(c_, k[0], k[1], k[2], l_ + 1) <= l_;
   }
 
@@ -165,7 +198,7 @@ public:
         for (int64_t dx = -r[0]; dx <= r[0]; ++dx) {
           if (!dx && !dy && !dz) continue;
           const int64_t x = k[0] + dx, y = k[1] + dy, z = k[2] + dz;
-          if (c_.has(x, y, z) && !is_queued(x, y, z)) push(x, y, z);
+          if (has(c_, x, y, z) && !is_queued(x, y, z)) push(x, y, z);
         }
   }
 
@@ -173,14 +206,16 @@ public:
     const int64_t total = st.cells_before[3] > 0 ? st.cells_before[3] : 1;
     int64_t last_report = 0;
     std::vector<uint8_t> cand;
-    while (!q_.empty()) {
-      auto it = q_.begin();
-      std::vector<uint64_t> t = std::move(it->second);
+    std::vector<Code> t;
+    while (!heap_.empty()) {
+      auto it = q_.find(heap_.top());
+      heap_.pop();
+      t.swap(it->second);
       q_.erase(it);
       ++st.buckets;
       size_ -= static_cast<int64_t>(t.size());
       const auto nt = static_cast<int64_t>(t.size());
-      for (uint64_t code : t) {
+      for (Code code : t) {
         const auto k = decode(code);
         set_queued(k[0], k[1], k[2], false);
       }
@@ -211,6 +246,10 @@ public:
         // Every voxel's closed cube yields at most 4 pairs on average (8 cells per voxel).
         intr.check(std::min(0.99, 0.1 + 0.9 * static_cast<double>(st.removed_pairs) / (4.0 * static_cast<double>(total))));
       }
+      // Small bucket vectors are reused for new buckets (no allocation churn); large ones are freed.
+      t.clear();
+      if (t.capacity() <= 1024 && spare_.size() < 256) spare_.push_back(std::move(t));
+      t = std::vector<Code>();
     }
   }
 
@@ -227,42 +266,37 @@ public:
     return n;
   }
 
+  // Queued flags, the queued codes and the buckets (hash node, key in the heap, vector header).
   [[nodiscard]] uint64_t working_bytes() const {
-    return queued_.size() + static_cast<uint64_t>(peak_) * 8 + static_cast<uint64_t>(w_.size()) * 4;
+    uint64_t spare = 0;
+    for (const auto& v : spare_) spare += v.capacity() * sizeof(Code);
+    return queued_.size() + static_cast<uint64_t>(peak_) * sizeof(Code) + static_cast<uint64_t>(peak_buckets_) * 72 + spare;
   }
 
 private:
-  const VolumeF32& w_;
+  Weights<PV> w_;
   const GridCells* locked_;
   GridCells& c_;
   int l_;
   Dims kd_;
+  int64_t lx_, ly_;
   std::vector<uint8_t> queued_;
-  std::map<BucketKey, std::vector<uint64_t>> q_;
-  int64_t size_ = 0, peak_ = 0;
+  std::unordered_map<uint64_t, std::vector<Code>> q_;  // bucket key -> cells in push order
+  std::priority_queue<uint64_t, std::vector<uint64_t>, std::greater<>> heap_;  // the keys of q_
+  std::vector<std::vector<Code>> spare_;
+  int64_t size_ = 0, peak_ = 0, peak_buckets_ = 0;
 };
 
-}  // namespace
-
-GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
-                                       const GridCellThinningOptions& o) {
-  if (o.end_point_length < 0) throw InputError("end_point_length: must be >= 0, got " + std::to_string(o.end_point_length));
-  if (locked && locked->dims() != mask.dims()) throw InputError("locked: dims differ from the mask's");
-  GridCellThinningResult r;
-  auto& st = r.stats;
-  const VolumeF32 w = voxel_weights(mask, priority);
-  for (int64_t i = 0; i < mask.size(); ++i) st.object_voxels += mask[i] ? 1 : 0;
-  r.skeleton = GridCells::from_mask(mask, o.threads);
-  st.cells_before = r.skeleton.counts();
-  o.interrupter.check(0.05);
-  GridCells locked_cells;
-  if (locked) locked_cells = GridCells::from_mask(*locked, o.threads);
-  Thinner th(w, locked ? &locked_cells : nullptr, r.skeleton, o.end_point_length);
+// Lines 2-9 of Algorithm 3 and the thinning loop, for one priority type and code width.
+template <class PV, class Code>
+void thin_with(const Weights<PV>& w, const GridCells* locked, GridCells& skel, const GridCellThinningOptions& o,
+               GridCellThinningStatistics& st) {
+  Thinner<PV, Code> th(w, locked, skel, o.end_point_length);
   // Line 2-9: every 2-cell incident with a background 3-cell (or the outside) is queued, raster order.
   // Raster order of the Khalimsky cells (kz, ky, kx ascending): kz = 2l + c, ky = 2j + b, kx = 2i + a; only
   // lattice bytes holding a 2-cell are looked at.
-  const Dims ld = r.skeleton.lattice_dims();
-  const auto& bytes = r.skeleton.bytes_data();
+  const Dims ld = skel.lattice_dims();
+  const auto& bytes = skel.bytes_data();
   for (int64_t l = 0; l < ld[2]; ++l)
     for (int c = 0; c < 2; ++c)
       for (int64_t j = 0; j < ld[1]; ++j)
@@ -274,20 +308,60 @@ GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& p
               const int bit = a | (b << 1) | (c << 2);
               if (GridCells::bit_dimension(bit) != 2 || !((row[i] >> bit) & 1)) continue;
               const int64_t kx = 2 * i + a, ky = 2 * j + b, kz = 2 * l + c;
-              if (coface_count(r.skeleton, kx, ky, kz) < 2) th.push(kx, ky, kz);
+              if (coface_count(skel, kx, ky, kz) < 2) th.push(kx, ky, kz);
             }
           }
         }
   o.interrupter.check(0.1);
   th.run(o.threads, o.interrupter, st);
-  st.cells_after = r.skeleton.counts();
   st.kept_end_points = th.count_kept_end_points();
-  if (locked) {
+  st.bytes = th.working_bytes();
+}
+
+}  // namespace
+
+GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
+                                       const GridCellThinningOptions& o, const GridCells* locked_cells_in) {
+  if (o.end_point_length < 0) throw InputError("end_point_length: must be >= 0, got " + std::to_string(o.end_point_length));
+  if (locked && locked->dims() != mask.dims()) throw InputError("locked: dims differ from the mask's");
+  if (locked_cells_in && locked_cells_in->grid().dims != mask.dims()) {
+    const Dims d = locked_cells_in->grid().dims;
+    throw InputError("locked_cells: complex of " + std::to_string(d[0]) + "x" + std::to_string(d[1]) + "x" +
+                     std::to_string(d[2]) + " voxels differs from the mask's " + std::to_string(mask.nx()) + "x" +
+                     std::to_string(mask.ny()) + "x" + std::to_string(mask.nz()));
+  }
+  GridCellThinningResult r;
+  auto& st = r.stats;
+  const double lo = visit_volume(priority, "priority", [&](const auto& pr) { return lowest_priority(mask, pr); });
+  for (int64_t i = 0; i < mask.size(); ++i) st.object_voxels += mask[i] ? 1 : 0;
+  r.skeleton = GridCells::from_mask(mask, o.threads);
+  st.cells_before = r.skeleton.counts();
+  o.interrupter.check(0.05);
+  GridCells locked_cells;
+  if (locked) locked_cells = GridCells::from_mask(*locked, o.threads);
+  if (locked_cells_in) {
+    if (!locked) locked_cells = GridCells(mask.grid());
+    auto& lb = locked_cells.bytes_data();
+    const auto& ib = locked_cells_in->bytes_data();
+    for (size_t i = 0; i < lb.size(); ++i) lb[i] = static_cast<uint8_t>(lb[i] | ib[i]);
+  }
+  const bool any_locked = locked || locked_cells_in;
+  const bool narrow = static_cast<uint64_t>(r.skeleton.cell_dims()[0]) * static_cast<uint64_t>(r.skeleton.cell_dims()[1]) *
+                          static_cast<uint64_t>(r.skeleton.cell_dims()[2]) <= std::numeric_limits<uint32_t>::max();
+  visit_volume(priority, "priority", [&](const auto& pr) {
+    using PV = std::decay_t<decltype(pr)>;
+    const Weights<PV> w{mask, pr, lo};
+    const GridCells* lk = any_locked ? &locked_cells : nullptr;
+    if (narrow) thin_with<PV, uint32_t>(w, lk, r.skeleton, o, st);
+    else thin_with<PV, uint64_t>(w, lk, r.skeleton, o, st);
+  });
+  st.cells_after = r.skeleton.counts();
+  if (any_locked) {
     const auto& a = r.skeleton.bytes_data();
     const auto& b = locked_cells.bytes_data();
     for (size_t i = 0; i < a.size(); ++i) st.locked_cells += __builtin_popcount(static_cast<unsigned>(a[i] & b[i]));
   }
-  st.bytes = th.working_bytes() + (locked ? locked_cells.bytes() : 0);
+  st.bytes += any_locked ? locked_cells.bytes() : 0;
   o.interrupter.check(1.0);
   return r;
 }

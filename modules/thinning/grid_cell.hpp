@@ -5,8 +5,9 @@
 // The object's grid cell complex X(P) (skel::GridCells) is shrunk by removing simple pairs of cells
 // {c^d, c^(d+1)}: c^d is incident with c^(d+1) and with no other cell of the complex (Proposition 1),
 // so what remains is a sub-complex and a deformation retract. Components, cavities, tunnels and the
-// Euler characteristic are kept exactly; configurations that lock thinning in the grid point model
-// (figs. 2.21, 2.23) retract.
+// Euler characteristic are kept exactly; the junction that locks thinning in the grid point model
+// (fig. 2.21) retracts to one 0-cell; the towers of fig. 2.23 end as the 2-D Bing's house, which has no
+// simple pair (contractible, not collapsible).
 #include <cstdint>
 
 #include "skel/data.hpp"
@@ -34,7 +35,7 @@ struct GridCellThinningStatistics {
   int64_t tests = 0;            // deletability tests (parallel checks and sequential rechecks)
   int64_t removed_pairs = 0;
   int64_t kept_end_points = 0;  // 0-cells of the skeleton kept as end points (free pair refused)
-  int64_t locked_cells = 0;     // cells of the skeleton in the closure of a locked voxel
+  int64_t locked_cells = 0;     // cells of the skeleton that are locked (closure of a locked voxel or in locked_cells)
   uint64_t bytes = 0;           // peak working memory (without input and output)
 };
 
@@ -46,9 +47,11 @@ struct GridCellThinningResult {
 // Thins the grid cell complex of `mask` (non-zero = object). `priority`: any volume on the same dims
 // (lower = removed first); a cell's priority is the mean over the 2^(3-d) voxels sharing it, background
 // voxels counting as one below the lowest object priority. `locked` (optional, same dims): the cells of the closed cubes of its non-zero voxels
-// are never removed. Throws InputError on mismatched dims or a NaN priority, Cancelled when asked.
+// are never removed. `locked_cells` (optional, same voxel dims): its cells are never removed (e.g. the
+// geodesic plate skeleton Y_t, geodesic/cells.hpp; cells outside the object are ignored). Throws
+// InputError on mismatched dims or a NaN priority, Cancelled when asked.
 GridCellThinningResult thin_grid_cells(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked = nullptr,
-                                       const GridCellThinningOptions& options = {});
+                                       const GridCellThinningOptions& options = {}, const GridCells* locked_cells = nullptr);
 
 // Topology of a cell complex: components (cells joined by incidence), cavities (bounded components of
 // the complement in R³), Euler characteristic (c0 - c1 + c2 - c3), tunnels = components + cavities -

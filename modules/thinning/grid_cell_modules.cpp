@@ -20,6 +20,7 @@ public:
         .input<AnyVolume>("priority",
                           "removal order, same dims as mask: lower values are removed first (usually a distance transform)")
         .optional_input<VolumeU8>("locked", "voxels (> 0) whose closed cubes (all their cells) are never removed")
+        .optional_input<GridCells>("locked_cells", "cells never removed, same voxel dims as mask (e.g. geodesic.plate_cells: a homotopic plate or mixed skeleton, thesis §2.3.3)")
         .output<GridCells>("skeleton", "the grid cell skeleton: a sub-complex of the object's grid cell complex")
         .output<Table>("table", "one row: voxels, cells per dimension before and after, tests, removed pairs, kept end points")
         .param("end_point_length", &GridCellThinningOptions::end_point_length,
@@ -47,22 +48,38 @@ point; its importance is the number of 0-cells along its (0,1)-cell path that ar
 (each after removing the pairs before it); with end_point_length l > 0 an end point of importance > l
 is kept. With l = 0 a tree retracts to one 0-cell.
 
+With `locked_cells` (e.g. the geodesic plate skeleton Y_t of geodesic.plate_cells) those cells are kept
+as well: the result is Y_t (within the object) plus what the object's homotopy needs - the plate
+skeleton of fig. 4.5 made homotopic, or with rods the mixed skeleton of fig. 4.7 (thesis §2.3.3: "its
+elements are locked during a subsequent thinning step").
+
 The result contains no 3-cell unless locked: one-dimensional parts are 0- and 1-cells, closed surfaces
-around cavities stay as 2-cells. Configurations that lock voxel thinning (figs. 2.21 and 2.23: two
-rings meeting at a junction, towers enclosing tunnels) retract. Results are deterministic and
-identical for any thread count.
+around cavities stay as 2-cells. The junction of fig. 2.21 (two rings meeting), which leaves a
+cluster of voxels in voxel thinning, retracts to one 0-cell of degree 4. The towers of fig. 2.23 (a
+voxel Bing's house) do not retract to a point: removing cells in distance order leaves the medial
+surface, the two-dimensional Bing's house, in which every 1-cell bounds two or three 2-cells - no cell
+has exactly one coface, so no simple pair exists (it is contractible but not collapsible). A collapse
+of the object's complex to a point would have to break out of the medial surface before reaching it
+(e.g. collapse a wall from an edge while the voxels beside it still exist); removal in distance order
+reaches the medial surface first (tested with walls 1 and 2 voxels thick: one component, no free
+face left, no 3-cell). Results are deterministic and identical for any thread count.
 
 Memory: the skeleton (grid cells: 1 byte per voxel corner, (X+1)(Y+1)(Z+1) bytes, eight cells per
-byte), the queued flags (1 byte per voxel corner), the voxel weights (float, 4 bytes per voxel), 8 bytes
-per queued cell (typically the boundary layer), and with `locked` the locked cells (1 byte per voxel
-corner): 6 bytes per voxel plus the queue - measured 9 (rods) to 14 (plates) bytes per voxel in all
-at 256³, against 1.7-3 for thinning.doht (bench/RESULTS.md); the inputs are read only.)");
+byte), the queued flags (1 byte per voxel corner), 4 bytes per queued cell (8 where the Khalimsky box
+has 2^32 cells or more, beyond about 810³ voxels) - on thin structures nearly every cell of the object
+is queued at some time, up to about one per voxel at once on plates - the buckets (about 72 bytes
+each), and with `locked` or `locked_cells` the locked cells (1 byte per voxel corner): 2 bytes per voxel
+plus the queue - measured 3.6 (rods) and 5.9 (plates) bytes per voxel in all at 256³, against 1.7-3
+for thinning.doht (bench/RESULTS.md). Priorities are read from the input (no copy); the inputs are
+read only.)");
   }
   void run(RunContext& ctx) override {
     auto mask = ctx.input<VolumeU8>("mask");
     DataPtr priority = ctx.input_data("priority");
     auto locked = ctx.optional_input<VolumeU8>("locked");
-    GridCellThinningResult r = thin_grid_cells(*mask, *priority, locked.get(), ctx.options<GridCellThinningOptions>());
+    auto locked_cells = ctx.optional_input<GridCells>("locked_cells");
+    GridCellThinningResult r =
+        thin_grid_cells(*mask, *priority, locked.get(), ctx.options<GridCellThinningOptions>(), locked_cells.get());
     const auto& s = r.stats;
     if (s.object_voxels == 0) ctx.warn("the mask is empty: the skeleton is empty");
     Table t;

@@ -196,6 +196,19 @@ TEST(GridCellThinning, DeterministicForAnyThreadCount) {
   EXPECT_TRUE(a == b);
 }
 
+// Working memory: the queued flags (1 byte per voxel corner), 4 bytes per queued cell (32-bit codes
+// while the Khalimsky box has < 2^32 cells) and the buckets; priorities are read from the input, not
+// copied (was 4 bytes per voxel of float weights plus 8 bytes per queued cell: > 5 bytes per voxel).
+// On rods (random blobs are all boundary: nearly every cell is queued at once, 16 bytes per voxel).
+TEST(GridCellThinning, WorkingMemoryBelowFourBytesPerVoxel) {
+  const VolumeU8 m = test::rods_clean();
+  const VolumeU32 d = test::chamfer345(m);
+  const auto r = thin_grid_cells(m, d, nullptr, gopts(4, 2));
+  EXPECT_GT(r.stats.removed_pairs, 10000);
+  EXPECT_GT(r.stats.bytes, static_cast<uint64_t>(m.size()));  // at least the queued flags
+  EXPECT_LT(static_cast<double>(r.stats.bytes) / static_cast<double>(m.size()), 4.0) << r.stats.bytes;
+}
+
 TEST(GridCellThinning, LockedVoxelsKeepTheirCells) {
   for (uint32_t seed = 0; seed < 8; ++seed) {
     const VolumeU8 m = test::random_blobs(16, seed + 100, 0.48, 1);
