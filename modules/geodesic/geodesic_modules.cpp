@@ -52,7 +52,18 @@ padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 + 3
 and 6 per boundary-layer voxel, for the searches 3 (b(p) as an offset) + 4 (bucket position) bytes per
 object voxel and 4 (bucket start; + 4 for L's components in full mode) per boundary-layer voxel, plus
 per worker thread 2 (stamp) + 1 (t + t/4 <= 254, else 2: pivot distances) bytes per boundary-layer
-voxel and the queues.)");
+voxel and the queues.
+
+Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
+with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the
+background, found in the block and the block read again with a larger margin when needed; blocks
+whose margin does not fit the budget are halved), and only its interior is kept. Then every nearest
+point and every boundary path shorter than t lies in the block, and every path through the block's
+artificial outside is at least t long: importance and surface_skeleton equal the in-memory result.
+The table sums the statistics over the blocks with their margins. Memory: 28 bytes per voxel of the
+largest block with margin. Full mode has no finite margin: under a budget it runs in memory when the
+mask fits the budget at 28 bytes per voxel and is refused otherwise.)")
+        .blockwise(16, kBlockBytesPerVoxel);
   }
   void run(RunContext& ctx) override {
     const Options options = ctx.options<Options>();
