@@ -167,7 +167,9 @@ TEST(Euclidean, EqualsBruteForceOnRowsWiderThanTheColumnBlocks) {
       for (int64_t i = 0; i < m.size(); ++i) {
         expect_close(std::sqrt(ref.sq[static_cast<size_t>(i)]), d[i], "distance", i);
         expect_close(ref.sq[static_cast<size_t>(i)], d2[i], "squared", i);
-        if (spacing[0] == spacing[2]) EXPECT_EQ(ref.nearest[static_cast<size_t>(i)], ft[i]) << "trial " << trial;
+        if (spacing[0] == spacing[2]) {
+          EXPECT_EQ(ref.nearest[static_cast<size_t>(i)], ft[i]) << "trial " << trial;
+        }
       }
       SeededOptions so;
       so.threads = threads;
