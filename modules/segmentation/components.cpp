@@ -332,9 +332,77 @@ struct Provisional {
   }
 };
 
+// The pieces of one block: its runs united inside the block; piece[i] is the 0-based local id of
+// run i's piece, pieces numbered in the order of their first run (the smallest run id is the root,
+// so the numbering is the same for any thread count and when the block is read again).
+struct BlockRuns {
+  Runs runs;
+  std::vector<int64_t> piece;
+  int64_t pieces = 0;
+};
+BlockRuns block_runs(const VolumeU8& m, int conn, bool background, int threads) {
+  BlockRuns br;
+  br.runs = extract_runs(m, threads, background);
+  std::vector<int64_t> parent = union_runs(br.runs, m.ny(), m.nz(), conn, threads, Interrupter());
+  br.piece.resize(parent.size());
+  for (size_t i = 0; i < parent.size(); ++i) {
+    const auto p = static_cast<size_t>(parent[i]);
+    if (p == i) br.piece[i] = br.pieces++;
+    else br.piece[i] = br.piece[p];
+    parent[i] = parent[p];
+  }
+  return br;
+}
+
+// A run of piece voxels on one face of a block, in face coordinates: the face is a (u, v) plane (x
+// faces: u = y, v = z; y faces: u = x, v = z; z faces: u = x, v = y); voxels u0 <= u < u1 of face row
+// v belong to piece `id` (local, 1-based). A block keeps its six faces (x low, x high, y low, y high,
+// z low, z high), sorted by (v, u0): all that is needed to unite pieces across block borders, since
+// every voxel next to a block lies on a face of the neighbouring block.
+struct FaceRun {
+  int64_t v;
+  int32_t u0, u1;
+  uint64_t id;
+};
+using Faces = std::array<std::vector<FaceRun>, 6>;
+
+Faces block_faces(const BlockRuns& br, const Dims& size) {
+  Faces f;
+  const Runs& r = br.runs;
+  const int64_t sx = size[0], sy = size[1], sz = size[2];
+  for (int64_t row = 0; row < sy * sz; ++row) {
+    const int64_t y = row % sy, z = row / sy;
+    for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
+      const auto si = static_cast<size_t>(i);
+      const uint64_t id = static_cast<uint64_t>(br.piece[si]) + 1;
+      const int32_t a = r.x0[si], b = r.x1[si];
+      if (a == 0) f[0].push_back({z, static_cast<int32_t>(y), static_cast<int32_t>(y + 1), id});
+      if (b == sx) f[1].push_back({z, static_cast<int32_t>(y), static_cast<int32_t>(y + 1), id});
+      if (y == 0) f[2].push_back({z, a, b, id});
+      if (y == sy - 1) f[3].push_back({z, a, b, id});
+      if (z == 0) f[4].push_back({y, a, b, id});
+      if (z == sz - 1) f[5].push_back({y, a, b, id});
+    }
+  }
+  // Rows come in (z, y) order: x faces and y faces are sorted by (v = z, u) already; z faces by (v = y, u).
+  return f;
+}
+
+// Local id (1-based) of the piece at face point (u, v), 0 for none.
+uint64_t face_id(const std::vector<FaceRun>& face, int64_t u, int64_t v) {
+  auto it = std::upper_bound(face.begin(), face.end(), std::pair<int64_t, int64_t>{v, u},
+                             [](const std::pair<int64_t, int64_t>& p, const FaceRun& e) {
+                               return p.first < e.v || (p.first == e.v && p.second < e.u0);
+                             });
+  if (it == face.begin()) return 0;
+  --it;
+  return it->v == v && u < it->u1 ? it->id : 0;
+}
+
 struct BlockPieces {
   std::vector<ComponentInfo> info;
   std::vector<uint8_t> border;
+  Faces faces;
 };
 
 std::string pack_pieces(const std::map<int64_t, BlockPieces>& pieces) {
@@ -346,6 +414,11 @@ std::string pack_pieces(const std::map<int64_t, BlockPieces>& pieces) {
     put(&n, sizeof n);
     put(bp.info.data(), bp.info.size() * sizeof(ComponentInfo));
     put(bp.border.data(), bp.border.size());
+    for (const auto& f : bp.faces) {
+      const int64_t m = static_cast<int64_t>(f.size());
+      put(&m, sizeof m);
+      put(f.data(), f.size() * sizeof(FaceRun));
+    }
   }
   return s;
 }
@@ -366,69 +439,55 @@ void unpack_pieces(const std::string& s, std::map<int64_t, BlockPieces>& pieces)
     bp.border.resize(static_cast<size_t>(n));
     get(bp.info.data(), bp.info.size() * sizeof(ComponentInfo));
     get(bp.border.data(), bp.border.size());
+    for (auto& f : bp.faces) {
+      int64_t m = 0;
+      get(&m, sizeof m);
+      f.resize(static_cast<size_t>(m));
+      get(f.data(), f.size() * sizeof(FaceRun));
+    }
   }
 }
 
-Provisional provisional_components(const DataObject& mask, const ChunkedVolume& work, int conn, bool background,
+// Pass 1 over the blocks: the pieces of every block (statistics in global coordinates, whether they
+// touch a face of the array, and the block's six faces), held in memory — no volume is written.
+// Then, in memory, the pieces that touch across block faces, edges and corners (per connectivity)
+// are united. Pass 2 (the caller's) reads each block again and labels it from block_runs().
+Provisional provisional_components(const DataObject& mask, const Grid& g, int conn, bool background,
                                    const BlockLayout& layout, int threads, const std::function<void()>& block_done) {
-  const Grid& g = work.grid();
   const Dims n = layout.count();
   auto linear = [&](const Block& b) { return (b.index[2] * n[1] + b.index[1]) * n[0] + b.index[0]; };
-  // Every block here, or this rank's blocks when distributing (then a sync at the end).
-  auto each = [&](auto&& f) {
-    if (distributing()) {
-      for_each_owned_block(layout, Interrupter(), "components", [&](const Block& b) {
-        f(b);
-        block_done();
-      });
-      return;
-    }
-    for (int64_t bz = 0; bz < n[2]; ++bz)
-      for (int64_t by = 0; by < n[1]; ++by)
-        for (int64_t bx = 0; bx < n[0]; ++bx) {
-          f(layout.at(bx, by, bz));
-          block_done();
-        }
-  };
   std::map<int64_t, BlockPieces> pieces;
-  each([&](const Block& b) {
+  auto pass = [&](const Block& b) {
     const VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
-    const Runs r = extract_runs(m, threads, background);
-    std::vector<int64_t> parent = union_runs(r, b.size[1], b.size[2], conn, threads, Interrupter());
-    const auto nruns = static_cast<int64_t>(r.x0.size());
-    std::vector<int64_t> comp(static_cast<size_t>(nruns));
+    const BlockRuns br = block_runs(m, conn, background, threads);
+    const Runs& r = br.runs;
     BlockPieces& bp = pieces[linear(b)];
-    std::vector<ComponentInfo>& info = bp.info;
-    VolumeU64 w(m.grid(), 0);
+    bp.info.resize(static_cast<size_t>(br.pieces));
+    bp.border.assign(static_cast<size_t>(br.pieces), 0);
     for (int64_t row = 0; row < b.size[1] * b.size[2]; ++row) {
-      const int64_t y = row % b.size[1], z = row / b.size[1];
-      const int64_t gy = b.begin[1] + y, gz = b.begin[2] + z;
+      const int64_t gy = b.begin[1] + row % b.size[1], gz = b.begin[2] + row / b.size[1];
       const bool face_row = gy == 0 || gz == 0 || gy == g.dims[1] - 1 || gz == g.dims[2] - 1;
       for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
         const auto si = static_cast<size_t>(i);
-        const int64_t p = parent[si];
-        if (p == i) {
-          comp[si] = static_cast<int64_t>(info.size());
-          info.emplace_back();
-          info.back().first = g.index(b.begin[0] + r.x0[si], gy, gz);
-          bp.border.push_back(0);
-        } else {
-          comp[si] = comp[static_cast<size_t>(p)];
-        }
-        parent[si] = parent[static_cast<size_t>(p)];
-        const int64_t id = comp[si];
+        const auto id = static_cast<size_t>(br.piece[si]);
         const int64_t x0 = b.begin[0] + r.x0[si], x1 = b.begin[0] + r.x1[si];
-        add_run(info[static_cast<size_t>(id)], x0, x1 - 1, gy, gz);
-        if (face_row || x0 == 0 || x1 == g.dims[0]) bp.border[static_cast<size_t>(id)] = 1;
-        std::fill(&w(r.x0[si], y, z), &w(r.x0[si], y, z) + (r.x1[si] - r.x0[si]), static_cast<uint64_t>(id + 1));
+        if (bp.info[id].voxels == 0) bp.info[id].first = g.index(x0, gy, gz);
+        add_run(bp.info[id], x0, x1 - 1, gy, gz);
+        if (face_row || x0 == 0 || x1 == g.dims[0]) bp.border[id] = 1;
       }
     }
-    work.write(w, b.begin);
-  });
+    bp.faces = block_faces(br, b.size);
+    block_done();
+  };
   if (distributing()) {
+    for_each_owned_block(layout, Interrupter(), "components", pass);
     const std::vector<std::string> all = exchange(pack_pieces(pieces));
     pieces.clear();
     for (const auto& s : all) unpack_pieces(s, pieces);
+  } else {
+    for (int64_t bz = 0; bz < n[2]; ++bz)
+      for (int64_t by = 0; by < n[1]; ++by)
+        for (int64_t bx = 0; bx < n[0]; ++bx) pass(layout.at(bx, by, bz));
   }
   Provisional pv;
   pv.count = n;
@@ -440,7 +499,6 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
     pv.info.insert(pv.info.end(), it->second.info.begin(), it->second.info.end());
     pv.border.insert(pv.border.end(), it->second.border.begin(), it->second.border.end());
   }
-  pieces.clear();
   UnionFind uf(static_cast<int64_t>(pv.info.size()));
   std::vector<std::array<int, 3>> steps;
   for (int dz = -1; dz <= 1; ++dz)
@@ -449,52 +507,52 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
         const int k = std::abs(dx) + std::abs(dy) + std::abs(dz);
         if (k > 0 && (k == 1 || (k == 2 && conn >= 18) || conn == 26)) steps.push_back({dx, dy, dz});
       }
-  std::vector<int64_t> pairs;  // (a, b) of global piece ids that touch
-  each([&](const Block& b) {
-    const VolumeU64 w = work.read<uint64_t>(b.outer_begin, b.outer_size);
-    const Dims lo{b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]};
-    const Dims hi{lo[0] + b.size[0], lo[1] + b.size[1], lo[2] + b.size[2]};
-    auto inside = [&](int64_t x, int64_t y, int64_t z) {
-      return x >= lo[0] && y >= lo[1] && z >= lo[2] && x < hi[0] && y < hi[1] && z < hi[2];
-    };
-    // The global id of the piece at (x, y, z) of the read box.
-    auto id_at = [&](int64_t x, int64_t y, int64_t z, uint64_t local) {
-      return pv.global((b.outer_begin[0] + x) / layout.block[0], (b.outer_begin[1] + y) / layout.block[1],
-                       (b.outer_begin[2] + z) / layout.block[2], local);
-    };
-    for (int64_t z = lo[2]; z < hi[2]; ++z)
-      for (int64_t y = lo[1]; y < hi[1]; ++y)
-        for (int64_t x = lo[0]; x < hi[0]; ++x) {
-          const bool shell = x == lo[0] || y == lo[1] || z == lo[2] || x == hi[0] - 1 || y == hi[1] - 1 || z == hi[2] - 1;
-          if (!shell) {
-            x = std::max(x, hi[0] - 2);  // on to the far face of this row
-            continue;
-          }
-          const uint64_t a = w(x, y, z);
-          if (!a) continue;
-          const int64_t ga = id_at(x, y, z, a);
-          for (const auto& d : steps) {
-            const int64_t qx = x + d[0], qy = y + d[1], qz = z + d[2];
-            if (!w.grid().contains(qx, qy, qz) || inside(qx, qy, qz)) continue;
-            if (const uint64_t q = w(qx, qy, qz)) {
-              const int64_t gq = id_at(qx, qy, qz, q);
-              if (uf.unite(ga, gq) && distributing()) {
-                pairs.push_back(ga);
-                pairs.push_back(gq);
+  // The local id of global voxel q, which lies in block c next to another block: q is on a face of c.
+  auto id_of = [&](const Block& c, const BlockPieces& cp, int64_t x, int64_t y, int64_t z) -> uint64_t {
+    const int64_t lx = x - c.begin[0], ly = y - c.begin[1], lz = z - c.begin[2];
+    if (lx == 0) return face_id(cp.faces[0], ly, lz);
+    if (lx == c.size[0] - 1) return face_id(cp.faces[1], ly, lz);
+    if (ly == 0) return face_id(cp.faces[2], lx, lz);
+    if (ly == c.size[1] - 1) return face_id(cp.faces[3], lx, lz);
+    if (lz == 0) return face_id(cp.faces[4], lx, ly);
+    if (lz == c.size[2] - 1) return face_id(cp.faces[5], lx, ly);
+    return 0;  // not reached: a voxel next to another block lies on a face
+  };
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx) {
+        const Block a = layout.at(bx, by, bz);
+        const auto ia = pieces.find(linear(a));
+        if (ia == pieces.end()) continue;
+        for (int f = 0; f < 6; ++f)
+          for (const FaceRun& e : ia->second.faces[static_cast<size_t>(f)]) {
+            const int64_t ga = pv.global(bx, by, bz, e.id);
+            for (int64_t u = e.u0; u < e.u1; ++u) {
+              // The face point (u, v) in global coordinates.
+              int64_t x = 0, y = 0, z = 0;
+              if (f < 2) {
+                x = a.begin[0] + (f == 0 ? 0 : a.size[0] - 1), y = a.begin[1] + u, z = a.begin[2] + e.v;
+              } else if (f < 4) {
+                x = a.begin[0] + u, y = a.begin[1] + (f == 2 ? 0 : a.size[1] - 1), z = a.begin[2] + e.v;
+              } else {
+                x = a.begin[0] + u, y = a.begin[1] + e.v, z = a.begin[2] + (f == 4 ? 0 : a.size[2] - 1);
+              }
+              for (const auto& d : steps) {
+                const int64_t qx = x + d[0], qy = y + d[1], qz = z + d[2];
+                if (qx < 0 || qy < 0 || qz < 0 || qx >= g.dims[0] || qy >= g.dims[1] || qz >= g.dims[2]) continue;
+                if (qx >= a.begin[0] && qy >= a.begin[1] && qz >= a.begin[2] && qx < a.begin[0] + a.size[0] &&
+                    qy < a.begin[1] + a.size[1] && qz < a.begin[2] + a.size[2])
+                  continue;  // inside this block: united by block_runs
+                const int64_t cx = qx / layout.block[0], cy = qy / layout.block[1], cz = qz / layout.block[2];
+                const auto ic = pieces.find((cz * n[1] + cy) * n[0] + cx);
+                if (ic == pieces.end()) continue;
+                if (const uint64_t q = id_of(layout.at(cx, cy, cz), ic->second, qx, qy, qz))
+                  uf.unite(ga, pv.global(cx, cy, cz, q));
               }
             }
           }
-        }
-  });
-  if (distributing()) {
-    // Every rank's unions (a union-find links under the smaller root: the same roots in any order).
-    std::string mine(reinterpret_cast<const char*>(pairs.data()), pairs.size() * sizeof(int64_t));
-    for (const auto& s : exchange(mine)) {
-      std::vector<int64_t> p(s.size() / sizeof(int64_t));
-      std::memcpy(p.data(), s.data(), p.size() * sizeof(int64_t));
-      for (size_t i = 0; i + 1 < p.size(); i += 2) uf.unite(p[i], p[i + 1]);
-    }
-  }
+      }
+  pieces.clear();
   uf.flatten();
   pv.root = std::move(uf).release();
   return pv;
@@ -508,21 +566,20 @@ void check_block_volume(const ChunkedVolume& v, const Grid& g, const char* type,
 }  // namespace
 
 BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
-                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
-                                                  const ComponentOptions& o, const Dims& block) {
+                                                  const ChunkedVolume& kept, const ComponentOptions& o,
+                                                  const Dims& block) {
   const int conn = static_cast<int>(o.connectivity);
   check_connectivity(conn);
   const Grid& g = any_volume_grid(mask, "input 'mask'");
   check_block_volume(labels, g, type_ids::volume_u32, "connected_components_blocks: labels");
   check_block_volume(kept, g, type_ids::volume_u8, "connected_components_blocks: mask");
-  check_block_volume(work, g, type_ids::volume_u64, "connected_components_blocks: work");
-  const BlockLayout layout(g.dims, block, 1);
+  const BlockLayout layout(g.dims, block, 0);
   const Dims n = layout.count();
-  const int64_t total = 3 * layout.total();
+  const int64_t total = 2 * layout.total();
   int64_t done = 0;
   report_blocks(o.interrupter, "components", 0, total);
   auto block_done = [&] { report_blocks(o.interrupter, "components", ++done, total); };
-  const Provisional pv = provisional_components(mask, work, conn, false, layout, o.threads, block_done);
+  const Provisional pv = provisional_components(mask, g, conn, false, layout, o.threads, block_done);
   const std::vector<ComponentInfo>& info = pv.info;
   const std::vector<int64_t>& root = pv.root;
   // Components = roots, statistics merged, ordered by first voxel, then labelled as in memory.
@@ -563,13 +620,21 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
     label_of_provisional[i] = label_of[rank[static_cast<size_t>(index_of_root[static_cast<size_t>(root[i])])]];
   // Final labels and the mask of the kept components (each rank its blocks when distributing).
   auto label_block = [&](const Block& b) {
-    const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
-    VolumeU32 l = VolumeU32::uninitialized(w.grid());
-    VolumeU8 k = VolumeU8::uninitialized(w.grid());
-    for (int64_t i = 0; i < w.size(); ++i) {
-      l[i] = w[i] ? label_of_provisional[static_cast<size_t>(pv.global(b.index[0], b.index[1], b.index[2], w[i]))] : 0u;
-      k[i] = l[i] ? 1 : 0;
-    }
+    const VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
+    const BlockRuns br = block_runs(m, conn, false, o.threads);
+    const Runs& r = br.runs;
+    VolumeU32 l(m.grid(), 0u);
+    VolumeU8 k(m.grid(), 0);
+    const int64_t sx = b.size[0];
+    for (int64_t row = 0; row < b.size[1] * b.size[2]; ++row)
+      for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
+        const auto si = static_cast<size_t>(i);
+        const uint32_t lab = label_of_provisional[static_cast<size_t>(
+            pv.global(b.index[0], b.index[1], b.index[2], static_cast<uint64_t>(br.piece[si]) + 1))];
+        if (!lab) continue;
+        std::fill(l.data() + row * sx + r.x0[si], l.data() + row * sx + r.x1[si], lab);
+        std::fill(k.data() + row * sx + r.x0[si], k.data() + row * sx + r.x1[si], uint8_t{1});
+      }
     labels.write(l, b.begin);
     kept.write(k, b.begin);
     block_done();
@@ -666,18 +731,17 @@ VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled, int threads) {
   return out;
 }
 
-int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const ChunkedVolume& work,
-                             const Dims& block, int threads, const Interrupter& interrupter) {
+int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const Dims& block, int threads,
+                             const Interrupter& interrupter) {
   const Grid& g = any_volume_grid(mask, "input 'mask'");
   check_block_volume(out, g, type_ids::volume_u8, "fill_cavities_blocks: output");
-  check_block_volume(work, g, type_ids::volume_u64, "fill_cavities_blocks: work");
-  const BlockLayout layout(g.dims, block, 1);
-  const int64_t total = 3 * layout.total();
+  const BlockLayout layout(g.dims, block, 0);
+  const int64_t total = 2 * layout.total();
   int64_t done = 0;
   report_blocks(interrupter, "fill_cavities", 0, total);
   auto block_done = [&] { report_blocks(interrupter, "fill_cavities", ++done, total); };
   // Background 6-components (pieces united across blocks); a component touching a face is no cavity.
-  const Provisional pv = provisional_components(mask, work, 6, true, layout, threads, block_done);
+  const Provisional pv = provisional_components(mask, g, 6, true, layout, threads, block_done);
   std::vector<uint8_t> open(pv.info.size(), 0);
   for (size_t i = 0; i < pv.info.size(); ++i)
     if (pv.border[i]) open[static_cast<size_t>(pv.root[i])] = 1;
@@ -687,12 +751,17 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
     for (int64_t by = 0; by < n[1]; ++by)
       for (int64_t bx = 0; bx < n[0]; ++bx) {
         const Block b = layout.at(bx, by, bz);
-        const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
         VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
-        for (int64_t i = 0; i < w.size(); ++i)
-          if (w[i] && !open[static_cast<size_t>(pv.root[static_cast<size_t>(pv.global(bx, by, bz, w[i]))])]) {
-            m[i] = 1;
-            ++filled;
+        const BlockRuns br = block_runs(m, 6, true, threads);
+        const Runs& r = br.runs;
+        for (uint8_t& v : m) v = v != 0;
+        for (int64_t row = 0; row < b.size[1] * b.size[2]; ++row)
+          for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
+            const auto si = static_cast<size_t>(i);
+            const int64_t piece = pv.global(bx, by, bz, static_cast<uint64_t>(br.piece[si]) + 1);
+            if (open[static_cast<size_t>(pv.root[static_cast<size_t>(piece)])]) continue;
+            std::fill(m.data() + row * b.size[0] + r.x0[si], m.data() + row * b.size[0] + r.x1[si], uint8_t{1});
+            filled += r.x1[si] - r.x0[si];
           }
         out.write(m, b.begin);
         block_done();

@@ -97,21 +97,23 @@ struct ComponentsResult {
 };
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
 
-// Block-wise connected components (out-of-core): components inside every block of `block` voxels
-// (union-find over runs, as in memory) get provisional ids in `work` (uint64, on disk); those
-// touching across block faces, edges and corners (per connectivity) are united; labels, mask and
-// table are then the same as connected_components() gives (size descending, ties by first voxel in
-// raster order). `labels` (uint32), `kept` (uint8) and `work` are on disk with the mask's grid.
-// Memory: one block (mask, runs, 8 bytes per voxel of provisional ids) plus ~100 bytes per
-// provisional component. Progress "components k/n blocks" (four passes).
+// Block-wise connected components (out-of-core), two passes over the blocks: components inside
+// every block of `block` voxels (union-find over runs, as in memory) become pieces, kept in memory
+// with the piece runs on the block's six faces; pieces touching across block faces, edges and
+// corners (per connectivity) are united in memory; then every block is read and labelled again.
+// Labels, mask and table are the same as connected_components() gives (size descending, ties by
+// first voxel in raster order). `labels` (uint32) and `kept` (uint8) are on disk with the mask's
+// grid; nothing else is written. Memory: one block (mask 1 + labels 4 + kept 1 bytes per voxel, and
+// its runs) plus ~100 bytes per piece and 24 per piece run on a block face. Progress "components
+// k/n blocks" (two passes).
 struct BlockComponentsResult {
   Table table;
   int64_t count = 0;
   std::string warning;  // as ComponentsResult::warning
 };
 BlockComponentsResult connected_components_blocks(const DataObject& mask, const ChunkedVolume& labels,
-                                                  const ChunkedVolume& kept, const ChunkedVolume& work,
-                                                  const ComponentOptions& options, const Dims& block);
+                                                  const ChunkedVolume& kept, const ComponentOptions& options,
+                                                  const Dims& block);
 
 // Counts components without labelling: of the object (non-zero) voxels, or of the background (zero)
 // voxels when `background`; touching_border = those with a voxel on an array face. Union-find over
@@ -127,11 +129,12 @@ ComponentCount count_components(const VolumeU8& mask, int connectivity, bool bac
 // over background x-runs (as count_components); `filled` receives the number of filled voxels.
 VolumeU8 fill_cavities(const VolumeU8& mask, int64_t* filled = nullptr, int threads = 0);
 // Block-wise fill_cavities (out-of-core): background 6-components found per block of `block` voxels
-// (provisional ids in `work`, uint64 on disk) and united across block faces; those without a voxel
-// on an array face are written as object into `out` (uint8 on disk). The same mask as
-// fill_cavities(); returns the number of filled voxels. Progress "fill_cavities k/n blocks".
-int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const ChunkedVolume& work,
-                             const Dims& block, int threads = 0, const Interrupter& interrupter = {});
+// and united across block faces in memory (as connected_components_blocks); those without a voxel on
+// an array face are written as object into `out` (uint8 on disk) when each block is read again. The
+// same mask as fill_cavities(); returns the number of filled voxels. Progress "fill_cavities k/n
+// blocks" (two passes).
+int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, const Dims& block, int threads = 0,
+                             const Interrupter& interrupter = {});
 
 // Median over the (2·radius+1)³ cube around each voxel; voxels outside the volume take the value of
 // the nearest border voxel (replicated border, SciPy mode "nearest"). Output has the input's type.

@@ -137,11 +137,14 @@ by the volume's border) would otherwise lose half of itself silently. For networ
 Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run and 8 per row
 (typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).
 
-Block-wise under a memory budget: components per block, provisional ids on disk (8 bytes per voxel),
-united across block faces, edges and corners, then relabelled: the same labels, mask and table as in
-memory. Memory per block: 1 (mask) + 8 (ids) + 4 + 1 (outputs) bytes per voxel, plus ~100 bytes per
-component piece.)")
-        .blockwise(1, 14);
+Block-wise under a memory budget: two passes over the blocks. Pass 1 finds the components of each
+block (pieces) and keeps in memory their statistics and their runs on the block's six faces; pieces
+that touch across block faces, edges and corners are then united in memory. Pass 2 reads each block
+again, finds the same pieces and writes the final labels and mask: the same labels, mask and table as
+in memory, and no scratch volume besides the two outputs. Memory per block: 1 (mask) + 4 + 1
+(outputs) bytes per voxel plus its runs; for the whole volume ~100 bytes per piece and 24 per piece
+run on a block face.)")
+        .blockwise(0, 8);
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
@@ -150,8 +153,7 @@ component piece.)")
       const Grid& g = any_volume_grid(mask, "input 'mask'");
       auto labels = ctx.scratch_volume("labels", type_ids::volume_u32, g);
       auto kept = ctx.scratch_volume("mask", type_ids::volume_u8, g);
-      auto work = ctx.scratch_volume("work", type_ids::volume_u64, g);
-      auto r = connected_components_blocks(mask, *labels, *kept, *work, ctx.options<ComponentOptions>(), blocks->block);
+      auto r = connected_components_blocks(mask, *labels, *kept, ctx.options<ComponentOptions>(), blocks->block);
       if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
       if (!r.warning.empty()) ctx.warn(r.warning);
       ctx.output("labels", DataPtr(std::move(labels)));
@@ -295,18 +297,19 @@ naming the port. Empty mask: unchanged (all background touches the border); full
 Union-find over the x-runs of the background (6-connected), on the node's threads; memory: the output
 plus about 24 bytes per background run.
 
-Block-wise under a memory budget: background components per block, provisional ids on disk (8 bytes
-per voxel), united across block faces; the same mask as in memory. Memory per block: 1 (mask) + 8
-(ids) + 1 (output) bytes per voxel, plus ~100 bytes per background piece.)")
-        .blockwise(1, 10);
+Block-wise under a memory budget: background components per block, united across block faces in
+memory (their runs on the block faces are kept), then each block is read again and its cavities
+filled; the same mask as in memory, no scratch volume besides the output. Memory per block: 1 (mask)
++ 1 (output) bytes per voxel plus its runs; ~100 bytes per background piece and 24 per piece run on
+a block face.)")
+        .blockwise(0, 4);
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
       const DataObject& mask = *ctx.input_data("mask");
       const Grid& g = any_volume_grid(mask, "input 'mask'");
       auto out = ctx.scratch_volume("mask", type_ids::volume_u8, g);
-      auto work = ctx.scratch_volume("work", type_ids::volume_u64, g);
-      const int64_t filled = segmentation::fill_cavities_blocks(mask, *out, *work, blocks->block, ctx.threads(), ctx.progress());
+      const int64_t filled = segmentation::fill_cavities_blocks(mask, *out, blocks->block, ctx.threads(), ctx.progress());
       if (filled) ctx.warn("filled " + std::to_string(filled) + " cavity voxels");
       ctx.output("mask", DataPtr(std::move(out)));
       return;

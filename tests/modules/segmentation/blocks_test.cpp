@@ -70,8 +70,7 @@ void expect_same_components(const VolumeU8& m, const ComponentOptions& o, const 
   const ComponentsResult in_core = connected_components(m, o);
   auto labels = scratch("labels", type_ids::volume_u32, m.grid());
   auto kept = scratch("kept", type_ids::volume_u8, m.grid());
-  auto work = scratch("work", type_ids::volume_u64, m.grid());
-  const BlockComponentsResult r = connected_components_blocks(m, *labels, *kept, *work, o, block);
+  const BlockComponentsResult r = connected_components_blocks(m, *labels, *kept, o, block);
   EXPECT_EQ(r.count, in_core.count) << what;
   EXPECT_TRUE(whole<uint32_t>(*labels) == in_core.labels) << what;
   EXPECT_TRUE(whole<uint8_t>(*kept) == in_core.mask) << what;
@@ -124,8 +123,7 @@ void expect_same_fill(const VolumeU8& m, const Dims& block, const std::string& w
   int64_t filled_in_core = 0;
   const VolumeU8 in_core = fill_cavities(m, &filled_in_core);
   auto out = scratch("filled", type_ids::volume_u8, m.grid());
-  auto work = scratch("fill_work", type_ids::volume_u64, m.grid());
-  const int64_t filled = fill_cavities_blocks(m, *out, *work, block);
+  const int64_t filled = fill_cavities_blocks(m, *out, block);
   EXPECT_EQ(filled, filled_in_core) << what;
   EXPECT_TRUE(whole<uint8_t>(*out) == in_core) << what;
 }
