@@ -620,6 +620,7 @@ private:
   void node_done(size_t i, NodeReport nr);
   void node_failed(size_t i);
   void release_inputs(size_t i);
+  [[nodiscard]] bool output_read(size_t i, const std::string& port) const;
   void store_in_cache();
   BlockPlan block_plan(size_t i, const std::map<std::string, DataPtr>& inputs);
   std::shared_ptr<ChunkedVolume> make_scratch(size_t i, const std::string& port, const std::string& type_id,
@@ -801,6 +802,12 @@ void Executor::Scheduler::node_done(size_t i, NodeReport nr) {
       nr.output_bytes[port] = d->bytes();
       if (auto u = d->physical_unit(); !u.empty()) nr.output_units[port] = std::move(u);
     }
+  // Headless: an output that no node reads is dropped now, not when the node's other outputs are
+  // released (an unread label volume of connected_components would otherwise stay, in memory or as a
+  // scratch file, until its mask had been read by every user: 4 bytes per voxel for nothing).
+  if (!opt_.keep_outputs && !plan_.nodes[i].users.empty() &&
+      std::find(opt_.targets.begin(), opt_.targets.end(), plan_.nodes[i].id) == opt_.targets.end())
+    std::erase_if(results_[i], [&](const auto& kv) { return !output_read(i, kv.first); });
   state_[i] = plan_.nodes[i].cached ? NodeState::Cached : NodeState::Done;
   progress_[i] = 1.0;
   status(i, state_[i], 1.0, nr.warnings.empty() ? std::string() : nr.warnings.back());
@@ -838,6 +845,15 @@ void Executor::Scheduler::node_failed(size_t i) {
     }
   }
   im_.cancel.store(true);  // stop the others
+}
+
+// True when a node reading node i reads its output `port`.
+bool Executor::Scheduler::output_read(size_t i, const std::string& port) const {
+  const std::string& id = plan_.nodes[i].id;
+  for (size_t u : plan_.nodes[i].users)
+    for (const auto& [in, ref] : node_of_[u]->inputs)
+      if (ref.node == id && ref.port == port) return true;
+  return false;
 }
 
 // m_ held; headless: drop results nobody needs any more. Counted per upstream node (not per port),
@@ -1005,6 +1021,10 @@ void Executor::Scheduler::checkpoint(size_t i, const NodeReport& nr) {
   try {
     for (const auto& [port, d] : outs) {
       if (!d) return;
+      // Dropped when the node is done (node_done): nothing resumed reads it.
+      if (!opt_.keep_outputs && !plan_.nodes[i].users.empty() && !output_read(i, port) &&
+          std::find(opt_.targets.begin(), opt_.targets.end(), id) == opt_.targets.end())
+        continue;
       detail::ResumeOutput o;
       o.port = port;
       if (const auto* c = dynamic_cast<const ChunkedVolume*>(d.get())) {

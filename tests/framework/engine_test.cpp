@@ -1,6 +1,8 @@
 // Pipeline model, YAML, validation and executor, on the test-only modules.
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <memory>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -612,6 +614,70 @@ nodes:
   RunReport r = ex.run(p, one);
   EXPECT_TRUE(r.ok);
   EXPECT_EQ(r.nodes.size(), 3u);
+}
+
+// A node with two outputs of which only one is read: headless runs drop the unread one as soon as
+// the node is done (not when the read one is released), so an unread volume costs nothing downstream.
+namespace {
+std::weak_ptr<const DataObject> g_unread;
+std::atomic<int> g_unread_alive_when_read{-1};
+class TwoOutputs final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("test_engine.two_outputs", "Two volumes, `read` and `unread`")
+        .output<VolumeU8>("read", "read downstream")
+        .output<VolumeU8>("unread", "read by nobody in the test");
+  }
+  void run(RunContext& ctx) override {
+    auto unread = std::make_shared<VolumeU8>(Dims{4, 4, 4});
+    g_unread = unread;
+    ctx.output("read", VolumeU8(Dims{2, 2, 2}, 1));
+    ctx.output("unread", DataPtr(std::move(unread)));
+  }
+};
+SKEL_REGISTER_MODULE(TwoOutputs);
+class ReadsOne final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("test_engine.reads_one", "Records whether test_engine.two_outputs' unread volume is alive")
+        .input<VolumeU8>("volume", "any volume");
+  }
+  void run(RunContext&) override { g_unread_alive_when_read = g_unread.expired() ? 0 : 1; }
+};
+SKEL_REGISTER_MODULE(ReadsOne);
+}  // namespace
+
+TEST(Executor, HeadlessDropsAnOutputNobodyReadsWhenItsNodeIsDone) {
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  two: {module: test_engine.two_outputs}
+  user: {module: test_engine.reads_one, inputs: {volume: two.read}}
+)");
+  ExecOptions one;
+  one.threads = 1;
+  {
+    Executor ex;
+    g_unread_alive_when_read = -1;
+    ASSERT_TRUE(ex.run(p, one).ok);
+    EXPECT_EQ(g_unread_alive_when_read.load(), 0);  // dropped before `user` ran
+  }
+  {
+    Executor ex;
+    ExecOptions keep = one;
+    keep.keep_outputs = true;  // the GUI: every output stays for viewing
+    g_unread_alive_when_read = -1;
+    ASSERT_TRUE(ex.run(p, keep).ok);
+    EXPECT_EQ(g_unread_alive_when_read.load(), 1);
+    EXPECT_NE(ex.output(p, "two", "unread"), nullptr);
+  }
+  {
+    Executor ex;
+    ExecOptions target = one;
+    target.targets = {"two", "user"};  // a target's outputs are what the caller asked for
+    g_unread_alive_when_read = -1;
+    ASSERT_TRUE(ex.run(p, target).ok);
+    EXPECT_EQ(g_unread_alive_when_read.load(), 1);
+  }
 }
 
 // ModuleSpec::output_type_from: validate() narrows an output's types from the parameters (here without
