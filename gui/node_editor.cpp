@@ -101,10 +101,17 @@ NodeItem::NodeItem(NodeScene* scene, const QString& id, const QString& module, c
       port->setPos(kWidth, kHeader + kRow * (static_cast<qreal>(i) + 0.5));
       outputs_.insert(port->port(), port);
     }
-    setToolTip(QString("<b>%1</b><br>%2").arg(module, qstr(spec->doc()).toHtmlEscaped()));
+    blockwise_ = spec->block_support().blockwise;
+    setToolTip(QString("<b>%1</b><br>%2").arg(module, qstr(spec->doc()).toHtmlEscaped()) + blockwise_tip());
   } else {
     setToolTip("unknown module " + module);
   }
+}
+
+QString NodeItem::blockwise_tip() const {
+  return blockwise_ ? QString("<br><i>blocks: runs block by block under a memory budget (execution: {memory_budget: "
+                              "2GiB} or skelflow run --memory-budget)</i>")
+                    : QString();
 }
 
 QRectF NodeItem::boundingRect() const { return QRectF(-4, -4, kWidth + 8, height_ + 8); }
@@ -113,7 +120,7 @@ void NodeItem::set_status(const NodeStatus& s) {
   status_ = s;
   QString tip = "<b>" + module_ + "</b>";
   if (!s.message.empty()) tip += "<br>" + qstr(s.message).toHtmlEscaped();
-  setToolTip(tip);
+  setToolTip(tip + blockwise_tip());
   update();
 }
 
@@ -140,6 +147,14 @@ void NodeItem::paint(QPainter* p, const QStyleOptionGraphicsItem*, QWidget*) {
   p->setFont(f);
   p->setPen(QColor(190, 200, 210));
   p->drawText(QRectF(8, 19, kWidth - 16, 16), Qt::AlignLeft | Qt::AlignVCenter, module_);
+  if (blockwise_) {  // badge: runs block by block under a memory budget
+    const QRectF badge(kWidth - 44, 5, 38, 13);
+    p->setPen(Qt::NoPen);
+    p->setBrush(QColor(70, 110, 160));
+    p->drawRoundedRect(badge, 3, 3);
+    p->setPen(Qt::white);
+    p->drawText(badge, Qt::AlignCenter, "blocks");
+  }
   // Port labels.
   p->setPen(QColor(220, 220, 220));
   for (PortItem* port : inputs_) {

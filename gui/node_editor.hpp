@@ -54,6 +54,9 @@ public:
   [[nodiscard]] PortItem* output(const QString& port) const { return outputs_.value(port); }
   void set_status(const NodeStatus& s);
   [[nodiscard]] const NodeStatus& status() const { return status_; }
+  // The module runs block by block under a memory budget (ModuleSpec::blockwise): a "blocks" badge
+  // in the header and a line in the tooltip, as `skelflow validate` lists such stages.
+  [[nodiscard]] bool blockwise() const { return blockwise_; }
   enum { Type = UserType + 1 };
   [[nodiscard]] int type() const override { return Type; }
 
@@ -61,9 +64,11 @@ protected:
   QVariant itemChange(GraphicsItemChange change, const QVariant& value) override;
 
 private:
+  [[nodiscard]] QString blockwise_tip() const;
   NodeScene* scene_;
   QString id_, module_;
   bool known_;
+  bool blockwise_ = false;
   qreal height_;
   QHash<QString, PortItem*> inputs_, outputs_;
   NodeStatus status_;

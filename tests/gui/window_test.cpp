@@ -608,6 +608,11 @@ TEST(Window, SkeletonPipelineFromRealModules) {
   ASSERT_EQ(doc->connect_ports("doht", "skeleton", "skeleton_to_graph", "skeleton"), "");
   ASSERT_EQ(doc->connect_ports("euclidean", "distance", "skeleton_to_graph", "distance"), "");
   EXPECT_TRUE(validate(doc->pipeline()).empty());
+  // Stages that run block by block under a memory budget carry a badge and say so in the tooltip.
+  EXPECT_TRUE(w.scene()->node_item("euclidean")->blockwise());
+  EXPECT_TRUE(w.scene()->node_item("doht")->toolTip().contains("block by block"));
+  EXPECT_FALSE(w.scene()->node_item("network")->blockwise());
+  EXPECT_FALSE(w.scene()->node_item("network")->toolTip().contains("block by block"));
   // The YAML the GUI saves is the YAML `skelflow run` reads.
   const QString yaml = shot_dir() + "/skeleton_pipeline.yaml";
   ASSERT_TRUE(w.save_file(yaml));
