@@ -57,37 +57,60 @@ double otsu_from_histogram(const std::vector<int64_t>& h, double base, double sc
   if (byte) return static_cast<double>(chosen);
   return std::nextafter(base + (chosen + 1) / scale, -std::numeric_limits<double>::infinity());
 }
+// Smallest and largest non-NaN value of p[0..n) on `threads` threads (+inf, -inf when none).
+template <class T>
+std::pair<double, double> value_range(const T* p, int64_t n, int threads) {
+  const int parts = std::max(1, effective_threads(threads)) * 4;
+  std::vector<std::pair<double, double>> part(static_cast<size_t>(parts),
+                                              {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()});
+  parallel_chunks(0, n, parts, threads, [&](int64_t c, int64_t b, int64_t e) {
+    double lo = part[static_cast<size_t>(c)].first, hi = part[static_cast<size_t>(c)].second;
+    for (int64_t i = b; i < e; ++i) {
+      const double x = static_cast<double>(p[i]);
+      if (std::isnan(x)) continue;
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+    part[static_cast<size_t>(c)] = {lo, hi};
+  });
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& [a, b] : part) {
+    lo = std::min(lo, a);
+    hi = std::max(hi, b);
+  }
+  return {lo, hi};
+}
+
+// Adds the non-NaN values of p[0..n) to the Otsu histogram h (bins of otsu_bin) on `threads` threads.
+template <class T>
+void add_to_histogram(const T* p, int64_t n, double base, double scale, std::vector<int64_t>& h, int threads) {
+  const int bins = static_cast<int>(h.size());
+  const int parts = std::max(1, effective_threads(threads)) * 4;
+  std::vector<std::vector<int64_t>> part(static_cast<size_t>(parts), std::vector<int64_t>(h.size(), 0));
+  parallel_chunks(0, n, parts, threads, [&](int64_t c, int64_t b, int64_t e) {
+    auto& ph = part[static_cast<size_t>(c)];
+    for (int64_t i = b; i < e; ++i) {
+      const double x = static_cast<double>(p[i]);
+      if (!std::isnan(x)) ++ph[otsu_bin(x, base, scale, bins)];
+    }
+  });
+  for (const auto& ph : part)
+    for (size_t b = 0; b < h.size(); ++b) h[b] += ph[b];
+}
 }  // namespace
 
 double otsu_threshold(const DataObject& image, int threads) {
   return visit_volume(image, "image", [&](const auto& v) -> double {
     using T = typename std::decay_t<decltype(v)>::value_type;
     if (v.size() == 0) throw InputError("input 'image' is empty");
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (int64_t i = 0; i < v.size(); ++i) {
-      const double x = static_cast<double>(v[i]);
-      if (std::isnan(x)) continue;
-      lo = std::min(lo, x);
-      hi = std::max(hi, x);
-    }
+    const auto [lo, hi] = value_range(v.data(), v.size(), threads);
     if (!(hi > lo)) return lo;
     const bool byte = std::is_same_v<T, uint8_t>;
     const int bins = 256;
     const double scale = byte ? 1.0 : (bins - 1) / (hi - lo);
     const double base = byte ? 0.0 : lo;
-    std::vector<std::vector<int64_t>> part(static_cast<size_t>(std::max(1, effective_threads(threads))) * 4,
-                                           std::vector<int64_t>(bins, 0));
-    parallel_chunks(0, v.size(), static_cast<int64_t>(part.size()), threads, [&](int64_t c, int64_t b, int64_t e) {
-      auto& h = part[static_cast<size_t>(c)];
-      for (int64_t i = b; i < e; ++i) {
-        const double x = static_cast<double>(v[i]);
-        if (std::isnan(x)) continue;
-        ++h[otsu_bin(x, base, scale, bins)];
-      }
-    });
     std::vector<int64_t> h(bins, 0);
-    for (const auto& p : part)
-      for (int b = 0; b < bins; ++b) h[b] += p[b];
+    add_to_histogram(v.data(), v.size(), base, scale, h, threads);
     return otsu_from_histogram(h, base, scale, byte);
   });
 }
@@ -134,12 +157,9 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
       double lo = std::numeric_limits<double>::infinity(), hi = -lo;
       for_each_owned_block(layout, interrupter.sub(0.0, 1.0 / 3.0), "threshold (range)", [&](const Block& b) {
         const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
-        for (int64_t i = 0; i < v.size(); ++i) {
-          const double x = static_cast<double>(v[i]);
-          if (std::isnan(x)) continue;
-          lo = std::min(lo, x);
-          hi = std::max(hi, x);
-        }
+        const auto [blo, bhi] = value_range(v.data(), v.size(), options.threads);
+        lo = std::min(lo, blo);
+        hi = std::max(hi, bhi);
       });
       // Several ranks: each saw its own blocks.
       std::tie(lo, hi) = minmax_over_ranks(lo, hi);
@@ -153,10 +173,7 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
         std::vector<int64_t> h(bins, 0);
         for_each_owned_block(layout, interrupter.sub(1.0 / 3.0, 2.0 / 3.0), "threshold (histogram)", [&](const Block& b) {
           const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
-          for (int64_t i = 0; i < v.size(); ++i) {
-            const double x = static_cast<double>(v[i]);
-            if (!std::isnan(x)) ++h[otsu_bin(x, base, scale, bins)];
-          }
+          add_to_histogram(v.data(), v.size(), base, scale, h, options.threads);
         });
         h = sum_over_ranks(h);
         r.low = std::nextafter(otsu_from_histogram(h, base, scale, byte), std::numeric_limits<double>::infinity());
@@ -168,8 +185,14 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
     for_each_owned_block(layout, work, "threshold", [&](const Block& b) {
       const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
       VolumeU8 m = VolumeU8::uninitialized(v.grid());
-      threshold_span(v.data(), m.data(), v.size(), r.low, r.high);
-      for (uint8_t x : m) r.object_voxels += x;
+      std::vector<int64_t> count(static_cast<size_t>(std::max(1, effective_threads(options.threads))) * 4, 0);
+      parallel_chunks(0, v.size(), static_cast<int64_t>(count.size()), options.threads, [&](int64_t c, int64_t b0, int64_t e) {
+        threshold_span(v.data() + b0, m.data() + b0, e - b0, r.low, r.high);
+        int64_t k = 0;
+        for (int64_t i = b0; i < e; ++i) k += m[i];
+        count[static_cast<size_t>(c)] = k;
+      });
+      for (int64_t k : count) r.object_voxels += k;
       mask.write(m, b.begin);
     });
     r.object_voxels = sum_over_ranks(r.object_voxels);
