@@ -34,7 +34,10 @@
 #include "node_editor.hpp"
 #include "palette.hpp"
 #include "properties_panel.hpp"
+#include "geometry/cells_to_mesh.hpp"
 #include "skel/error.hpp"
+#include "skel/grid_cells.hpp"
+#include "skel/mesh.hpp"
 #include "skel/spatial_graph.hpp"
 #include "skel/table.hpp"
 #include "views/view3d.hpp"
@@ -477,6 +480,17 @@ bool MainWindow::show_output(const QString& node, const QString& port) {
   if (data->type_id() == type_ids::table) {
     show_table(name, data);
     return true;
+  }
+  if (auto cells = std::dynamic_pointer_cast<const GridCells>(data)) {
+    // A grid cell complex is shown as its simple geometry (geometry.cells_to_mesh): 2-cells as
+    // triangles, 1-cells as lines, coloured by the manifold class; the data itself stays cells.
+    try {
+      data = std::make_shared<Mesh>(geometry::cells_to_mesh(*cells));
+    } catch (const std::exception& e) {
+      log("Cannot show " + name + ": " + QString::fromStdString(e.what()), true);
+      return false;
+    }
+    log("Showing the grid cell complex " + name + " as its simple geometry (as geometry.cells_to_mesh makes it)");
   }
   QString error;
   if (!view3d_->show_data(name, data, &error)) {

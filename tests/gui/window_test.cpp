@@ -648,6 +648,40 @@ TEST(Window, SkeletonPipelineFromRealModules) {
   skel.save(shot_dir() + "/skeleton_voxels.png");
 }
 
+TEST(Window, GridCellSkeletonIsShownAsItsSimpleGeometry) {
+  REQUIRE_DISPLAY();
+  for (const char* m : {"synthetic.network", "distance.euclidean", "thinning.grid_cell"}) {
+    if (!Registry::instance().find(m)) GTEST_SKIP() << m << " is not registered in this build";
+  }
+  MainWindow w;
+  w.resize(1280, 900);
+  w.runner()->set_threads(2);
+  PipelineDocument* doc = w.document();
+  ASSERT_EQ(doc->add_node("synthetic.network", {0, 0}), "network");
+  ASSERT_EQ(doc->add_node("distance.euclidean", {240, 120}), "euclidean");
+  ASSERT_EQ(doc->add_node("thinning.grid_cell", {480, 0}), "grid_cell");
+  ASSERT_EQ(doc->set_param("network", "size", ParamValue(std::vector<int64_t>{48, 48, 48})), "");
+  ASSERT_EQ(doc->set_param("network", "radius", ParamValue(3.0)), "");
+  ASSERT_EQ(doc->set_param("network", "period", ParamValue(20.0)), "");
+  ASSERT_EQ(doc->connect_ports("network", "mask", "euclidean", "mask"), "");
+  ASSERT_EQ(doc->connect_ports("network", "mask", "grid_cell", "mask"), "");
+  ASSERT_EQ(doc->connect_ports("euclidean", "distance", "grid_cell", "priority"), "");
+  w.show();
+  ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
+  w.run_all();
+  ASSERT_TRUE(wait_run(w, 120000));
+  QTest::qWait(50);
+  // The cells are not a volume, graph or mesh: the view shows them as the simple geometry of
+  // geometry.cells_to_mesh (lines for the 1-cells of the rods), which has pixels to see.
+  ASSERT_TRUE(w.show_output("grid_cell", "skeleton"));
+  EXPECT_TRUE(w.view3d()->has_object("grid_cell.skeleton"));
+  w.view3d()->reset_camera();
+  QTest::qWait(100);
+  const QString png = shot_dir() + "/grid_cell_skeleton.png";
+  ASSERT_TRUE(w.view3d()->save_screenshot(png));
+  EXPECT_GT(stats(QImage(png)).distinct, 20);
+}
+
 TEST(Window, DemoPipeline) {
   REQUIRE_DISPLAY();
   const QString demo = QString(SKEL_SOURCE_DIR) + "/pipelines/demo.yaml";
