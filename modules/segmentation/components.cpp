@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/block_journal.hpp"
 #include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/mask.hpp"
@@ -374,8 +375,10 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
   const Grid& g = work.grid();
   const Dims n = layout.count();
   auto linear = [&](const Block& b) { return (b.index[2] * n[1] + b.index[1]) * n[0] + b.index[0]; };
-  // Every block here, or this rank's blocks when distributing (then a sync at the end).
-  auto each = [&](auto&& f) {
+  // Every block here, or this rank's blocks when distributing (then a sync at the end). Here each
+  // pass is resumable per block (--resume): f returns what the block adds to the in-memory state
+  // (its pieces, its unions), and kept(payload) adds what a block committed in an earlier run.
+  auto each = [&](auto&& f, auto&& kept) {
     if (distributing()) {
       for_each_owned_block(layout, Interrupter(), "components", [&](const Block& b) {
         f(b);
@@ -383,10 +386,17 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
       });
       return;
     }
+    ResumablePass pass;
+    int64_t index = 0;
     for (int64_t bz = 0; bz < n[2]; ++bz)
       for (int64_t by = 0; by < n[1]; ++by)
-        for (int64_t bx = 0; bx < n[0]; ++bx) {
-          f(layout.at(bx, by, bz));
+        for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+          if (const std::string* p = pass.kept(index)) {
+            kept(*p);
+            block_done();
+            continue;
+          }
+          pass.commit(index, f(layout.at(bx, by, bz)));
           block_done();
         }
   };
@@ -424,7 +434,8 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
       }
     }
     work.write(w, b.begin);
-  });
+    return distributing() || current_block_journal() == nullptr ? std::string() : pack_pieces({{linear(b), bp}});
+  }, [&](const std::string& p) { unpack_pieces(p, pieces); });
   if (distributing()) {
     const std::vector<std::string> all = exchange(pack_pieces(pieces));
     pieces.clear();
@@ -450,7 +461,12 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
         if (k > 0 && (k == 1 || (k == 2 && conn >= 18) || conn == 26)) steps.push_back({dx, dy, dz});
       }
   std::vector<int64_t> pairs;  // (a, b) of global piece ids that touch
+  // The unions of one block: `mine` collects them (for the other ranks, or the journal).
+  auto unite_all = [&](const int64_t* p, size_t count) {
+    for (size_t i = 0; i + 1 < count; i += 2) uf.unite(p[i], p[i + 1]);
+  };
   each([&](const Block& b) {
+    std::vector<int64_t> mine;
     const VolumeU64 w = work.read<uint64_t>(b.outer_begin, b.outer_size);
     const Dims lo{b.begin[0] - b.outer_begin[0], b.begin[1] - b.outer_begin[1], b.begin[2] - b.outer_begin[2]};
     const Dims hi{lo[0] + b.size[0], lo[1] + b.size[1], lo[2] + b.size[2]};
@@ -478,13 +494,22 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
             if (!w.grid().contains(qx, qy, qz) || inside(qx, qy, qz)) continue;
             if (const uint64_t q = w(qx, qy, qz)) {
               const int64_t gq = id_at(qx, qy, qz, q);
-              if (uf.unite(ga, gq) && distributing()) {
-                pairs.push_back(ga);
-                pairs.push_back(gq);
+              if (uf.unite(ga, gq)) {
+                mine.push_back(ga);
+                mine.push_back(gq);
               }
             }
           }
         }
+    if (distributing()) {
+      pairs.insert(pairs.end(), mine.begin(), mine.end());
+      return std::string();
+    }
+    return std::string(reinterpret_cast<const char*>(mine.data()), mine.size() * sizeof(int64_t));
+  }, [&](const std::string& p) {
+    std::vector<int64_t> kept(p.size() / sizeof(int64_t));
+    std::memcpy(kept.data(), p.data(), kept.size() * sizeof(int64_t));
+    unite_all(kept.data(), kept.size());
   });
   if (distributing()) {
     // Every rank's unions (a union-find links under the smaller root: the same roots in any order).
@@ -492,7 +517,7 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
     for (const auto& s : exchange(mine)) {
       std::vector<int64_t> p(s.size() / sizeof(int64_t));
       std::memcpy(p.data(), s.data(), p.size() * sizeof(int64_t));
-      for (size_t i = 0; i + 1 < p.size(); i += 2) uf.unite(p[i], p[i + 1]);
+      unite_all(p.data(), p.size());
     }
   }
   uf.flatten();
@@ -576,10 +601,19 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
   };
   if (distributing()) {
     for_each_owned_block(layout, Interrupter(), "components", label_block);
-  } else {
+  } else {  // resumable per block (--resume): reads the work volume, which no later pass changes
+    ResumablePass pass;
+    int64_t index = 0;
     for (int64_t bz = 0; bz < n[2]; ++bz)
       for (int64_t by = 0; by < n[1]; ++by)
-        for (int64_t bx = 0; bx < n[0]; ++bx) label_block(layout.at(bx, by, bz));
+        for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+          if (pass.kept(index)) {
+            block_done();
+            continue;
+          }
+          label_block(layout.at(bx, by, bz));
+          pass.commit(index);
+        }
   }
   BlockComponentsResult res;
   res.count = count;
@@ -683,18 +717,28 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
     if (pv.border[i]) open[static_cast<size_t>(pv.root[i])] = 1;
   int64_t filled = 0;
   const Dims n = layout.count();
+  ResumablePass pass;  // per block (--resume), each committing its filled count
+  int64_t index = 0;
   for (int64_t bz = 0; bz < n[2]; ++bz)
     for (int64_t by = 0; by < n[1]; ++by)
-      for (int64_t bx = 0; bx < n[0]; ++bx) {
+      for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+        if (const std::string* p = pass.kept(index)) {
+          filled += payload_as<int64_t>(*p);
+          block_done();
+          continue;
+        }
+        int64_t here = 0;
         const Block b = layout.at(bx, by, bz);
         const VolumeU64 w = work.read<uint64_t>(b.begin, b.size);
         VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
         for (int64_t i = 0; i < w.size(); ++i)
           if (w[i] && !open[static_cast<size_t>(pv.root[static_cast<size_t>(pv.global(bx, by, bz, w[i]))])]) {
             m[i] = 1;
-            ++filled;
+            ++here;
           }
         out.write(m, b.begin);
+        filled += here;
+        pass.commit(index, payload_of(here));
         block_done();
       }
   return filled;

@@ -7,6 +7,7 @@
 #include <tuple>
 #include <vector>
 
+#include "skel/block_journal.hpp"
 #include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
@@ -165,13 +166,23 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
     }
     if (r.low > r.high)
       throw InputError("threshold: low (" + std::to_string(r.low) + ") is above high (" + std::to_string(r.high) + ")");
-    for_each_owned_block(layout, work, "threshold", [&](const Block& b) {
+    // Otsu's passes read only the image (they run again when resumed); the mask's blocks are
+    // resumable (--resume), each committing its object count.
+    const auto body = [&](const Block& b) {
       const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
       VolumeU8 m = VolumeU8::uninitialized(v.grid());
       threshold_span(v.data(), m.data(), v.size(), r.low, r.high);
-      for (uint8_t x : m) r.object_voxels += x;
+      int64_t n = 0;
+      for (uint8_t x : m) n += x;
+      r.object_voxels += n;
       mask.write(m, b.begin);
-    });
+      return payload_of(n);
+    };
+    if (distributing())
+      for_each_owned_block(layout, work, "threshold", body);
+    else
+      for_each_block_resumable(layout, work, "threshold", body,
+                               [&](const Block&, const std::string& p) { r.object_voxels += payload_as<int64_t>(p); });
     r.object_voxels = sum_over_ranks(r.object_voxels);
   });
   return r;
