@@ -7,12 +7,18 @@
 // volumes is recorded, and after each block the block's writes and a commit record are appended to
 // `<node>.blocks` in the resume folder and synced to disk. A run killed with kill -9 and started
 // again with --resume replays the committed writes into the new scratch volumes and skips the
-// committed blocks, so the stage's outputs are the bytes of an uninterrupted run.
+// committed blocks, so the stage's outputs are the bytes of an uninterrupted run. Stages with
+// several passes, blocks in an order of their own, or state carried in memory from block to block
+// use ResumablePass and commit that state with each block as a payload (below).
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <string_view>
+#include <type_traits>
 
+#include "skel/error.hpp"
 #include "skel/out_of_core.hpp"
 
 namespace skel {
@@ -20,13 +26,17 @@ namespace skel {
 class BlockJournal {
 public:
   virtual ~BlockJournal() = default;
-  // Starts the next for_each_block_resumable of the stage; returns its number (0, 1, ...).
+  // Starts the next resumable pass of the stage; returns its number (0, 1, ...).
   virtual int64_t begin_pass() = 0;
+  // The payload committed with block `index` of pass `pass` by an earlier run, or null when that
+  // block was not committed (it is to run).
+  [[nodiscard]] virtual const std::string* kept(int64_t pass, int64_t index) const = 0;
   // True when block `index` of pass `pass` was committed by an earlier run.
-  [[nodiscard]] virtual bool finished(int64_t pass, int64_t index) const = 0;
+  [[nodiscard]] bool finished(int64_t pass, int64_t index) const { return kept(pass, index) != nullptr; }
   // Makes the writes since the last commit durable together with the record that block `index` of
-  // pass `pass` is finished.
-  virtual void commit(int64_t pass, int64_t index) = 0;
+  // pass `pass` is finished, and `payload`: what the block leaves in memory for the blocks after it
+  // (a count, the blocks it marks for another pass), given back by kept() when the run is resumed.
+  virtual void commit(int64_t pass, int64_t index, std::string_view payload) = 0;
 };
 
 // The journal of the stage running on this thread (set by the executor), or null.
@@ -43,16 +53,54 @@ private:
   BlockJournal* previous_;
 };
 
+// One resumable pass over blocks in an order of the stage's own (chamfer's scans, thinning's
+// revisits). The rule that makes a resumed stage the bytes of an uninterrupted one: the state the
+// blocks carry from one to the next is the stage's scratch volumes (replayed) plus the payloads of
+// the committed blocks; every pass that writes or reads the stage's scratch volumes is a resumable
+// pass, visits its blocks in an order that depends only on the inputs, the parameters and earlier
+// payloads, and a block's index means the same block in every run. Passes that only read the
+// stage's inputs (Otsu's histogram, slice statistics) may be plain for_each_block: they run again.
+class ResumablePass {
+public:
+  // Begins a pass of the current journal (none: every block runs, nothing is recorded).
+  ResumablePass() : journal_(current_block_journal()), pass_(journal_ ? journal_->begin_pass() : -1) {}
+  // The payload block `index` committed in an earlier run (skip the block, apply its payload), or
+  // null: run it.
+  [[nodiscard]] const std::string* kept(int64_t index) const { return journal_ ? journal_->kept(pass_, index) : nullptr; }
+  void commit(int64_t index, std::string_view payload = {}) {
+    if (journal_) journal_->commit(pass_, index, payload);
+  }
+
+private:
+  BlockJournal* journal_;
+  int64_t pass_;
+};
+
+// The bytes of a trivially copyable value as a payload, and back (Error when the size differs).
+template <class T>
+std::string payload_of(const T& value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  return std::string(reinterpret_cast<const char*>(&value), sizeof value);
+}
+template <class T>
+T payload_as(const std::string& payload) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  if (payload.size() != sizeof(T))
+    throw Error("resume journal: a block's payload has " + std::to_string(payload.size()) + " bytes, expected " +
+                std::to_string(sizeof(T)));
+  T value;
+  std::memcpy(&value, payload.data(), sizeof value);
+  return value;
+}
+
 // for_each_block for stages whose blocks are independent (see above): blocks committed by an earlier
 // run are skipped (counted in the progress), every other block is committed after f(block).
-template <class F>
-void for_each_block_resumable(const BlockLayout& layout, const Interrupter& interrupter, const std::string& label, F&& f) {
-  BlockJournal* journal = current_block_journal();
-  if (journal == nullptr) {
-    for_each_block(layout, interrupter, label, std::forward<F>(f));
-    return;
-  }
-  const int64_t pass = journal->begin_pass();
+// With `on_kept`: f returns the block's payload (std::string), and on_kept(block, payload) is called
+// instead of f for a block committed by an earlier run.
+template <class F, class K>
+void for_each_block_resumable(const BlockLayout& layout, const Interrupter& interrupter, const std::string& label, F&& f,
+                              K&& on_kept) {
+  ResumablePass pass;
   const Dims c = layout.count();
   const int64_t total = layout.total();
   int64_t done = 0, index = 0;
@@ -61,11 +109,25 @@ void for_each_block_resumable(const BlockLayout& layout, const Interrupter& inte
     for (int64_t by = 0; by < c[1]; ++by)
       for (int64_t bx = 0; bx < c[0]; ++bx, ++index) {
         ++done;
-        if (journal->finished(pass, index)) continue;
-        f(layout.at(bx, by, bz));
-        journal->commit(pass, index);
+        const Block b = layout.at(bx, by, bz);
+        if (const std::string* p = pass.kept(index)) {
+          on_kept(b, *p);
+          continue;
+        }
+        const std::string payload = f(b);
+        pass.commit(index, payload);
         report_blocks(interrupter, label, done, total);
       }
+}
+template <class F>
+void for_each_block_resumable(const BlockLayout& layout, const Interrupter& interrupter, const std::string& label, F&& f) {
+  for_each_block_resumable(
+      layout, interrupter, label,
+      [&](const Block& b) {
+        f(b);
+        return std::string();
+      },
+      [](const Block&, const std::string&) {});
 }
 
 // The journal file of one stage (executor side).
@@ -80,8 +142,8 @@ public:
   BlockJournalFile& operator=(const BlockJournalFile&) = delete;
 
   int64_t begin_pass() override;
-  [[nodiscard]] bool finished(int64_t pass, int64_t index) const override;
-  void commit(int64_t pass, int64_t index) override;
+  [[nodiscard]] const std::string* kept(int64_t pass, int64_t index) const override;
+  void commit(int64_t pass, int64_t index, std::string_view payload) override;
 
   // Blocks committed by the earlier run (0 for a new journal).
   [[nodiscard]] int64_t kept_blocks() const;

@@ -4,7 +4,7 @@
 //   "skelflow-blocks 1\n", u64 stage key
 //   records, each ending with the FNV-1a hash of its bytes before the hash:
 //     'W' u64 name length, name, i64 begin[3], i64 size[3], u64 byte count, bytes, u64 hash
-//     'C' i64 pass, i64 block index, u64 hash
+//     'C' i64 pass, i64 block index, u64 payload length, payload, u64 hash
 // A write belongs to the block of the next commit; writes after the last commit (a block that was
 // running when the process died) and a torn tail are ignored and cut off when the journal is opened.
 #include "skel/block_journal.hpp"
@@ -15,7 +15,7 @@
 #include <cerrno>
 #include <cstring>
 #include <mutex>
-#include <set>
+#include <map>
 #include <utility>
 #include <vector>
 
@@ -29,7 +29,7 @@ namespace {
 
 thread_local BlockJournal* t_journal = nullptr;
 
-constexpr char kMagic[] = "skelflow-blocks 1\n";
+constexpr char kMagic[] = "skelflow-blocks 2\n";
 constexpr size_t kMagicSize = sizeof(kMagic) - 1;
 
 uint64_t fnv(const char* p, size_t n, uint64_t h = 1469598103934665603ull) {
@@ -57,7 +57,7 @@ struct BlockJournalFile::State {
   std::mutex m;
   int64_t passes = 0;
   bool active = false;  // a pass has begun: writes are journaled
-  std::set<std::pair<int64_t, int64_t>> committed;  // of the earlier run
+  std::map<std::pair<int64_t, int64_t>, std::string> committed;  // of the earlier run, with payloads
   struct Write {
     std::string name;
     Dims begin{}, size{};
@@ -121,8 +121,12 @@ struct BlockJournalFile::State {
         uncommitted.push_back(std::move(w));
       } else if (kind == 'C') {
         int64_t pass = 0, index = 0;
-        if (!get(&pass, 8) || !get(&index, 8) || !get(&hash, 8) || hash != fnv(b.data() + start, pos - 8 - start)) break;
-        committed.insert({pass, index});
+        uint64_t len = 0;
+        if (!get(&pass, 8) || !get(&index, 8) || !get(&len, 8) || len > b.size() - pos) break;
+        std::string payload = b.substr(pos, len);
+        pos += len;
+        if (!get(&hash, 8) || hash != fnv(b.data() + start, pos - 8 - start)) break;
+        committed[{pass, index}] = std::move(payload);
         for (auto& w : uncommitted) kept.push_back(std::move(w));
         uncommitted.clear();
         valid = pos;
@@ -162,17 +166,20 @@ int64_t BlockJournalFile::begin_pass() {
   return s_->passes++;
 }
 
-bool BlockJournalFile::finished(int64_t pass, int64_t index) const {
-  return s_->committed.count({pass, index}) != 0;
+const std::string* BlockJournalFile::kept(int64_t pass, int64_t index) const {
+  const auto it = s_->committed.find({pass, index});
+  return it == s_->committed.end() ? nullptr : &it->second;
 }
 
-void BlockJournalFile::commit(int64_t pass, int64_t index) {
+void BlockJournalFile::commit(int64_t pass, int64_t index, std::string_view payload) {
   std::lock_guard lock(s_->m);
   std::string& b = s_->pending;
   const size_t start = b.size();
   b.push_back('C');
   put(b, pass);
   put(b, index);
+  put(b, static_cast<uint64_t>(payload.size()));
+  b.append(payload);
   put(b, fnv(b.data() + start, b.size() - start));
   s_->write_all(b);
   if (::fdatasync(s_->fd) != 0) s_->fail("cannot sync");

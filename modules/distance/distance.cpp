@@ -13,6 +13,7 @@
 #include <smmintrin.h>
 #endif
 
+#include "skel/block_journal.hpp"
 #include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/mask.hpp"
@@ -1010,20 +1011,35 @@ void chamfer_blocks_t(const DataObject& mask, const ChunkedVolume& out, const We
   const auto steps = forward_steps(w);
   int64_t done = 0;
   report_blocks(o.interrupter, "chamfer", 0, total);
+  // Resumable per block (--resume): the start and the two sweeps are passes of the journal, a
+  // block's index is its place in the pass's fixed order, and the state between blocks is the
+  // distance volume alone (replayed).
   // Start: 0 on background, INF on object.
+  ResumablePass start;
+  int64_t index = 0;
   for (int64_t bz = 0; bz < n[2]; ++bz)
     for (int64_t by = 0; by < n[1]; ++by)
-      for (int64_t bx = 0; bx < n[0]; ++bx) {
+      for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+        if (start.kept(index)) {
+          ++done;
+          continue;
+        }
         const Block b = layout.at(bx, by, bz);
         const VolumeU8 m = read_mask_box(mask, b.begin, b.size);
         Volume<T> d = Volume<T>::uninitialized(m.grid());
         for (int64_t i = 0; i < m.size(); ++i) d[i] = m[i] ? INF : T(0);
         out.write(d, b.begin);
+        start.commit(index);
         report_blocks(o.interrupter, "chamfer", ++done, total);
       }
   // Eight block-wise scans: each block with a one-voxel overlap (its halo), visited there and back
   // along x within each row of blocks, along y within each layer, layers in scan order.
-  auto visit = [&](int64_t bx, int64_t by, int64_t bz, bool forward) {
+  auto visit = [&](ResumablePass& sweep, int64_t& visit_index, int64_t bx, int64_t by, int64_t bz, bool forward) {
+    const int64_t at = visit_index++;
+    if (sweep.kept(at)) {
+      ++done;
+      return;
+    }
     const Block b = layout.at(bx, by, bz);
     const VolumeU8 m = read_mask_box(mask, b.outer_begin, b.outer_size);
     Volume<T> d = out.read<T>(b.outer_begin, b.outer_size);
@@ -1032,14 +1048,23 @@ void chamfer_blocks_t(const DataObject& mask, const ChunkedVolume& out, const We
     mv.offset = dv.offset = b.outer_begin;
     scan_box<T>(mv, dv, g.dims, steps, forward, B);
     out.write(d, b.outer_begin);
+    sweep.commit(at);
     report_blocks(o.interrupter, "chamfer", ++done, total);
   };
-  for (int64_t bz = 0; bz < n[2]; ++bz)
-    for (int64_t by : there_and_back(n[1], true))
-      for (int64_t bx : there_and_back(n[0], true)) visit(bx, by, bz, true);
-  for (int64_t bz = n[2] - 1; bz >= 0; --bz)
-    for (int64_t by : there_and_back(n[1], false))
-      for (int64_t bx : there_and_back(n[0], false)) visit(bx, by, bz, false);
+  {
+    ResumablePass sweep;
+    int64_t at = 0;
+    for (int64_t bz = 0; bz < n[2]; ++bz)
+      for (int64_t by : there_and_back(n[1], true))
+        for (int64_t bx : there_and_back(n[0], true)) visit(sweep, at, bx, by, bz, true);
+  }
+  {
+    ResumablePass sweep;
+    int64_t at = 0;
+    for (int64_t bz = n[2] - 1; bz >= 0; --bz)
+      for (int64_t by : there_and_back(n[1], false))
+        for (int64_t bx : there_and_back(n[0], false)) visit(sweep, at, bx, by, bz, false);
+  }
 }
 
 }  // namespace
@@ -1085,11 +1110,20 @@ void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const Eu
       });
       return;
     }
+    // Resumable per slab (--resume): each pass is a pass of the journal; a slab reads and writes
+    // only its own lines, the previous pass's values in them replayed.
+    ResumablePass pass;
     const Dims c = l.count();
+    int64_t index = 0;
     for (int64_t bz = 0; bz < c[2]; ++bz)
       for (int64_t by = 0; by < c[1]; ++by)
-        for (int64_t bx = 0; bx < c[0]; ++bx) {
+        for (int64_t bx = 0; bx < c[0]; ++bx, ++index) {
+          if (pass.kept(index)) {
+            ++done;
+            continue;
+          }
           f(l.at(bx, by, bz));
+          pass.commit(index);
           report_blocks(o.interrupter, "euclidean", ++done, total);
         }
   };

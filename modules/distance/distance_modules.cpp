@@ -72,7 +72,9 @@ Memory: the output, 2 (or 4) bytes per voxel, plus one row of scratch.
 
 Block-wise under a memory budget (thesis Algorithm 4): blocks with a one-voxel overlap, eight
 block-wise scans (2·nz·(2nx-1)·(2ny-1) block visits), bit-identical to the in-memory result for
-weights obeying the conditions above. Memory per block: 1 (mask) + 4 (distance) bytes per voxel.)")
+weights obeying the conditions above. Memory per block: 1 (mask) + 4 (distance) bytes per voxel.
+With --resume a killed run continues from the last finished block visit of its scan (the start and
+both sweeps are journaled per block).)")
         .blockwise(1, 5);
   }
   void run(RunContext& ctx) override {
@@ -122,7 +124,8 @@ along z: 64 columns of floats and the envelope's sites).
 Block-wise under a memory budget: the same three passes, each over slabs of whole lines along its
 axis (the squared distances on disk between passes), bit-identical to the in-memory result. A slab
 takes 5 bytes per voxel (mask + float32); its cross-section is chosen so that one slab along the
-longest axis fits a quarter of the budget, or is the `block` of the pipeline's `execution:`.)")
+longest axis fits a quarter of the budget, or is the `block` of the pipeline's `execution:`. With
+--resume a killed run continues from the finished slabs of the pass it was in.)")
         .blockwise(0, 5);
   }
   void run(RunContext& ctx) override {

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/block_journal.hpp"
 #include "skel/error.hpp"
 
 namespace skel::geodesic {
@@ -201,7 +202,24 @@ BlockStatistics boundary_distance_blocks(const DataObject& mask, const ChunkedVo
   Driver d{mask, importance, surface_skeleton, options, memory_budget, g, 0, {}};
   const BlockLayout layout(g.dims, block);
   d.stats.blocks = layout.total();
-  for_each_block(layout, options.interrupter, "geodesic", [&](const Block& b) { d.run_box(b.begin, b.size); });
+  // Resumable per block (--resume). The state carried from block to block (the margin guess and the
+  // statistics) is committed with each block; the values of a block do not depend on it (any
+  // margin that holds is exact, a split block gives the same voxels), only the work does.
+  struct Carried {
+    int64_t margin_guess;
+    BlockStatistics stats;
+  };
+  for_each_block_resumable(
+      layout, options.interrupter, "geodesic",
+      [&](const Block& b) {
+        d.run_box(b.begin, b.size);
+        return payload_of(Carried{d.margin_guess, d.stats});
+      },
+      [&](const Block&, const std::string& p) {  // committed blocks are a prefix: the last one's state
+        const auto c = payload_as<Carried>(p);
+        d.margin_guess = c.margin_guess;
+        d.stats = c.stats;
+      });
   return d.stats;
 }
 

@@ -62,7 +62,9 @@ point and every boundary path shorter than t lies in the block, and every path t
 artificial outside is at least t long: importance and surface_skeleton equal the in-memory result.
 The table sums the statistics over the blocks with their margins. Memory: 28 bytes per voxel of the
 largest block with margin. Full mode has no finite margin: under a budget it runs in memory when the
-mask fits the budget at 28 bytes per voxel and is refused otherwise.)")
+mask fits the budget at 28 bytes per voxel and is refused otherwise. With --resume a killed
+threshold-mode run continues from its finished blocks (the margin guess and statistics are kept
+with each block).)")
         .blockwise(16, kBlockBytesPerVoxel);
   }
   void run(RunContext& ctx) override {

@@ -48,7 +48,9 @@ public:
             "corners are those of the whole volume; the phases then run on the gathered voxels and the graph, "
             "its radii and statistics are identical to in memory. Memory: one block with halo at 1 B/voxel "
             "(+ the distance's bytes + 1 B/voxel for `manifold`) plus ~65 B per skeleton voxel, resident "
-            "(a 1 % skeleton of 1280³ voxels: ~1.4 GB; ~50 B while gathering), independent of the volume's size.")
+            "(a 1 % skeleton of 1280³ voxels: ~1.4 GB; ~50 B while gathering), independent of the volume's size. "
+            "With --resume a killed run keeps the blocks it gathered (20 bytes per skeleton voxel in the "
+            "journal) and the finished blocks of `manifold`; the graph is built again from them.")
         .blockwise(1, 10);
   }
   void run(RunContext& ctx) override {

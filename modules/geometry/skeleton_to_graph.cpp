@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <map>
 #include <numeric>
@@ -10,6 +11,7 @@
 #include <unordered_map>
 
 #include "geometry/skeleton_to_graph_phases.hpp"
+#include "skel/block_journal.hpp"
 #include "skel/error.hpp"
 #include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
@@ -360,7 +362,37 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
   std::vector<uint32_t> hood;
   std::vector<double> rad;
   const BlockLayout layout(grid.dims, block, 1);
-  for_each_block(layout, intr, "skeleton_to_graph", [&](const Block& b) {
+  // Resumable per block (--resume): a block commits the voxels it gathered (index, neighbourhood,
+  // radius: 20 bytes per skeleton voxel), and a block kept from an earlier run adds them back.
+  const bool journaled = current_block_journal() != nullptr;
+  auto gathered = [&](size_t first) {
+    if (!journaled) return std::string();
+    const auto n = static_cast<uint64_t>(vox.size() - first);
+    std::string p(reinterpret_cast<const char*>(&n), sizeof n);
+    p.append(reinterpret_cast<const char*>(vox.data() + first), n * sizeof(int64_t));
+    p.append(reinterpret_cast<const char*>(hood.data() + first), n * sizeof(uint32_t));
+    if (distance != nullptr) p.append(reinterpret_cast<const char*>(rad.data() + first), n * sizeof(double));
+    return p;
+  };
+  auto add_gathered = [&](const Block&, const std::string& p) {
+    uint64_t n = 0;
+    const size_t per = sizeof(int64_t) + sizeof(uint32_t) + (distance != nullptr ? sizeof(double) : 0);
+    if (p.size() < sizeof n || (std::memcpy(&n, p.data(), sizeof n), p.size() != sizeof n + n * per))
+      throw Error("resume journal: a skeleton_to_graph block's payload has " + std::to_string(p.size()) + " bytes");
+    const char* at = p.data() + sizeof n;
+    const size_t first = vox.size();
+    vox.resize(first + n);
+    hood.resize(first + n);
+    std::memcpy(vox.data() + first, at, n * sizeof(int64_t));
+    at += n * sizeof(int64_t);
+    std::memcpy(hood.data() + first, at, n * sizeof(uint32_t));
+    at += n * sizeof(uint32_t);
+    if (distance != nullptr) {
+      rad.resize(first + n);
+      std::memcpy(rad.data() + first, at, n * sizeof(double));
+    }
+  };
+  for_each_block_resumable(layout, intr, "skeleton_to_graph", [&](const Block& b) {
     // The block with a one-voxel halo (clipped to the grid, where the in-core accessor sees
     // background too): every interior voxel's 27-neighbourhood is the one of the whole volume.
     const VolumeU8 v = read_block<uint8_t>(skeleton, b.outer_begin, b.outer_size, "input 'skeleton'");
@@ -375,7 +407,7 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
           vox.push_back((b.begin[0] + x) + nx * (b.begin[1] + y) + nxy * (b.begin[2] + z));
           hood.push_back(acc.neighbourhood(lx, ly, lz));
         }
-    if (distance == nullptr || vox.size() == first) return;
+    if (distance == nullptr || vox.size() == first) return gathered(first);
     visit_voxel_type(distance->type_id(), "input 'distance'", [&](auto tag) {
       using T = decltype(tag);
       const Volume<T> d = read_block<T>(*distance, b.begin, b.size, "input 'distance'");
@@ -385,7 +417,8 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
         rad.push_back(static_cast<double>(d(x, y, z)) * scale);
       }
     });
-  });
+    return gathered(first);
+  }, add_gathered);
   // Blocks come in block order; the phases want raster order (ids ascending by linear index).
   std::vector<int64_t> order(vox.size());
   std::iota(order.begin(), order.end(), int64_t{0});
@@ -870,15 +903,14 @@ SpatialGraph skeleton_to_graph_blocks(const DataObject& skeleton, const DataObje
       std::vector<int64_t> fill(start.begin(), start.end() - 1);
       for (int64_t i = 0; i < sv.size(); ++i) ids[static_cast<size_t>(fill[static_cast<size_t>(block_of(sv.vox[i]))]++)] = i;
     }
-    int64_t k = 0;
-    for_each_block(layout, intr.sub(0.9, 1.0), "skeleton_to_graph manifold", [&](const Block& b) {
+    for_each_block_resumable(layout, intr.sub(0.9, 1.0), "skeleton_to_graph manifold", [&](const Block& b) {
+      const int64_t k = block_of(b.begin[0] + nx * (b.begin[1] + ny * b.begin[2]));
       VolumeU8 out(manifold->box_grid(b.begin, b.size), 0);
       for (int64_t a = start[static_cast<size_t>(k)]; a < start[static_cast<size_t>(k) + 1]; ++a) {
         const int64_t i = ids[static_cast<size_t>(a)], idx = sv.vox[i];
         out(idx % nx - b.begin[0], idx / nx % ny - b.begin[1], idx / (nx * ny) - b.begin[2]) = sv.cls[i];
       }
       manifold->write(out, b.begin);
-      ++k;
     });
   }
   intr.check(1.0);

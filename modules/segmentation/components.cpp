@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/block_journal.hpp"
 #include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/mask.hpp"
@@ -478,16 +479,27 @@ Provisional provisional_components(const DataObject& mask, const Grid& g, int co
     }
     bp.faces = block_faces(br, b.size);
     block_done();
+    // With --resume the block's pieces and faces are its payload (a kept block gives them back).
+    return distributing() || current_block_journal() == nullptr ? std::string() : pack_pieces({{linear(b), bp}});
   };
   if (distributing()) {
-    for_each_owned_block(layout, Interrupter(), "components", pass);
+    for_each_owned_block(layout, Interrupter(), "components", [&](const Block& b) { (void)pass(b); });
     const std::vector<std::string> all = exchange(pack_pieces(pieces));
     pieces.clear();
     for (const auto& s : all) unpack_pieces(s, pieces);
-  } else {
+  } else {  // resumable per block (--resume)
+    ResumablePass resumable;
+    int64_t index = 0;
     for (int64_t bz = 0; bz < n[2]; ++bz)
       for (int64_t by = 0; by < n[1]; ++by)
-        for (int64_t bx = 0; bx < n[0]; ++bx) pass(layout.at(bx, by, bz));
+        for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+          if (const std::string* p = resumable.kept(index)) {
+            unpack_pieces(*p, pieces);
+            block_done();
+            continue;
+          }
+          resumable.commit(index, pass(layout.at(bx, by, bz)));
+        }
   }
   Provisional pv;
   pv.count = n;
@@ -641,10 +653,19 @@ BlockComponentsResult connected_components_blocks(const DataObject& mask, const 
   };
   if (distributing()) {
     for_each_owned_block(layout, Interrupter(), "components", label_block);
-  } else {
+  } else {  // resumable per block (--resume): reads the work volume, which no later pass changes
+    ResumablePass pass;
+    int64_t index = 0;
     for (int64_t bz = 0; bz < n[2]; ++bz)
       for (int64_t by = 0; by < n[1]; ++by)
-        for (int64_t bx = 0; bx < n[0]; ++bx) label_block(layout.at(bx, by, bz));
+        for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+          if (pass.kept(index)) {
+            block_done();
+            continue;
+          }
+          label_block(layout.at(bx, by, bz));
+          pass.commit(index);
+        }
   }
   BlockComponentsResult res;
   res.count = count;
@@ -747,9 +768,17 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
     if (pv.border[i]) open[static_cast<size_t>(pv.root[i])] = 1;
   int64_t filled = 0;
   const Dims n = layout.count();
+  ResumablePass pass;  // per block (--resume), each committing its filled count
+  int64_t index = 0;
   for (int64_t bz = 0; bz < n[2]; ++bz)
     for (int64_t by = 0; by < n[1]; ++by)
-      for (int64_t bx = 0; bx < n[0]; ++bx) {
+      for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+        if (const std::string* p = pass.kept(index)) {
+          filled += payload_as<int64_t>(*p);
+          block_done();
+          continue;
+        }
+        int64_t here = 0;
         const Block b = layout.at(bx, by, bz);
         VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
         const BlockRuns br = block_runs(m, 6, true, threads);
@@ -761,9 +790,11 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
             const int64_t piece = pv.global(bx, by, bz, static_cast<uint64_t>(br.piece[si]) + 1);
             if (open[static_cast<size_t>(pv.root[static_cast<size_t>(piece)])]) continue;
             std::fill(m.data() + row * b.size[0] + r.x0[si], m.data() + row * b.size[0] + r.x1[si], uint8_t{1});
-            filled += r.x1[si] - r.x0[si];
+            here += r.x1[si] - r.x0[si];
           }
         out.write(m, b.begin);
+        filled += here;
+        pass.commit(index, payload_of(here));
         block_done();
       }
   return filled;

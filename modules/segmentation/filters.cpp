@@ -355,8 +355,9 @@ IlluminationResult illumination_z_blocks(const DataObject& image, const ChunkedV
       }
     }
     illumination_factors(res, nz, o);
-    // Pass 2: every block scaled by the factor of its slices.
-    for_each_block(BlockLayout(d, block), o.interrupter, "illumination", [&](const Block& b) {
+    // Pass 2: every block scaled by the factor of its slices; resumable per block (--resume: pass 1
+    // reads only the image and runs again).
+    for_each_block_resumable(BlockLayout(d, block), o.interrupter, "illumination", [&](const Block& b) {
       const Volume<T> in = read_block<T>(image, b.begin, b.size, "input 'image'");
       VolumeF32 v = VolumeF32::uninitialized(out.box_grid(b.begin, b.size));
       const int64_t bplane = b.size[0] * b.size[1];

@@ -7,6 +7,7 @@
 #include <tuple>
 #include <vector>
 
+#include "skel/block_journal.hpp"
 #include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/parallel.hpp"
@@ -182,7 +183,9 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
     }
     if (r.low > r.high)
       throw InputError("threshold: low (" + std::to_string(r.low) + ") is above high (" + std::to_string(r.high) + ")");
-    for_each_owned_block(layout, work, "threshold", [&](const Block& b) {
+    // Otsu's passes read only the image (they run again when resumed); the mask's blocks are
+    // resumable (--resume), each committing its object count.
+    const auto body = [&](const Block& b) {
       const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
       VolumeU8 m = VolumeU8::uninitialized(v.grid());
       std::vector<int64_t> count(static_cast<size_t>(std::max(1, effective_threads(options.threads))) * 4, 0);
@@ -192,9 +195,17 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
         for (int64_t i = b0; i < e; ++i) k += m[i];
         count[static_cast<size_t>(c)] = k;
       });
-      for (int64_t k : count) r.object_voxels += k;
+      int64_t n = 0;
+      for (int64_t k : count) n += k;
+      r.object_voxels += n;
       mask.write(m, b.begin);
-    });
+      return payload_of(n);
+    };
+    if (distributing())
+      for_each_owned_block(layout, work, "threshold", body);
+    else
+      for_each_block_resumable(layout, work, "threshold", body,
+                               [&](const Block&, const std::string& p) { r.object_voxels += payload_as<int64_t>(p); });
     r.object_voxels = sum_over_ranks(r.object_voxels);
   });
   return r;

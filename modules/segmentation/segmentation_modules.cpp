@@ -39,7 +39,9 @@ thresholds used and the object fraction, so a pipeline run documents itself. An 
 allowed (a warning says so). Memory: 1 byte per voxel (output).
 
 Block-wise under a memory budget: blocks of the image in, blocks of the mask out (on disk); Otsu
-first reads the image twice more (value range, histogram). The same mask and table as in memory.)")
+first reads the image twice more (value range, histogram). The same mask and table as in memory.
+With --resume a killed run reads the range and histogram again and continues from its finished
+mask blocks.)")
         .blockwise(0, 9);
   }
   void run(RunContext& ctx) override {
@@ -89,7 +91,7 @@ slice per thread.
 Block-wise under a memory budget: each block is read with the kernel radius around it (halo =
 max(1, ceil(truncate·sigma/spacing)) voxels per axis), smoothed as in memory and its interior
 written: the same values as in memory. Memory per block with halo: 8 (input) + 4 (float) bytes per
-voxel.)")
+voxel. With --resume a killed run continues from its finished blocks.)")
         .blockwise(8, 12);
   }
   void run(RunContext& ctx) override {
@@ -143,7 +145,8 @@ that touch across block faces, edges and corners are then united in memory. Pass
 again, finds the same pieces and writes the final labels and mask: the same labels, mask and table as
 in memory, and no scratch volume besides the two outputs. Memory per block: 1 (mask) + 4 + 1
 (outputs) bytes per voxel plus its runs; for the whole volume ~100 bytes per piece and 24 per piece
-run on a block face.)")
+run on a block face. With --resume a killed run continues from the finished blocks of the pass it was
+in (each block's pieces are kept with it).)")
         .blockwise(0, 8);
   }
   void run(RunContext& ctx) override {
@@ -188,7 +191,7 @@ thread.
 
 Block-wise under a memory budget: each block is read with `radius` voxels around it, filtered as in
 memory and its interior written: the same values as in memory. Memory per block with halo: twice
-the input's bytes per voxel.)")
+the input's bytes per voxel. With --resume a killed run continues from its finished blocks.)")
         .blockwise(1, 16);
   }
   void run(RunContext& ctx) override {
@@ -227,7 +230,8 @@ Block-wise under a memory budget: fit mode first reads slabs of whole slices (as
 the budget holds at the input's bytes plus 8 per voxel; at least one) for the slice statistics, then
 every block (halo 0) is scaled by its slices' factors into an on-disk float32 volume: the same
 statistics, factors and voxels as in memory. Memory per block: input bytes + 4 per voxel; per slab:
-input bytes per voxel plus one slice of doubles per thread.)")
+input bytes per voxel plus one slice of doubles per thread. With --resume a killed run computes the
+slice statistics again and continues from its finished blocks.)")
         .blockwise(0, 12);
   }
   void run(RunContext& ctx) override {
@@ -301,7 +305,7 @@ Block-wise under a memory budget: background components per block, united across
 memory (their runs on the block faces are kept), then each block is read again and its cavities
 filled; the same mask as in memory, no scratch volume besides the output. Memory per block: 1 (mask)
 + 1 (output) bytes per voxel plus its runs; ~100 bytes per background piece and 24 per piece run on
-a block face.)")
+a block face. With --resume a killed run continues from the finished blocks of the pass it was in.)")
         .blockwise(0, 4);
   }
   void run(RunContext& ctx) override {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "distance/distance.hpp"
+#include "skel/block_journal.hpp"
 
 namespace skel::thinning {
 namespace {
@@ -201,14 +202,31 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
   const Dims count = layout.count();
   res.blocks = layout.total();
 
+  // Resumable per block (--resume): the copy and every thinning pass are passes of the journal. The
+  // state between blocks is the skeleton volume (replayed) and what each block committed with it:
+  // its statistics and the box of voxels it changed, from which the blocks to visit again are
+  // marked as in the uninterrupted run, so the passes and their block orders are the same.
+  struct BlockRecord {
+    int64_t ran = 0;  // 1: thin_doht ran on the sub-block
+    int64_t tests = 0, removed = 0, sub_iterations = 0;
+    uint64_t bytes = 0;
+    Dims lo{0, 0, 0}, hi{-1, -1, -1};  // changed voxels, global (hi[0] < 0: none)
+  };
+
   // The state: the mask as 0/1 in the skeleton volume.
   {
     const BlockLayout copy(g.dims, res.block);
-    for_each_block(copy, irq, "thinning (copy)", [&](const Block& b) {
-      const VolumeU8 m = binary(read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'"));
-      for (const uint8_t v : m) res.stats.object_voxels += v;
-      skeleton.write(m, b.begin);
-    });
+    for_each_block_resumable(
+        copy, irq, "thinning (copy)",
+        [&](const Block& b) {
+          const VolumeU8 m = binary(read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'"));
+          int64_t n = 0;
+          for (const uint8_t v : m) n += v;
+          res.stats.object_voxels += n;
+          skeleton.write(m, b.begin);
+          return payload_of(n);
+        },
+        [&](const Block&, const std::string& p) { res.stats.object_voxels += payload_as<int64_t>(p); });
   }
 
   ThinningOptions to = o;
@@ -223,14 +241,48 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
     const int64_t total = static_cast<int64_t>(order.size());
     const std::string label = res.passes == 1 ? "thinning" : "thinning pass " + std::to_string(res.passes);
     report_blocks(irq, label, 0, total);
+    ResumablePass pass;
+    // Applies block bi's record (at place k of the pass): statistics, and the blocks whose
+    // sub-blocks hold a changed voxel and that this pass does not visit any more run again in the
+    // next pass.
+    auto apply = [&](int64_t bi, int64_t k, const BlockRecord& rec) {
+      if (rec.ran) {
+        ++res.block_runs;
+        res.stats.tests += rec.tests;
+        res.stats.removed += rec.removed;
+        res.stats.sub_iterations += rec.sub_iterations;
+        res.stats.bytes = std::max(res.stats.bytes, rec.bytes);
+      }
+      if (rec.hi[0] < 0) return;
+      Dims blo{}, bhi{};
+      for (int a = 0; a < 3; ++a) {
+        const int64_t glo = rec.lo[a] - H, ghi = rec.hi[a] + H;
+        blo[a] = std::max<int64_t>(0, glo / res.block[a]);
+        bhi[a] = std::min<int64_t>(count[a] - 1, std::max<int64_t>(0, ghi) / res.block[a]);
+      }
+      for (int64_t z = blo[2]; z <= bhi[2]; ++z)
+        for (int64_t y = blo[1]; y <= bhi[1]; ++y)
+          for (int64_t x = blo[0]; x <= bhi[0]; ++x) {
+            const int64_t j = block_index(count, x, y, z);
+            if (j == bi) continue;
+            const int64_t pj = pos[static_cast<size_t>(j)];
+            if (pj < 0 || pj < k) again[static_cast<size_t>(j)] = 1;
+          }
+    };
     for (int64_t k = 0; k < total; ++k) {
       const int64_t bi = order[static_cast<size_t>(k)];
+      if (const std::string* p = pass.kept(bi)) {
+        apply(bi, k, payload_as<BlockRecord>(*p));
+        continue;
+      }
       const int64_t bx = bi % count[0], by = (bi / count[0]) % count[1], bz = bi / (count[0] * count[1]);
       const Block b = layout.at(bx, by, bz);
       const Dims& ob = b.outer_begin;
       const Dims& os = b.outer_size;
+      BlockRecord rec;
       const VolumeU8 state = skeleton.read<uint8_t>(ob, os);
       if (std::find(state.begin(), state.end(), uint8_t{1}) == state.end()) {  // no object: nothing to thin
+        pass.commit(bi, payload_of(rec));
         report_blocks(irq, label, k + 1, total);
         continue;
       }
@@ -256,12 +308,12 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
         const Volume<T> p = read_block<T>(priority, ob, os, "input 'priority'");
         return thin_doht(state, p, &locks, to);
       });
-      ++res.block_runs;
-      res.stats.tests += r.stats.tests;
-      res.stats.removed += r.stats.removed;
-      res.stats.sub_iterations += r.stats.sub_iterations;
-      res.stats.bytes = std::max(res.stats.bytes, r.stats.bytes);
-      // The box of changed voxels (global coordinates).
+      rec.ran = 1;
+      rec.tests = r.stats.tests;
+      rec.removed = r.stats.removed;
+      rec.sub_iterations = r.stats.sub_iterations;
+      rec.bytes = r.stats.bytes;
+      // The box of changed voxels (sub-block coordinates).
       Dims lo{os[0], os[1], os[2]}, hi{-1, -1, -1};
       for (int64_t z = 0; z < os[2]; ++z)
         for (int64_t y = 0; y < os[1]; ++y)
@@ -275,23 +327,13 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
             }
       if (hi[0] >= 0) {
         skeleton.write(r.skeleton, ob);
-        // Blocks whose sub-blocks hold a changed voxel and that this pass does not visit any more
-        // are run again in the next pass.
-        Dims blo{}, bhi{};
         for (int a = 0; a < 3; ++a) {
-          const int64_t glo = ob[a] + lo[a] - H, ghi = ob[a] + hi[a] + H;
-          blo[a] = std::max<int64_t>(0, glo / res.block[a]);
-          bhi[a] = std::min<int64_t>(count[a] - 1, std::max<int64_t>(0, ghi) / res.block[a]);
+          rec.lo[a] = ob[a] + lo[a];
+          rec.hi[a] = ob[a] + hi[a];
         }
-        for (int64_t z = blo[2]; z <= bhi[2]; ++z)
-          for (int64_t y = blo[1]; y <= bhi[1]; ++y)
-            for (int64_t x = blo[0]; x <= bhi[0]; ++x) {
-              const int64_t j = block_index(count, x, y, z);
-              if (j == bi) continue;
-              const int64_t pj = pos[static_cast<size_t>(j)];
-              if (pj < 0 || pj < k) again[static_cast<size_t>(j)] = 1;
-            }
       }
+      apply(bi, k, rec);
+      pass.commit(bi, payload_of(rec));
       report_blocks(irq, label, k + 1, total);
     }
     order.clear();

@@ -106,7 +106,9 @@ interior_voxels are not computed block-wise (-1); the columns blocks, passes, bl
 added.
 Memory per sub-block voxel: mask and state 1 + 1, priority 4 (float32), locks 1 + 1, padded mask and
 uint32 chamfer of the lock test 1 + 4, skeleton 1, priority levels 2 and queue (budgeted) 4: 20
-bytes (24 for a float64 priority).)")
+bytes (24 for a float64 priority). With --resume a killed run continues from the finished blocks of
+the pass it was in: each block keeps its statistics and the box it changed, so the blocks visited
+again and the skeleton are the uninterrupted run's.)")
         .blockwise(16, 20);
   }
   void run(RunContext& ctx) override {
