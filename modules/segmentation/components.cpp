@@ -461,7 +461,8 @@ Provisional provisional_components(const DataObject& mask, const ChunkedVolume& 
         if (k > 0 && (k == 1 || (k == 2 && conn >= 18) || conn == 26)) steps.push_back({dx, dy, dz});
       }
   std::vector<int64_t> pairs;  // (a, b) of global piece ids that touch
-  // The unions of one block: `mine` collects them (for the other ranks, or the journal).
+  // Unites the pairs of a union list (a block's, kept in the journal, or another rank's); each block
+  // collects the unions it made in `mine`.
   auto unite_all = [&](const int64_t* p, size_t count) {
     for (size_t i = 0; i + 1 < count; i += 2) uf.unite(p[i], p[i + 1]);
   };
