@@ -103,7 +103,6 @@ struct BlockJournalFile::State {
     std::string payload;
   };
   std::vector<Commit> commits;  // every commit, of the earlier runs and of this one (for compaction)
-  uint64_t written_commits = 0;  // those of `commits` that are in the file
   std::map<std::pair<int64_t, int64_t>, std::string> committed;  // of the earlier run, with payloads
   struct Write {
     std::string name;
@@ -198,7 +197,6 @@ struct BlockJournalFile::State {
     }
     put(r, checksum(r.data(), r.size()));
     write_all(r);
-    written_commits = commits.size();
     full = false;
   }
   // Reads the valid prefix of an earlier run's journal of stage `key`; returns its length (0: none).
@@ -285,7 +283,6 @@ struct BlockJournalFile::State {
       uncommitted.clear();
       valid = pos;
     }
-    written_commits = commits.size();
     return valid;
   }
 };
@@ -345,7 +342,6 @@ void BlockJournalFile::commit(int64_t pass, int64_t index, std::string_view payl
   b.append(payload);
   put(b, checksum(b.data(), b.size()));
   s_->write_all(b);
-  s_->written_commits = s_->commits.size();
   const uint64_t v = s_->volume_bytes();
   if (s_->bytes > std::max(s_->min_bytes, 2 * v)) s_->full = true;
 }
