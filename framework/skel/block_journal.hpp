@@ -5,7 +5,7 @@
 // one block to the next — walks its blocks with for_each_block_resumable instead of for_each_block.
 // In a resumable run the executor gives such a stage a journal: every write to its scratch
 // volumes is recorded, and after each block the block's writes and a commit record are appended to
-// `<node>.blocks` in the resume folder and synced to disk. A run killed with kill -9 and started
+// `<node>.blocks` in the resume folder (bounded by twice the volumes' bytes: block_journal.cpp). A run killed with kill -9 and started
 // again with --resume replays the committed writes into the new scratch volumes and skips the
 // committed blocks, so the stage's outputs are the bytes of an uninterrupted run. Stages with
 // several passes, blocks in an order of their own, or state carried in memory from block to block
@@ -33,8 +33,8 @@ public:
   [[nodiscard]] virtual const std::string* kept(int64_t pass, int64_t index) const = 0;
   // True when block `index` of pass `pass` was committed by an earlier run.
   [[nodiscard]] bool finished(int64_t pass, int64_t index) const { return kept(pass, index) != nullptr; }
-  // Makes the writes since the last commit durable together with the record that block `index` of
-  // pass `pass` is finished, and `payload`: what the block leaves in memory for the blocks after it
+  // Records the writes since the last commit together with the record that block `index` of pass
+  // `pass` is finished (appended with write(): kept through kill -9), and `payload`: what the block leaves in memory for the blocks after it
   // (a count, the blocks it marks for another pass), given back by kept() when the run is resumed.
   virtual void commit(int64_t pass, int64_t index, std::string_view payload) = 0;
 };
@@ -136,7 +136,9 @@ public:
   // Opens `file` for the stage with cache key `key`. An earlier run's journal of the same key keeps
   // its committed blocks and writes (a torn or unchecked tail is cut off); anything else is replaced
   // by an empty journal. Throws Error when the file cannot be written.
-  BlockJournalFile(std::filesystem::path file, uint64_t key);
+  // The journal is bounded by twice the bytes of the stage's scratch volumes, and at least
+  // `min_bytes` (block_journal.cpp, "Size").
+  BlockJournalFile(std::filesystem::path file, uint64_t key, uint64_t min_bytes = uint64_t{64} << 20);
   ~BlockJournalFile() override;
   BlockJournalFile(const BlockJournalFile&) = delete;
   BlockJournalFile& operator=(const BlockJournalFile&) = delete;
@@ -147,10 +149,13 @@ public:
 
   // Blocks committed by the earlier run (0 for a new journal).
   [[nodiscard]] int64_t kept_blocks() const;
-  // A scratch store of the stage's volume `name` (voxels of `bytes_per_voxel` bytes): the earlier
-  // run's committed writes to `name` are replayed into `inner`, and later writes are journaled once
-  // a pass has begun.
-  std::shared_ptr<VolumeStore> wrap(const std::string& name, int64_t bytes_per_voxel, std::shared_ptr<VolumeStore> inner);
+  // A scratch store of the stage's volume `name` (`dims` voxels of `bytes_per_voxel` bytes): the
+  // earlier run's committed writes to `name` are replayed into `inner`, and later writes are
+  // journaled once a pass has begun.
+  std::shared_ptr<VolumeStore> wrap(const std::string& name, int64_t bytes_per_voxel, const Dims& dims,
+                                    std::shared_ptr<VolumeStore> inner);
+  // Bytes of the journal file.
+  [[nodiscard]] uint64_t size() const;
   [[nodiscard]] const std::filesystem::path& file() const;
   // The store a journaled store wraps (for the format's own operations, e.g. flushing); any other
   // store as it is.

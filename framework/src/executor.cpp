@@ -949,7 +949,7 @@ std::shared_ptr<ChunkedVolume> Executor::Scheduler::make_scratch(size_t i, const
   {
     std::lock_guard lock(scratch_m_);
     if (auto j = journals_.find(i); j != journals_.end())
-      store = j->second->wrap(file.filename().string(), voxel_bytes(type_id), std::move(store));
+      store = j->second->wrap(file.filename().string(), voxel_bytes(type_id), grid.dims, std::move(store));
   }
   return std::make_shared<ChunkedVolume>(grid, type_id, std::move(store));
 }

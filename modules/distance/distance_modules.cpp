@@ -73,8 +73,9 @@ Memory: the output, 2 (or 4) bytes per voxel, plus one row of scratch.
 Block-wise under a memory budget (thesis Algorithm 4): blocks with a one-voxel overlap, eight
 block-wise scans (2·nz·(2nx-1)·(2ny-1) block visits), bit-identical to the in-memory result for
 weights obeying the conditions above. Memory per block: 1 (mask) + 4 (distance) bytes per voxel.
-With --resume a killed run continues from the last finished block visit of its scan (the start and
-both sweeps are journaled per block).)")
+With --resume a killed run continues from the last block visit its journal holds (the start and
+both sweeps are journaled per block; the journal is bounded by twice the volume's bytes and
+compacted between sweeps, so a sweep past that bound resumes from where the bound was reached).)")
         .blockwise(1, 5);
   }
   void run(RunContext& ctx) override {

@@ -62,7 +62,7 @@ fs::path resume_dir(const fs::path& scratch) {
   return {};
 }
 
-// The commit records in a stage's journal (the format of framework/src/block_journal.cpp,
+// The blocks committed in a stage's journal (the format of framework/src/block_journal.cpp,
 // "skelflow-blocks 2"); a record still being written ends the count.
 int64_t journal_commits(const fs::path& file) {
   const std::string b = text_of(file);
@@ -90,6 +90,17 @@ int64_t journal_commits(const fs::path& file) {
       pos += n + 8;
       if (pos > b.size()) break;
       ++commits;
+    } else if (kind == 'B') {  // a compacted journal: every commit so far
+      uint64_t count = 0;
+      if (!u64(count)) break;
+      for (uint64_t k = 0; k < count && pos <= b.size(); ++k) {
+        pos += 16;
+        if (!u64(n)) break;
+        pos += n;
+      }
+      pos += 8;
+      if (pos > b.size()) break;
+      commits = static_cast<int64_t>(count);
     } else {
       break;
     }

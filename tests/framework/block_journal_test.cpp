@@ -91,11 +91,12 @@ TEST(BlockJournal, KilledWalkResumesFromCommittedBlocksWithTheSameBytes) {
     BlockJournalFile j(f, 42);
     EXPECT_EQ(j.kept_blocks(), 0);
     MemoryStore first({12, 6, 10});
-    auto store = j.wrap("out.h5", 2, std::shared_ptr<VolumeStore>(&first, [](VolumeStore*) {}));
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&first, [](VolumeStore*) {}));
     EXPECT_EQ(walk(&j, *store, 5), 5);  // "killed" in the sixth block
   }
-  // A torn record at the end (a kill in the middle of a write): ignored and cut off.
-  const auto committed_size = fs::file_size(f);
+  // A torn record at the end (a kill in the middle of a write): ignored and cut off, with the write
+  // of the block that was running (appended, but not committed).
+  const auto killed_size = fs::file_size(f);
   {
     std::ofstream out(f, std::ios::binary | std::ios::app);
     out << "W\x07garbage";
@@ -103,12 +104,13 @@ TEST(BlockJournal, KilledWalkResumesFromCommittedBlocksWithTheSameBytes) {
   {
     BlockJournalFile j(f, 42);
     EXPECT_EQ(j.kept_blocks(), 5);
-    EXPECT_EQ(fs::file_size(f), committed_size);
+    EXPECT_EQ(fs::file_size(f), j.size());
+    EXPECT_EQ(killed_size - j.size(), 1 + 8 + 6 + 48 + 8 + 4 * 3 * 3 * 2 + 8);  // the half block's write record
     MemoryStore second({12, 6, 10});
-    auto store = j.wrap("out.h5", 2, std::shared_ptr<VolumeStore>(&second, [](VolumeStore*) {}));
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&second, [](VolumeStore*) {}));
     EXPECT_EQ(second.writes, 10);  // the five kept blocks replayed, two writes each
     MemoryStore other({12, 6, 10});
-    (void)j.wrap("other.h5", 2, std::shared_ptr<VolumeStore>(&other, [](VolumeStore*) {}));
+    (void)j.wrap("other.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&other, [](VolumeStore*) {}));
     EXPECT_EQ(other.writes, 0);  // writes of another volume are not replayed into this one
     EXPECT_EQ(walk(&j, *store, 3), 3);  // killed again
   }
@@ -116,7 +118,7 @@ TEST(BlockJournal, KilledWalkResumesFromCommittedBlocksWithTheSameBytes) {
     BlockJournalFile j(f, 42);
     EXPECT_EQ(j.kept_blocks(), 8);
     MemoryStore third({12, 6, 10});
-    auto store = j.wrap("out.h5", 2, std::shared_ptr<VolumeStore>(&third, [](VolumeStore*) {}));
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&third, [](VolumeStore*) {}));
     EXPECT_EQ(walk(&j, *store, -1), 4);  // only the blocks not kept are computed
     EXPECT_EQ(third.data(), reference.data());
   }
@@ -193,7 +195,7 @@ TEST(BlockJournal, PayloadsCarryStateAcrossPassesAndATornPayloadIsCutOff) {
   {  // killed in the fifth block of pass 1
     BlockJournalFile j(f, 7);
     MemoryStore first({12, 6, 10});
-    auto store = j.wrap("out.h5", 2, std::shared_ptr<VolumeStore>(&first, [](VolumeStore*) {}));
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&first, [](VolumeStore*) {}));
     EXPECT_TRUE(two_passes(&j, *store, 16).stopped);
   }
   // A commit record torn in the middle of its payload (kill -9 while appending it): cut off.
@@ -216,7 +218,7 @@ TEST(BlockJournal, PayloadsCarryStateAcrossPassesAndATornPayloadIsCutOff) {
     EXPECT_EQ(j.kept(1, 7), nullptr);  // the block that was running
     EXPECT_FALSE(j.finished(1, 3));    // the torn record
     MemoryStore second({12, 6, 10});
-    auto store = j.wrap("out.h5", 2, std::shared_ptr<VolumeStore>(&second, [](VolumeStore*) {}));
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&second, [](VolumeStore*) {}));
     const TwoPass resumed = two_passes(&j, *store, -1);
     EXPECT_FALSE(resumed.stopped);
     EXPECT_EQ(resumed.computed, 8);  // only the blocks of pass 1 not kept
@@ -235,6 +237,37 @@ TEST(BlockJournal, PayloadsCarryStateAcrossPassesAndATornPayloadIsCutOff) {
     std::ofstream(f, std::ios::binary | std::ios::trunc) << "skelflow-blocks 1\n" << std::string(8, '\0');
     BlockJournalFile j(f, 0);
     EXPECT_EQ(j.kept_blocks(), 0);
+  }
+  fs::remove(f);
+}
+
+TEST(BlockJournal, BoundedByTwiceTheVolumesAndCompactedWhenAPassBegins) {
+  // No lower bound: the journal of the 1440-byte volume holds at most 2 × 1440 bytes and one block
+  // (240 bytes: its write and commit records) more. Pass 0 fills it; pass 1 begins by compacting it
+  // (the volume and one record committing the 12 blocks), journals four blocks, then keeps its
+  // commits in memory: a kill then resumes from the 16 blocks written.
+  const fs::path f = journal_file("bounded");
+  fs::remove(f);
+  MemoryStore reference({12, 6, 10});
+  const TwoPass ref = two_passes(nullptr, reference, -1);
+  const uint64_t bound = 26 + 2 * 1440 + 240;
+  {
+    BlockJournalFile j(f, 9, 0);
+    MemoryStore first({12, 6, 10});
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&first, [](VolumeStore*) {}));
+    EXPECT_TRUE(two_passes(&j, *store, 21).stopped);  // killed in the tenth block of pass 1
+    EXPECT_LE(j.size(), bound);
+  }
+  {
+    BlockJournalFile j(f, 9, 0);
+    EXPECT_EQ(j.kept_blocks(), 16);
+    MemoryStore second({12, 6, 10});
+    auto store = j.wrap("out.h5", 2, {12, 6, 10}, std::shared_ptr<VolumeStore>(&second, [](VolumeStore*) {}));
+    const TwoPass resumed = two_passes(&j, *store, -1);
+    EXPECT_EQ(resumed.computed, 8);
+    EXPECT_EQ(resumed.total, ref.total);
+    EXPECT_EQ(second.data(), reference.data());
+    EXPECT_LE(j.size(), bound);
   }
   fs::remove(f);
 }
