@@ -1096,11 +1096,18 @@ void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const Eu
   const double wy = iso ? 1.0 : g.spacing[1] * g.spacing[1];
   const double wz = iso ? 1.0 : g.spacing[2] * g.spacing[2];
   const Interrupter inner;  // progress and cancellation between slabs, below
-  // Slabs of whole lines along the pass's axis, `cross` voxels across it.
-  const BlockLayout sx({nx, ny, nz}, {nx, cross[1], cross[2]});
+  // Slabs of whole lines along the pass's axis, `cross` voxels across it. When a slab of the
+  // allowed size (cross[0]·cross[1] lines of the longest axis) holds whole xy-planes, the x and y
+  // passes run together on slabs of whole planes (the planes hold whole x-lines and y-lines): one
+  // write of the float volume and one read less than three separate passes.
+  const int64_t longest = std::max({nx, ny, nz});
+  const int64_t allowed = cross[0] * cross[1] * longest;
+  const bool fused = allowed >= nx * ny;
+  const BlockLayout sx({nx, ny, nz}, fused ? Dims{nx, ny, std::clamp<int64_t>(allowed / (nx * ny), 1, nz)}
+                                           : Dims{nx, cross[1], cross[2]});
   const BlockLayout sy({nx, ny, nz}, {cross[0], ny, cross[2]});
   const BlockLayout sz({nx, ny, nz}, {cross[0], cross[1], nz});
-  const int64_t total = sx.total() + sy.total() + sz.total();
+  const int64_t total = sx.total() + (fused ? 0 : sy.total()) + sz.total();
   int64_t done = 0;
   auto each = [&](const BlockLayout& l, auto&& f) {
     if (distributing()) {  // skelflow-mpi: the slabs of a pass are independent; each rank does its own
@@ -1133,16 +1140,19 @@ void euclidean_blocks(const DataObject& mask, const ChunkedVolume& out, const Eu
     VolumeF32 f = VolumeF32::uninitialized(m.grid());
     const uint8_t* mp = m.data();
     edt_pass_x<NoIndex>(b.size, [mp](int64_t i) { return mp[i] == 0; }, outside, wx, o.threads, inner, f.data(), nullptr);
+    if (fused && (ny > 1 || outside))
+      edt_column_pass<NoIndex>(f.data(), nullptr, b.size[0], b.size[2], ny, b.size[0] * ny, b.size[0], wy, outside,
+                               o.threads, inner);
     out.write(f, b.begin);
   });
-  if (ny > 1 || outside)
+  if (!fused && (ny > 1 || outside))  // (fused: the y pass ran with the x pass)
     each(sy, [&](const Block& b) {
       VolumeF32 f = out.read<float>(b.begin, b.size);
       edt_column_pass<NoIndex>(f.data(), nullptr, b.size[0], b.size[2], ny, b.size[0] * ny, b.size[0], wy, outside,
                                o.threads, inner);
       out.write(f, b.begin);
     });
-  else
+  else if (!fused)
     done += sy.total();
   each(sz, [&](const Block& b) {
     VolumeF32 f = out.read<float>(b.begin, b.size);
