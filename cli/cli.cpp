@@ -60,7 +60,7 @@ const std::vector<Command>& commands() {
       {"run",
        "run PIPELINE [--set node.param=value]... [--threads N] [--output-dir D] [--report run.json]\n"
        "               [--target NODE]... [--quiet] [--allow-outside-output-dir]\n"
-       "               [--memory-budget SIZE] [--scratch DIR] [--resume]",
+       "               [--memory-budget SIZE] [--scratch DIR] [--resume] [--no-block-resume]",
        "Runs a pipeline. Relative paths resolve against the pipeline file's folder; output paths\n"
        "resolve against --output-dir when given. Outputs appear only when the whole run succeeds.\n"
        "With --output-dir, every output must lie inside D: absolute paths, '..' and symbolic links\n"
@@ -79,10 +79,14 @@ const std::vector<Command>& commands() {
        "  --scratch DIR               folder of the scratch files (default: next to the first output)\n"
        "  --resume                    continue a run under a memory budget that was killed, from the\n"
        "                              stages it finished (refused when the pipeline, a parameter, an\n"
-       "                              input file, the budget or the block shape changed)",
+       "                              input file, the budget or the block shape changed) and, inside\n"
+       "                              the stage it was in, from its finished blocks\n"
+       "  --no-block-resume           keep no per-block journal: a killed stage starts again from its\n"
+       "                              first block on --resume (saves the journal's time and disk, up to\n"
+       "                              twice the stage's scratch volumes)",
        "skelflow run pipelines/vessel_network.yaml --set phantom.seed=7 --threads 4 --output-dir out",
        {"--set", "--threads", "--output-dir", "--allow-outside-output-dir", "--report", "--target", "--quiet", "-q",
-        "--memory-budget", "--scratch", "--resume", "--help", "-h"}},
+        "--memory-budget", "--scratch", "--resume", "--no-block-resume", "--help", "-h"}},
       {"validate", "validate PIPELINE [--output-dir D] [--allow-outside-output-dir]",
        "Checks a pipeline without running it: modules, parameters, connections, types, cycles, input\n"
        "files that do not exist, output extensions, two outputs into one file, outputs outside D.\n"
@@ -562,6 +566,8 @@ int cmd_run(const std::vector<std::string>& args) {
       opt.scratch_dir = need(i, "--scratch");
     } else if (a == "--resume") {
       opt.resume = true;
+    } else if (a == "--no-block-resume") {
+      opt.block_resume = false;
     } else if (a == "--quiet" || a == "-q") {
       quiet = true;
     } else if (!a.empty() && a[0] == '-') {

@@ -52,6 +52,11 @@ struct ExecOptions {
   // volumes and tables kept in the scratch folder); refused when the pipeline, its parameters, its
   // input files, the budget or the block shape changed. Without it such leftovers are removed.
   bool resume = false;
+  // Per-block resume (skel/block_journal.hpp): block-wise stages journal their finished blocks, so
+  // that --resume continues a killed stage from them. false (--no-block-resume): no journal, a
+  // killed stage runs again from its first block (saves the journal's writes: up to twice the
+  // stage's scratch volumes of disk).
+  bool block_resume = true;
   // Outputs of a node that ran (not of cached nodes), called once when it finishes; the CLI keeps
   // the small summary tables from here without keep_outputs (which would keep every volume).
   std::function<void(const std::string& node, const std::map<std::string, DataPtr>& outputs)> on_outputs;

@@ -756,7 +756,8 @@ void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> in
   auto mod = im_.registry.create(node.module);
   ++modules_run_;
   {
-    const ScopedBlockJournal journal(plan_.nodes[i].blockwise && !resume_dir_.empty() ? open_journal(i) : nullptr);
+    const ScopedBlockJournal journal(plan_.nodes[i].blockwise && !resume_dir_.empty() && opt_.block_resume ? open_journal(i)
+                                                                                                         : nullptr);
     mod->run(ctx);
   }
   intr.check();
