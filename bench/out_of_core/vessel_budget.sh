@@ -9,7 +9,8 @@
 #   bench/out_of_core/vessel_budget.sh BUILD_DIR NX NY NZ [BUDGET] [WORK_DIR]
 # NX NY NZ: the volume; when NX or NY is more than 1280 the phantom is made at NX/2 x NY/2 x NZ and
 # mirrored 2 x 2 in x and y (the phantom generator holds 5 bytes per voxel in memory); mirroring
-# keeps every vessel continuous across the seams. BUDGET default 2GiB. WORK_DIR (default: a new
+# keeps every vessel continuous across the seams. BUDGET default 2GiB. SKEL_BENCH_RUN_ARGS: extra
+# flags of the budget run (e.g. --no-block-resume). WORK_DIR (default: a new
 # folder under the build dir) needs about 12 bytes per voxel of free disk at the peak (input,
 # scratch volumes), and is removed at the end.
 set -euo pipefail
@@ -139,7 +140,8 @@ echo "|---|---|---|---|---|---|"
 if [ "${SKEL_BENCH_SKIP_IN_MEMORY:-0}" != 1 ]; then
   run in-memory
 fi
-run "budget-$budget" --memory-budget "$budget" --scratch "$work/budget-$budget/scratch"
+# shellcheck disable=SC2086  # SKEL_BENCH_RUN_ARGS: extra flags of the budget run, e.g. --no-block-resume
+run "budget-$budget" --memory-budget "$budget" --scratch "$work/budget-$budget/scratch" ${SKEL_BENCH_RUN_ARGS:-}
 cat "$work/rows.md"
 echo
 "$py" - "$work" "$budget" <<'PY'
