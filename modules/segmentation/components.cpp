@@ -342,6 +342,7 @@ struct BlockRuns {
   int64_t pieces = 0;
 };
 BlockRuns block_runs(const VolumeU8& m, int conn, bool background, int threads) {
+  if (m.size() < (int64_t{1} << 16)) threads = 1;  // small blocks: not worth the tasks
   BlockRuns br;
   br.runs = extract_runs(m, threads, background);
   std::vector<int64_t> parent = union_runs(br.runs, m.ny(), m.nz(), conn, threads, Interrupter());

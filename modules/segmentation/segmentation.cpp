@@ -58,10 +58,14 @@ double otsu_from_histogram(const std::vector<int64_t>& h, double base, double sc
   if (byte) return static_cast<double>(chosen);
   return std::nextafter(base + (chosen + 1) / scale, -std::numeric_limits<double>::infinity());
 }
+// Below this many values the range, histogram and mask loops run on the calling thread.
+constexpr int64_t kParallelValues = int64_t{1} << 16;
+
 // Smallest and largest non-NaN value of p[0..n) on `threads` threads (+inf, -inf when none).
 template <class T>
 std::pair<double, double> value_range(const T* p, int64_t n, int threads) {
-  const int parts = std::max(1, effective_threads(threads)) * 4;
+  if (n < kParallelValues) threads = 1;  // small blocks: not worth the tasks
+  const int parts = threads == 1 ? 1 : std::max(1, effective_threads(threads)) * 4;
   std::vector<std::pair<double, double>> part(static_cast<size_t>(parts),
                                               {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()});
   parallel_chunks(0, n, parts, threads, [&](int64_t c, int64_t b, int64_t e) {
@@ -86,7 +90,8 @@ std::pair<double, double> value_range(const T* p, int64_t n, int threads) {
 template <class T>
 void add_to_histogram(const T* p, int64_t n, double base, double scale, std::vector<int64_t>& h, int threads) {
   const int bins = static_cast<int>(h.size());
-  const int parts = std::max(1, effective_threads(threads)) * 4;
+  if (n < kParallelValues) threads = 1;
+  const int parts = threads == 1 ? 1 : std::max(1, effective_threads(threads)) * 4;
   std::vector<std::vector<int64_t>> part(static_cast<size_t>(parts), std::vector<int64_t>(h.size(), 0));
   parallel_chunks(0, n, parts, threads, [&](int64_t c, int64_t b, int64_t e) {
     auto& ph = part[static_cast<size_t>(c)];
@@ -188,8 +193,9 @@ BlockThresholdResult threshold_blocks(const DataObject& image, const ChunkedVolu
     const auto body = [&](const Block& b) {
       const Volume<T> v = read_block<T>(image, b.begin, b.size, "input 'image'");
       VolumeU8 m = VolumeU8::uninitialized(v.grid());
-      std::vector<int64_t> count(static_cast<size_t>(std::max(1, effective_threads(options.threads))) * 4, 0);
-      parallel_chunks(0, v.size(), static_cast<int64_t>(count.size()), options.threads, [&](int64_t c, int64_t b0, int64_t e) {
+      const int t = v.size() < kParallelValues ? 1 : options.threads;
+      std::vector<int64_t> count(t == 1 ? 1 : static_cast<size_t>(std::max(1, effective_threads(t))) * 4, 0);
+      parallel_chunks(0, v.size(), static_cast<int64_t>(count.size()), t, [&](int64_t c, int64_t b0, int64_t e) {
         threshold_span(v.data() + b0, m.data() + b0, e - b0, r.low, r.high);
         int64_t k = 0;
         for (int64_t i = b0; i < e; ++i) k += m[i];
