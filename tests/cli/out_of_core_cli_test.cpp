@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "cli_process.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -26,18 +28,7 @@ struct Result {
 
 Result run(const std::vector<std::string>& args) {
   const fs::path log = fs::temp_directory_path() / ("skel_ooc_cli_" + std::to_string(getpid()) + ".log");
-  const std::string bin = SKELFLOW_BIN;
-  const pid_t pid = fork();
-  if (pid == 0) {
-    FILE* f = std::freopen(log.c_str(), "w", stdout);
-    (void)f;
-    dup2(fileno(stdout), fileno(stderr));
-    std::vector<char*> argv{const_cast<char*>(bin.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(bin.c_str(), argv.data());
-    _exit(127);
-  }
+  const pid_t pid = skel::test_cli::start_skelflow(args, log, 0);
   int status = 0;
   waitpid(pid, &status, 0);
   Result r;
@@ -126,34 +117,10 @@ namespace {
 // Starts skelflow with SKELFLOW_TEST_BLOCK_DELAY_MS set (every block-wise stage sleeps after each
 // block), output to `log`; returns its pid.
 pid_t start_slow(const std::vector<std::string>& args, const fs::path& log, int delay_ms) {
-  const std::string bin = SKELFLOW_BIN;
-  const pid_t pid = fork();
-  if (pid == 0) {
-    FILE* f = std::freopen(log.c_str(), "w", stdout);
-    (void)f;
-    dup2(fileno(stdout), fileno(stderr));
-    setenv("SKELFLOW_TEST_BLOCK_DELAY_MS", std::to_string(delay_ms).c_str(), 1);
-    std::vector<char*> argv{const_cast<char*>(bin.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(bin.c_str(), argv.data());
-    _exit(127);
-  }
-  return pid;
+  return skel::test_cli::start_skelflow(args, log, delay_ms);
 }
-
-// The resume folder in `scratch` (empty path when there is none).
-fs::path resume_dir(const fs::path& scratch) {
-  if (!fs::exists(scratch)) return {};
-  for (const auto& e : fs::directory_iterator(scratch))
-    if (e.path().filename().string().rfind(".skelflow-resume-p-", 0) == 0) return e.path();
-  return {};
-}
-
-std::string text_of(const fs::path& f) {
-  std::ifstream in(f, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
+using skel::test_cli::resume_dir;
+using skel::test_cli::text_of;
 
 // Runs `args` slowly and kills it with SIGKILL once the manifest says `stage` finished and the next
 // stage ran for a while (in the middle of its blocks). False when the run ended first.

@@ -19,14 +19,11 @@
 #include <thread>
 #include <vector>
 
+#include "cli_process.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string text_of(const fs::path& f) {
-  std::ifstream in(f, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 fs::path scratch(const std::string& name) {
   fs::path d = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / ("resume_blocks_" + name);
@@ -35,32 +32,11 @@ fs::path scratch(const std::string& name) {
   return d;
 }
 
-// Starts skelflow with `args`, output to `log`; delay_ms > 0: SKELFLOW_TEST_BLOCK_DELAY_MS (every
-// block-wise stage sleeps after each block). Returns its pid.
 pid_t start(const std::vector<std::string>& args, const fs::path& log, int delay_ms) {
-  const std::string bin = SKELFLOW_BIN;
-  const pid_t pid = fork();
-  if (pid == 0) {
-    FILE* f = std::freopen(log.c_str(), "w", stdout);
-    (void)f;
-    dup2(fileno(stdout), fileno(stderr));
-    if (delay_ms > 0) setenv("SKELFLOW_TEST_BLOCK_DELAY_MS", std::to_string(delay_ms).c_str(), 1);
-    std::vector<char*> argv{const_cast<char*>(bin.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(bin.c_str(), argv.data());
-    _exit(127);
-  }
-  return pid;
+  return skel::test_cli::start_skelflow(args, log, delay_ms);
 }
-
-// The resume folder in `scratch` (empty path when there is none).
-fs::path resume_dir(const fs::path& scratch) {
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(scratch, ec))
-    if (e.path().filename().string().rfind(".skelflow-resume-p-", 0) == 0) return e.path();
-  return {};
-}
+using skel::test_cli::resume_dir;
+using skel::test_cli::text_of;
 
 // The blocks committed in a stage's journal (the format of framework/src/block_journal.cpp,
 // "skelflow-blocks 2"); a record still being written ends the count.

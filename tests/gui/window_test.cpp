@@ -586,6 +586,20 @@ TEST(Window, FilesRoundTripAndRecentList) {
   EXPECT_EQ(Pipeline::load_file(path.toStdString()).nodes().size(), 2u);
 }
 
+// The rods phantom, its Euclidean distance and a thinning node `thin_id` (module `thinning`) reading
+// both, as the 3D-view tests start from.
+static void add_rods_distance_thinning(PipelineDocument* doc, int64_t n, const char* thinning, const char* thin_id) {
+  ASSERT_EQ(doc->add_node("synthetic.network", {0, 0}), "network");
+  ASSERT_EQ(doc->add_node("distance.euclidean", {240, 120}), "euclidean");
+  ASSERT_EQ(doc->add_node(thinning, {480, 0}), thin_id);
+  ASSERT_EQ(doc->set_param("network", "size", ParamValue(std::vector<int64_t>{n, n, n})), "");
+  ASSERT_EQ(doc->set_param("network", "radius", ParamValue(3.0)), "");
+  ASSERT_EQ(doc->set_param("network", "period", ParamValue(20.0)), "");
+  ASSERT_EQ(doc->connect_ports("network", "mask", "euclidean", "mask"), "");
+  ASSERT_EQ(doc->connect_ports("network", "mask", thin_id, "mask"), "");
+  ASSERT_EQ(doc->connect_ports("euclidean", "distance", thin_id, "priority"), "");
+}
+
 TEST(Window, SkeletonPipelineFromRealModules) {
   REQUIRE_DISPLAY();
   for (const char* m : {"synthetic.network", "distance.euclidean", "thinning.doht", "geometry.skeleton_to_graph"}) {
@@ -595,16 +609,8 @@ TEST(Window, SkeletonPipelineFromRealModules) {
   w.resize(1280, 900);
   w.runner()->set_threads(2);
   PipelineDocument* doc = w.document();
-  ASSERT_EQ(doc->add_node("synthetic.network", {0, 0}), "network");
-  ASSERT_EQ(doc->add_node("distance.euclidean", {240, 120}), "euclidean");
-  ASSERT_EQ(doc->add_node("thinning.doht", {480, 0}), "doht");
+  ASSERT_NO_FATAL_FAILURE(add_rods_distance_thinning(doc, 64, "thinning.doht", "doht"));
   ASSERT_EQ(doc->add_node("geometry.skeleton_to_graph", {720, 60}), "skeleton_to_graph");
-  ASSERT_EQ(doc->set_param("network", "size", ParamValue(std::vector<int64_t>{64, 64, 64})), "");
-  ASSERT_EQ(doc->set_param("network", "radius", ParamValue(3.0)), "");
-  ASSERT_EQ(doc->set_param("network", "period", ParamValue(20.0)), "");
-  ASSERT_EQ(doc->connect_ports("network", "mask", "euclidean", "mask"), "");
-  ASSERT_EQ(doc->connect_ports("network", "mask", "doht", "mask"), "");
-  ASSERT_EQ(doc->connect_ports("euclidean", "distance", "doht", "priority"), "");
   ASSERT_EQ(doc->connect_ports("doht", "skeleton", "skeleton_to_graph", "skeleton"), "");
   ASSERT_EQ(doc->connect_ports("euclidean", "distance", "skeleton_to_graph", "distance"), "");
   EXPECT_TRUE(validate(doc->pipeline()).empty());
@@ -657,15 +663,7 @@ TEST(Window, GridCellSkeletonIsShownAsItsSimpleGeometry) {
   w.resize(1280, 900);
   w.runner()->set_threads(2);
   PipelineDocument* doc = w.document();
-  ASSERT_EQ(doc->add_node("synthetic.network", {0, 0}), "network");
-  ASSERT_EQ(doc->add_node("distance.euclidean", {240, 120}), "euclidean");
-  ASSERT_EQ(doc->add_node("thinning.grid_cell", {480, 0}), "grid_cell");
-  ASSERT_EQ(doc->set_param("network", "size", ParamValue(std::vector<int64_t>{48, 48, 48})), "");
-  ASSERT_EQ(doc->set_param("network", "radius", ParamValue(3.0)), "");
-  ASSERT_EQ(doc->set_param("network", "period", ParamValue(20.0)), "");
-  ASSERT_EQ(doc->connect_ports("network", "mask", "euclidean", "mask"), "");
-  ASSERT_EQ(doc->connect_ports("network", "mask", "grid_cell", "mask"), "");
-  ASSERT_EQ(doc->connect_ports("euclidean", "distance", "grid_cell", "priority"), "");
+  ASSERT_NO_FATAL_FAILURE(add_rods_distance_thinning(doc, 48, "thinning.grid_cell", "grid_cell"));
   w.show();
   ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
   w.run_all();
