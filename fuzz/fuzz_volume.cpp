@@ -3,7 +3,7 @@
 // with that extension, then read_volume_header and (when the declared volume is small) read_any_volume
 // read it, as io.read_volume does. Detached data files (.nhdr, .mhd) and Zarr folders are not fuzzed
 // (more than one file). Every reader checks declared sizes against the file before allocating, so
-// the volume limit only bounds the fuzzer's time, not its memory.
+// the volume limit (kMaxReadVoxels, fuzz_common.hpp) only bounds the fuzzer's time, not its memory.
 #include "fuzz_common.hpp"
 #include "io/volume_format.hpp"
 #include "skel/error.hpp"
@@ -13,9 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto& path = file.write(data, size);
   try {
     const skel::io::VolumeHeader h = skel::io::read_volume_header(path);
-    const double voxels = static_cast<double>(h.grid.dims[0]) * static_cast<double>(h.grid.dims[1]) *
-                          static_cast<double>(h.grid.dims[2]);
-    if (voxels <= double(1 << 24)) (void)skel::io::read_any_volume(path);
+    if (skel::fuzz::small_enough_to_read(h.grid.dims)) (void)skel::io::read_any_volume(path);
   } catch (const skel::Error&) {
   }
   return 0;

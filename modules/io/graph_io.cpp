@@ -127,6 +127,16 @@ float finite_float(double v, const NumberReader& r, const char* what) {
   return static_cast<float>(v);
 }
 
+// A label (int32) from a number of the file: NaN and values outside int32 are refused (the cast
+// would be undefined behaviour; libFuzzer found 1e11 in a GraphML <data> and -7.2e18 in VTP cell
+// data). Fractions are cut towards zero, as before.
+int32_t label_of(double v, const std::string& where) {
+  if (!(v > static_cast<double>(std::numeric_limits<int32_t>::min()) - 1.0 &&
+        v < static_cast<double>(std::numeric_limits<int32_t>::max()) + 1.0))
+    throw InputError(where + ": label value " + text::format_double(v, 17) + " is not a 32-bit integer");
+  return static_cast<int32_t>(v);
+}
+
 double to_num(const std::string& s, const std::string& where) {
   char* e = nullptr;
   const double v = std::strtod(s.c_str(), &e);
@@ -912,7 +922,7 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
         const std::string n = name.substr(5);
         if (is_int) {
           auto& a = g.node_labels[n];
-          for (int64_t i = 0; i < nn; ++i) a.push_back(static_cast<int32_t>(v[node_point[i]]));
+          for (int64_t i = 0; i < nn; ++i) a.push_back(label_of(v[node_point[i]], src + ": point data '" + name + "'"));
         } else {
           auto& a = g.node_attributes[n];
           for (int64_t i = 0; i < nn; ++i) a.push_back(static_cast<float>(v[node_point[i]]));
@@ -935,7 +945,7 @@ SpatialGraph vtp_read(const std::string& text, const std::string& src) {
       if (static_cast<int64_t>(v.size()) != nn + ne) throw InputError(src + ": cell data '" + name + "' has the wrong length");
       if (c.attr_or("type", "").find("Int") != std::string::npos) {
         auto& a = g.edge_labels[name];
-        for (int64_t e = 0; e < ne; ++e) a.push_back(static_cast<int32_t>(v[nn + e]));
+        for (int64_t e = 0; e < ne; ++e) a.push_back(label_of(v[nn + e], src + ": cell data '" + name + "'"));
       } else {
         auto& a = g.edge_attributes[name];
         for (int64_t e = 0; e < ne; ++e) a.push_back(static_cast<float>(v[nn + e]));
@@ -1251,7 +1261,7 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
       if (k.name == "x" || k.name == "y" || k.name == "z") p[k.name[0] - 'x'] = finite_num(d.text, at, "a coordinate");
       else if (k.name == "radius" && (k.type == "float" || k.type == "double"))
         nf[k.name].resize(i + 1), nf[k.name][i] = static_cast<float>(finite_num(d.text, at, "the radius"));
-      else if (k.type == "int" || k.type == "long") nl[k.name].resize(i + 1), nl[k.name][i] = static_cast<int32_t>(to_num(d.text, where));
+      else if (k.type == "int" || k.type == "long") nl[k.name].resize(i + 1), nl[k.name][i] = label_of(to_num(d.text, where), at);
       else if (k.type == "float" || k.type == "double") nf[k.name].resize(i + 1), nf[k.name][i] = static_cast<float>(to_num(d.text, where));
     }
     ids[c.attr_or("id", "")] = g.add_node(p);
@@ -1309,7 +1319,7 @@ SpatialGraph graphml_read(const std::string& text, const std::string& src) {
         const bool radius = k.name == "point.radius";
         while (!r.at_end()) v.push_back(static_cast<float>(radius ? r.next_finite("a radius") : r.next()));
       } else if (k.type == "int" || k.type == "long") {
-        el[k.name] = static_cast<int32_t>(to_num(d.text, where));
+        el[k.name] = label_of(to_num(d.text, where), src + ":" + std::to_string(d.line) + ": " + what);
       } else if (k.type == "float" || k.type == "double") {
         ef[k.name] = static_cast<float>(to_num(d.text, where));
       }
@@ -1459,7 +1469,8 @@ SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, co
       for (size_t i = 0; i < nodes.rows.size(); ++i) v[i] = static_cast<float>(nodes.rows[i][k]);
     } else if (h.rfind("node_label:", 0) == 0) {
       auto& v = g.ensure_node_label(h.substr(11));
-      for (size_t i = 0; i < nodes.rows.size(); ++i) v[i] = static_cast<int32_t>(nodes.rows[i][k]);
+      for (size_t i = 0; i < nodes.rows.size(); ++i)
+        v[i] = label_of(nodes.rows[i][k], nodes.src + ":" + std::to_string(nodes.lines[i]) + ": column '" + h + "'");
     }
   }
   const size_t ce = col(edges, "edge", "edges"), c0 = col(edges, "node0", "edges"), c1 = col(edges, "node1", "edges");
@@ -1501,7 +1512,8 @@ SpatialGraph csv_read(const std::string& text, const std::string& nodes_text, co
       for (const auto& rg : ranges) v.push_back(static_cast<float>(edges.rows[rg.first][k]));
     } else if (h.rfind("edge_label:", 0) == 0) {
       auto& v = g.edge_labels[h.substr(11)];
-      for (const auto& rg : ranges) v.push_back(static_cast<int32_t>(edges.rows[rg.first][k]));
+      for (const auto& rg : ranges)
+        v.push_back(label_of(edges.rows[rg.first][k], edges.src + ":" + std::to_string(edges.lines[rg.first]) + ": column '" + h + "'"));
     }
   }
   snap_ends(g);

@@ -8,6 +8,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <iomanip>
 #include <mutex>
 #include <sstream>
 
@@ -336,6 +337,24 @@ VolumeInfo read_volume_info(const fs::path& file, const std::string& dataset) {
 
 namespace {
 
+// The data a dataset holds lies in its file (external raw files, H5Pset_external, are left out), so
+// a stored size beyond the file's is a corrupt chunk index or layout message, refused before H5Dread
+// allocates a buffer of that size for one chunk (libFuzzer: a 5 KB file claiming a 4 GB chunk).
+void check_stored_size(const Opened& o, const fs::path& file, const std::string& dataset) {
+  Handle plist(H5Dget_create_plist(o.dset.id), H5Pclose);
+  const double held = static_cast<double>(H5Dget_storage_size(o.dset.id));
+  hsize_t file_size = 0;
+  const bool external = H5Pget_external_count(plist.id) > 0;
+  const bool sized = H5Fget_filesize(o.file.id, &file_size) >= 0;
+  H5Eclear2(H5E_DEFAULT);
+  if (!external && sized && held > static_cast<double>(file_size)) {
+    std::ostringstream s;
+    s << file.string() << ": dataset '" << dataset << "' claims " << std::fixed << std::setprecision(0) << held
+      << " bytes of stored data but the file is only " << file_size << " bytes: the file is truncated or corrupt";
+    throw InputError(s.str());
+  }
+}
+
 // The dims a file declares are checked against the data it holds before the volume is allocated, so
 // a corrupt or hostile 4 KB file cannot make Skelflow allocate terabytes. Unfiltered data must be
 // all there; deflate cannot compress better than 1032:1 (shuffle and fletcher32 add nothing), so a
@@ -360,6 +379,7 @@ void check_declared_size(const Opened& o, const fs::path& file, const std::strin
                        ", which this HDF5 library cannot decode; rewrite it with gzip/deflate or without compression");
     }
   }
+  check_stored_size(o, file, dataset);
   const double max_ratio = nf > 0 ? 1100.0 : 1.0;
   if (declared > held * max_ratio) {
     std::ostringstream s;

@@ -137,6 +137,9 @@ LandmarkSet parse_amira(const std::string& text, const std::string& name) {
     if (l[0] != '@') throw InputError(where(name, i) + ": expected a data block '@K'");
     const auto nums = parse_numbers(l.substr(1), where(name, i));
     if (nums.size() != 1) throw InputError(where(name, i) + ": expected '@K'");
+    // As in the declarations: a whole K in [0, 1e9] (a larger one made the cast to int64 undefined).
+    if (!(nums[0] >= 0 && nums[0] <= 1e9) || nums[0] != std::floor(nums[0]))
+      throw InputError(where(name, i) + ": expected a block number '@K' (K >= 0)");
     const auto it = block_of_set.find(static_cast<int64_t>(nums[0]));
     const size_t header = i++;
     std::vector<Vec3> pts;

@@ -340,8 +340,11 @@ std::string pages_word(size_t n) { return std::to_string(n) + (n == 1 ? " page" 
 
 // The main pages (no reduced-resolution subfiles) of one file, checked against `ref` (set from the
 // first page when null).
+// Adds each page's voxel bytes to `claimed_bytes` and keeps the largest tile of any page (bytes, as
+// decoded) in `largest_tile`: a tile may be larger than its page, so the voxels alone do not bound the
+// buffer a read needs.
 std::vector<tdir_t> main_pages(TIFF* t, const fs::path& file, PageFormat& ref, bool& have_ref, std::string& first_desc,
-                               uint64_t& claimed_bytes) {
+                               uint64_t& claimed_bytes, double& largest_tile) {
   std::vector<tdir_t> pages;
   tdir_t dir = 0;
   do {
@@ -362,6 +365,9 @@ std::vector<tdir_t> main_pages(TIFF* t, const fs::path& file, PageFormat& ref, b
                          "): every page of a stack must have the same size and type");
       }
       claimed_bytes += static_cast<uint64_t>(f.width) * static_cast<uint64_t>(f.height) * f.spp * (f.bits / 8u);
+      if (f.tiled)
+        largest_tile = std::max(largest_tile, static_cast<double>(f.tile_w) * static_cast<double>(f.tile_h) *
+                                                  (f.planar == PLANARCONFIG_CONTIG ? f.spp : 1) * (f.bits / 8));
       pages.push_back(dir);
     }
     ++dir;
@@ -385,8 +391,16 @@ Stack open_stack(const fs::path& path, const VolumeReadOptions& o) {
   uint64_t claimed = 0, file_bytes = 0;
   for (size_t i = 0; i < s.files.size(); ++i) {
     TiffPtr t = open_tiff(s.files[i]);
-    for (tdir_t p : main_pages(t.get(), s.files[i], s.format, have, desc, claimed)) pages.push_back({i, p});
-    file_bytes += fs::file_size(s.files[i], ec);
+    double tile = 0;
+    for (tdir_t p : main_pages(t.get(), s.files[i], s.format, have, desc, claimed, tile)) pages.push_back({i, p});
+    const uint64_t bytes = fs::file_size(s.files[i], ec);
+    file_bytes += bytes;
+    // A tile is decoded whole into one buffer: one that decodes to more than its file can hold
+    // (deflate's ~1000:1 again) is a corrupt tile size, refused before that buffer is allocated.
+    if (tile / 1032 > static_cast<double>(bytes + 4096))
+      throw InputError(show(s.files[i]) + ": a tile of " + std::to_string(static_cast<uint64_t>(tile)) +
+                       " bytes is more than " + std::to_string(bytes) +
+                       " bytes of file can hold: the file is truncated or corrupt");
   }
   const PageFormat& f = s.format;
   // No format compresses voxels more than ~1000:1 (deflate's limit): a header that claims more
@@ -563,14 +577,17 @@ Volume<T> read_stack_box(const Stack& s, Dims begin, Dims size) {
       current = sl.page;
     }
     if (!ok) throw InputError(show(file) + ": cannot read page " + std::to_string(sl.page) + tiff_reason());
-    if (!page_format(t.get(), file, sl.page).same_layout(f))
+    // The page's own tiles or strips: they may differ from the first page's (same_layout compares
+    // the voxels only) and decide the layout of what libtiff decodes.
+    const PageFormat pf = page_format(t.get(), file, sl.page);
+    if (!pf.same_layout(f))
       throw InputError(show(file) + ": page " + std::to_string(sl.page) + " changed size or type");
     const std::string where = show(file) + ": page " + std::to_string(sl.page) + ": ";
     with_stored(f.stored, [&](auto tag) {
       using S = decltype(tag);
-      if (!f.tiled) {
+      if (!pf.tiled) {
         buf.resize(static_cast<size_t>(TIFFStripSize(t.get())));
-        const int64_t rps = f.rows_per_strip;
+        const int64_t rps = pf.rows_per_strip;
         const int64_t row_bytes = f.width * bps * step;
         for (int64_t s0 = begin[1] / rps; s0 * rps < begin[1] + size[1]; ++s0) {
           const uint32_t strip = TIFFComputeStrip(t.get(), static_cast<uint32_t>(s0 * rps), plane);
@@ -586,7 +603,7 @@ Volume<T> read_stack_box(const Stack& s, Dims begin, Dims size) {
         }
       } else {
         buf.resize(static_cast<size_t>(TIFFTileSize(t.get())));
-        const int64_t tw = f.tile_w, th = f.tile_h;
+        const int64_t tw = pf.tile_w, th = pf.tile_h;
         const int64_t row_bytes = tw * bps * step;
         for (int64_t ty = begin[1] / th; ty * th < begin[1] + size[1]; ++ty)
           for (int64_t tx = begin[0] / tw; tx * tw < begin[0] + size[0]; ++tx) {

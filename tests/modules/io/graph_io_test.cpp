@@ -601,3 +601,55 @@ print(pd.GetNumberOfPoints(), pd.GetNumberOfVerts(), pd.GetNumberOfLines(),
   for (float x : g.edge_attributes.at("weight")) expect += x;
   EXPECT_NEAR(weight, expect, 1e-5 * expect);
 }
+
+// Integer data become int32 labels; a value outside int32 (or NaN) made the cast undefined behaviour
+// (UBSan in libFuzzer: 1e11 in a GraphML <data>, -7.2e18 in VTP cell data; reproducers are seeds of
+// graph_graphml and graph_vtp now). It is refused, naming the file, line and data.
+TEST(GraphIo, LabelsOutsideInt32AreRefused) {
+  for (const char* bad : {"1e11", "-3000000000", "nan"}) {
+    const std::string b = bad;
+    SCOPED_TRACE(b);
+    const std::string gml_node =
+        "<graphml>\n<key id=\"k\" for=\"node\" attr.name=\"kind\" attr.type=\"int\"/>\n<graph>\n"
+        "<node id=\"a\"><data key=\"k\">" + b + "</data></node>\n</graph>\n</graphml>\n";
+    const std::string ne = error_of([&] { graph_from_text(gml_node, GraphFormat::graphml, {}, "n.graphml"); });
+    EXPECT_TRUE(contains(ne, "n.graphml:4: node 'a' 'kind': label value ")) << ne;
+    EXPECT_TRUE(contains(ne, "is not a 32-bit integer")) << ne;
+    const std::string gml_edge =
+        "<graphml>\n<key id=\"k\" for=\"edge\" attr.name=\"tree\" attr.type=\"long\"/>\n<graph>\n"
+        "<node id=\"a\"/><node id=\"b\"/>\n<edge id=\"e\" source=\"a\" target=\"b\"><data key=\"k\">" + b +
+        "</data></edge>\n</graph>\n</graphml>\n";
+    const std::string ee = error_of([&] { graph_from_text(gml_edge, GraphFormat::graphml, {}, "e.graphml"); });
+    EXPECT_TRUE(contains(ee, "e.graphml:5: edge 'e' 'tree': label value ")) << ee;
+    EXPECT_TRUE(contains(ee, "is not a 32-bit integer")) << ee;
+    const std::string ce = error_of([&] {
+      graph_from_text("edge,node0,node1,point,x,y,z,edge_label:tree\n0,0,1,0,0,0,0," + b + "\n0,0,1,1,1,0,0," + b + "\n",
+                      GraphFormat::csv, "node,x,y,z\n0,0,0,0\n1,1,0,0\n", "e.csv");
+    });
+    EXPECT_TRUE(contains(ce, "e.csv:2: column 'edge_label:tree': label value ")) << ce;
+    const std::string cn = error_of([&] {
+      graph_from_text("edge,node0,node1,point,x,y,z\n", GraphFormat::csv, "node,x,y,z,node_label:kind\n0,0,0,0," + b + "\n", "n.csv");
+    });
+    EXPECT_TRUE(contains(cn, "n.csv (nodes):2: column 'node_label:kind': label value ")) << cn;
+  }
+  // The largest and smallest int32 still read.
+  const std::string ok =
+      "<graphml>\n<key id=\"k\" for=\"node\" attr.name=\"kind\" attr.type=\"int\"/>\n<graph>\n"
+      "<node id=\"a\"><data key=\"k\">2147483647</data></node><node id=\"b\"><data key=\"k\">-2147483648</data></node>\n"
+      "</graph>\n</graphml>\n";
+  const SpatialGraph g = graph_from_text(ok, GraphFormat::graphml, {}, "ok.graphml");
+  ASSERT_EQ(g.node_labels.at("kind").size(), 2u);
+  EXPECT_EQ(g.node_labels.at("kind")[0], 2147483647);
+  EXPECT_EQ(g.node_labels.at("kind")[1], -2147483648);
+  // libFuzzer's reproducers.
+  const std::filesystem::path corpus = std::filesystem::path(SKEL_SOURCE_DIR) / "fuzz" / "corpus";
+  for (const auto& [file, format] : {std::pair{"graph_vtp/ubsan_huge_cell_label.vtp", GraphFormat::vtp},
+                                     std::pair{"graph_graphml/ubsan_huge_int_data.graphml", GraphFormat::graphml}}) {
+    std::ifstream in(corpus / file, std::ios::binary);
+    ASSERT_TRUE(in) << file;
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string e = error_of([&] { graph_from_text(text, format, {}, file); });
+    EXPECT_TRUE(contains(e, std::string(file) + ":")) << e;
+    EXPECT_TRUE(contains(e, "is not a 32-bit integer")) << e;
+  }
+}

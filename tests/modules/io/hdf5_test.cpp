@@ -373,6 +373,23 @@ TEST(Hdf5, DeclaredSizeIsCheckedAgainstTheStoredDataBeforeAllocating) {
   EXPECT_EQ(io::read_volume(ok)->bytes(), 256u * 256u * 64u);
 }
 
+// A 4x4x4 float dataset whose one chunk claims 4294967295 stored bytes in a 4 KB file (libFuzzer's
+// reproducer): H5Dread allocated a 4 GB buffer for that chunk before failing. The stored size is
+// now checked against the file's size before the read.
+TEST(Hdf5, StoredSizeBeyondTheFileIsRefusedBeforeReading) {
+  const fs::path path = fs::path(SKEL_SOURCE_DIR) / "fuzz" / "corpus" / "hdf5" / "h5dread_4gb_malloc.h5";
+  ASSERT_TRUE(fs::exists(path)) << path;
+  const std::string e = error_of([&] { io::read_volume(path, "/volume"); });
+  EXPECT_NE(e.find(path.string() + ": dataset '/volume' claims 4294967295 bytes of stored data but the file is only " +
+                   std::to_string(fs::file_size(path)) + " bytes: the file is truncated or corrupt"),
+            std::string::npos)
+      << e;
+  // Valid files, compressed or not, still read.
+  const fs::path ok = scratch() / "stored_ok.h5";
+  io::write_volume(ok, VolumeU8(Dims{32, 16, 8}, 3));
+  EXPECT_EQ(io::read_volume(ok)->bytes(), 32u * 16u * 8u);
+}
+
 // The libFuzzer reproducers of the HDF5 target (seeds now) are clear errors, not crashes.
 TEST(Hdf5, FuzzReproducersAreClearErrors) {
   const fs::path dir = fs::path(SKEL_SOURCE_DIR) / "fuzz" / "corpus" / "hdf5";

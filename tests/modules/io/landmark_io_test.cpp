@@ -269,6 +269,13 @@ TEST(LandmarkFiles, AmiraDuplicateBlockAndHugeCountAreRefused) {
   EXPECT_EQ(message("# AmiraMesh 3D ASCII 2.0\ndefine Markers 1\nParameters {\n NumSets 1e300\n}\n"
                     "Markers { float[3] Coordinates } @1\n@1\n1 2 3\n"),
             "d.landmarkAscii:4: expected 'NumSets k'");
+  // fuzz/corpus/landmarks/amira_huge_data_block.txt: a data block '@1111111111111011111111' was cast
+  // to int64 (UBSan); data blocks are checked like the declarations now.
+  for (const char* block : {"@1111111111111011111111", "@-2", "@1.5"})
+    EXPECT_EQ(message(std::string("# AmiraMesh 3D ASCII 2.0\ndefine Markers 1\nMarkers { float[3] Coordinates } @1\n") +
+                      block + "\n7\n@1\n1 2 3\n"),
+              "d.landmarkAscii:4: expected a block number '@K' (K >= 0)")
+        << block;
 }
 
 // Found by fuzz_landmarks (fuzz/corpus/landmarks/csv_long_set_label.txt): a set label of 30 digits

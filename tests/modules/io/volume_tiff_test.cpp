@@ -336,6 +336,46 @@ TEST(Tiff, BadFilesNameTheFileAndWhatIsWrong) {
   EXPECT_NE(cplx.find("bad_complex.tif: page 0: unsupported sample type (64-bit complex)"), std::string::npos) << cplx;
 }
 
+// libFuzzer's reproducer (a seed of the tiff target now): a 24x18 page whose tiles claim to be
+// 4294508560x16 pixels. The tile buffer (137 GB) was allocated before any check (std::bad_alloc, or
+// an out-of-memory abort under ASan); the tile size is now checked against the file like the voxels.
+TEST(Tiff, HugeTileIsRefusedBeforeItsBufferIsAllocated) {
+  const fs::path path = fs::path(SKEL_SOURCE_DIR) / "fuzz" / "corpus" / "tiff" / "huge_tile_width.tif";
+  ASSERT_TRUE(fs::exists(path)) << path;
+  for (const bool header_only : {true, false}) {
+    const std::string e = error_of([&] {
+      if (header_only) (void)io::read_volume_header(path);
+      else (void)io::read_any_volume(path);
+    });
+    EXPECT_NE(e.find(path.string() + ": a tile of 137424273920 bytes is more than 1439 bytes of file can hold"),
+              std::string::npos) << e;
+    EXPECT_NE(e.find("truncated or corrupt"), std::string::npos) << e;
+  }
+  // Tiles larger than their page are legal and still read (16x16 tiles of a 5x3 page).
+  const fs::path small = scratch() / "small_page_big_tile.tif";
+  {
+    TIFF* t = TIFFOpen(small.c_str(), "w");
+    ASSERT_NE(t, nullptr);
+    TIFFSetField(t, TIFFTAG_IMAGEWIDTH, 5u);
+    TIFFSetField(t, TIFFTAG_IMAGELENGTH, 3u);
+    TIFFSetField(t, TIFFTAG_BITSPERSAMPLE, 8);
+    TIFFSetField(t, TIFFTAG_SAMPLESPERPIXEL, 1);
+    TIFFSetField(t, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+    TIFFSetField(t, TIFFTAG_TILEWIDTH, 16u);
+    TIFFSetField(t, TIFFTAG_TILELENGTH, 16u);
+    std::vector<unsigned char> tile(256, 0);
+    for (int y = 0; y < 3; ++y)
+      for (int x = 0; x < 5; ++x) tile[static_cast<size_t>(y * 16 + x)] = static_cast<unsigned char>(10 * y + x);
+    ASSERT_GE(TIFFWriteEncodedTile(t, 0, tile.data(), 256), 0);
+    TIFFClose(t);
+  }
+  const DataPtr v = io::read_any_volume(small);
+  const auto* u8 = dynamic_cast<const VolumeU8*>(v.get());
+  ASSERT_NE(u8, nullptr);
+  EXPECT_EQ(u8->dims(), (Dims{5, 3, 1}));
+  EXPECT_EQ((*u8)(4, 2, 0), 24);
+}
+
 TEST(Tiff, WrittenFilesAreImageJStacksForTifffile) {
   NEED_TIFFFILE();
   auto v = ramp_volume<uint16_t>(Dims{9, 8, 3}, {0.25, 0.25, 1.5});
