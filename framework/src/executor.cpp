@@ -621,6 +621,11 @@ private:
   void node_failed(size_t i);
   void release_inputs(size_t i);
   [[nodiscard]] bool output_read(size_t i, const std::string& port) const;
+  [[nodiscard]] bool is_target(size_t i) const;
+  // Headless runs drop an output of node i that no node reads as soon as i is done.
+  [[nodiscard]] bool drops_unread_outputs(size_t i) const {
+    return !opt_.keep_outputs && !plan_.nodes[i].users.empty() && !is_target(i);
+  }
   void store_in_cache();
   BlockPlan block_plan(size_t i, const std::map<std::string, DataPtr>& inputs);
   std::shared_ptr<ChunkedVolume> make_scratch(size_t i, const std::string& port, const std::string& type_id,
@@ -806,9 +811,7 @@ void Executor::Scheduler::node_done(size_t i, NodeReport nr) {
   // Headless: an output that no node reads is dropped now, not when the node's other outputs are
   // released (an unread label volume of connected_components would otherwise stay, in memory or as a
   // scratch file, until its mask had been read by every user: 4 bytes per voxel for nothing).
-  if (!opt_.keep_outputs && !plan_.nodes[i].users.empty() &&
-      std::find(opt_.targets.begin(), opt_.targets.end(), plan_.nodes[i].id) == opt_.targets.end())
-    std::erase_if(results_[i], [&](const auto& kv) { return !output_read(i, kv.first); });
+  if (drops_unread_outputs(i)) std::erase_if(results_[i], [&](const auto& kv) { return !output_read(i, kv.first); });
   state_[i] = plan_.nodes[i].cached ? NodeState::Cached : NodeState::Done;
   progress_[i] = 1.0;
   status(i, state_[i], 1.0, nr.warnings.empty() ? std::string() : nr.warnings.back());
@@ -848,6 +851,10 @@ void Executor::Scheduler::node_failed(size_t i) {
   im_.cancel.store(true);  // stop the others
 }
 
+bool Executor::Scheduler::is_target(size_t i) const {
+  return std::find(opt_.targets.begin(), opt_.targets.end(), plan_.nodes[i].id) != opt_.targets.end();
+}
+
 // True when a node reading node i reads its output `port`.
 bool Executor::Scheduler::output_read(size_t i, const std::string& port) const {
   const std::string& id = plan_.nodes[i].id;
@@ -861,8 +868,7 @@ bool Executor::Scheduler::output_read(size_t i, const std::string& port) const {
 // as consumers_ is: a node reading two ports of one node must not free it for its other users.
 void Executor::Scheduler::release_inputs(size_t i) {
   for (size_t d : plan_.nodes[i].inputs_from) {
-    if (--consumers_[d] == 0 && !opt_.keep_outputs &&
-        std::find(opt_.targets.begin(), opt_.targets.end(), plan_.nodes[d].id) == opt_.targets.end())
+    if (--consumers_[d] == 0 && !opt_.keep_outputs && !is_target(d))
       results_[d].clear();
   }
 }
@@ -1023,9 +1029,7 @@ void Executor::Scheduler::checkpoint(size_t i, const NodeReport& nr) {
     for (const auto& [port, d] : outs) {
       if (!d) return;
       // Dropped when the node is done (node_done): nothing resumed reads it.
-      if (!opt_.keep_outputs && !plan_.nodes[i].users.empty() && !output_read(i, port) &&
-          std::find(opt_.targets.begin(), opt_.targets.end(), id) == opt_.targets.end())
-        continue;
+      if (drops_unread_outputs(i) && !output_read(i, port)) continue;
       detail::ResumeOutput o;
       o.port = port;
       if (const auto* c = dynamic_cast<const ChunkedVolume*>(d.get())) {
