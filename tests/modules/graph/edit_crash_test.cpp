@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -148,6 +149,21 @@ TEST(GraphEditor, JournalReplaysToTheLastOperationAfterSigkill) {
   const fs::path dir = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "edit_crash";
   fs::remove_all(dir);
   fs::create_directories(dir);
+  // How long one operation takes here, journal write and fsync included (0.05 ms on a tmpfs, 3 ms on
+  // a disk that syncs): the kill delay is drawn relative to it, so that kills land in the middle of
+  // the session on fast and slow machines alike (CI failed with a fixed 3 ms window on a fast disk,
+  // where the child finished the whole session within the window).
+  double op_us = 0;
+  {
+    const fs::path timing = dir / "timing.yaml";
+    GraphEditor ed(original);
+    ed.set_journal(timing, 0.1);
+    const auto t0 = std::chrono::steady_clock::now();
+    run_session(ed, [](int) {});
+    op_us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count() / kSessionOps;
+    fs::remove(timing);
+  }
+  const auto window_us = static_cast<uint64_t>(std::max(2.0 * op_us, 1.0));
   std::mt19937_64 rng(20260522);
   int killed_mid_session = 0, one_ahead = 0;
   for (int round = 0; round < 100; ++round) {
@@ -175,9 +191,9 @@ TEST(GraphEditor, JournalReplaysToTheLastOperationAfterSigkill) {
     }
     ::close(fds[1]);
     // Kill once the child has announced a random number of entries, after a random extra delay of
-    // up to 3 ms (an operation takes about that long, most of it the journal's fsync).
+    // up to two operations' time (so the kill falls anywhere, also inside a journal write).
     const int target = static_cast<int>(rng() % (kSessionOps + 1));
-    const auto delay = std::chrono::microseconds(rng() % 3000);
+    const auto delay = std::chrono::microseconds(rng() % window_us);
     int32_t reported = -1, v = 0;
     while (reported < target) {
       const ssize_t r = ::read(fds[0], &v, sizeof v);
@@ -210,8 +226,8 @@ TEST(GraphEditor, JournalReplaysToTheLastOperationAfterSigkill) {
         << "replay of " << entries << " entries differs from the state after operation " << entries;
     fs::remove(journal);
   }
-  std::printf("100 kills: %d in the middle of the session, %d with one entry written but not yet announced\n",
-              killed_mid_session, one_ahead);
+  std::printf("100 kills (one operation %.0f us): %d in the middle of the session, %d with one entry written but not yet announced\n",
+              op_us, killed_mid_session, one_ahead);
   // The kill points must really be spread over the session, not all after its end.
   EXPECT_GE(killed_mid_session, 80);
 }
