@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The whole vessel pipeline (pipelines/vessel_network.yaml, unchanged) on a 512³ phantom: wall time
+# The whole vessel pipeline (pipelines/vessel_network.yaml, unchanged) on a SIZE³ phantom: wall time
 # and peak RSS per stage from the run report, and the recovered network against the phantom's ground
 # truth. Prints one markdown section.
 #   bench/vessel/run.sh BUILD_DIR [SIZE]     (SIZE default 512)
@@ -31,7 +31,8 @@ r = json.load(open(work + "/run.json"))
 print("## Vessel pipeline (whole, %d³)" % n)
 print()
 print("`pipelines/vessel_network.yaml` run by `skelflow run` with `%s`, %s threads." % (params, threads))
-print("Per stage: wall time and the process's peak RSS when the stage ended (from the run report);")
+print("Per stage: wall time, the process's peak RSS when the stage ended (a high-water mark: it includes")
+print("every earlier stage) and its RSS then (what stays alive), from the run report;")
 print("floor: the stage's physical floor, one read of its volume inputs and one write of its volume output")
 print("at this machine's memory bandwidth measured in the same run (a NumPy copy of 1 GiB, best of 3:")
 print("bytes read + written per second), and the ratio time / floor.")
@@ -42,23 +43,30 @@ best = min((lambda t0: (np.copyto(b, a), time.perf_counter() - t0)[1])(time.perf
 bw = 2.0 * a.nbytes / best  # bytes moved per second (read + write)
 del a, b
 # Bytes per voxel read + written by each volume stage (inputs read once, output written once).
+# io.write_volume: the mask read, the gzip'd HDF5 file written (~0.1 byte per voxel: counted as 0).
 floor_bytes = {"segmentation.gaussian": 4 + 4, "segmentation.threshold": 4 + 1,
-               "segmentation.connected_components": 1 + 1, "io.write_volume": 1 + 1,
+               "segmentation.connected_components": 1 + 1, "io.write_volume": 1,
                "distance.euclidean": 1 + 4, "thinning.doht": 1 + 4 + 1}
 voxels = float(n) ** 3
-print("| stage | module | time (s) | peak RSS (MiB) | floor (s) | time / floor |")
-print("|---|---|---|---|---|---|")
+print("| stage | module | time (s) | peak RSS (MiB) | RSS after (MiB) | floor (s) | time / floor |")
+print("|---|---|---|---|---|---|---|")
 processing = 0.0
+phantom_peak = 0.0
 for node in r["nodes"]:
     fb = floor_bytes.get(node["module"])
     fl = "%.3f | %.1f×" % (fb * voxels / bw, node["seconds"] / (fb * voxels / bw)) if fb else " | "
-    print("| %s | %s | %.3f | %.0f | %s |" % (node["id"], node["module"], node["seconds"], node["peak_rss_mib"], fl))
+    print("| %s | %s | %.3f | %.0f | %.0f | %s |" % (node["id"], node["module"], node["seconds"], node["peak_rss_mib"],
+                                               node.get("rss_mib", 0.0), fl))
     if node["module"] != "synthetic.vessel_tree":
         processing += node["seconds"]
-print("| **total** | | **%.2f** | **%.0f** | | |" % (r["seconds"], r["peak_rss_mib"]))
+    else:
+        phantom_peak = node["peak_rss_mib"]
+print("| **total** | | **%.2f** | **%.0f** | | | |" % (r["seconds"], r["peak_rss_mib"]))
 print()
-print("Processing (every stage but the phantom): %.1f s; peak RSS %.1f bytes per voxel; memory bandwidth %.1f GB/s."
-      % (processing, r["peak_rss_mib"] * 1048576.0 / voxels, bw / 1e9))
+bpv = lambda mib: mib * 1048576.0 / voxels
+print("Processing (every stage but the phantom): %.1f s; peak RSS %.2f bytes per voxel (%.0f MiB; the phantom"
+      " stage alone reached %.2f); memory bandwidth %.1f GB/s." % (processing, bpv(r["peak_rss_mib"]), r["peak_rss_mib"],
+                                                                bpv(phantom_peak), bw / 1e9))
 print()
 def row(path):
     with open(path) as f:

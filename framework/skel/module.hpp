@@ -276,6 +276,17 @@ public:
   };
   [[nodiscard]] const BlockSupport& block_support() const { return block_support_; }
 
+  // Declares that run() can write output `output_port` into the buffer of input `input_port` when the
+  // executor hands that buffer over (RunContext::take_input; docs/architecture.md, "In-place
+  // execution"): the module then saves the output's allocation and the copy. Both ports must be
+  // declared before; the module must give the same bytes either way (it runs out of place whenever
+  // take_input returns nullptr).
+  ModuleSpec& in_place(const std::string& input_port, const std::string& output_port);
+  struct InPlace {
+    std::string input, output;
+  };
+  [[nodiscard]] const std::vector<InPlace>& in_place_ports() const { return in_place_; }
+
   [[nodiscard]] const std::string& name() const { return name_; }
   [[nodiscard]] std::string family() const { return name_.substr(0, name_.find('.')); }
   [[nodiscard]] const std::string& doc() const { return doc_; }
@@ -293,6 +304,7 @@ private:
   std::vector<PortSpec> inputs_, outputs_;
   std::vector<ParamSpec> params_;
   BlockSupport block_support_;
+  std::vector<InPlace> in_place_;
 };
 
 // Everything run() may use: inputs, parameters, outputs, progress, cancellation, threads, paths.
@@ -320,6 +332,26 @@ public:
   [[nodiscard]] std::shared_ptr<const T> optional_input(const std::string& port) const {
     return has_input(port) ? input<T>(port) : nullptr;
   }
+
+  // Input `port` for writing in place, when the executor handed its buffer over to this node: the spec
+  // declares in_place(port, ...), this node is the last one reading that output, the output is no
+  // target and is not kept for the GUI, the node reads it on no other port, and nothing else holds
+  // the data (no cache entry, no caller's reference, no wrapped outside memory). nullptr otherwise,
+  // and always outside the executor's in-memory runs: the module then computes out of place. A
+  // second call returns nullptr. The data is the one input_data(port) returns.
+  template <class T>
+  [[nodiscard]] std::shared_ptr<T> take_input(const std::string& port) {
+    auto t = std::dynamic_pointer_cast<T>(std::const_pointer_cast<DataObject>(take_input_data(port)));
+    if constexpr (requires { t->wraps_external_memory(); })
+      if (t && t->wraps_external_memory()) return nullptr;
+    return t;
+  }
+  // The untyped form of take_input (nullptr when not handed over).
+  [[nodiscard]] virtual DataPtr take_input_data(const std::string& /*port*/) { return nullptr; }
+  // false when output `port` would be dropped unread as soon as the node is done (a headless run in
+  // which no node reads it and the node is no target): the module may skip computing it and its
+  // memory. true otherwise, and always outside the executor.
+  [[nodiscard]] virtual bool output_wanted(const std::string& /*port*/) const { return true; }
 
   // Parameter value (defaults already applied). T must match the declared type (int64_t for Int,
   // double for Float, std::string for String/Choice/Path, vectors for lists).

@@ -128,6 +128,14 @@ DataPtr NodeContext::input_data(const std::string& port) const {
   return it == inputs_.end() ? nullptr : it->second;
 }
 
+DataPtr NodeContext::take_input_data(const std::string& port) {
+  if (handed_over_.erase(port) == 0) return nullptr;
+  auto it = inputs_.find(port);
+  // Only this context holds the data (the executor let go of it when handing it over).
+  if (it == inputs_.end() || !it->second || it->second.use_count() != 1) return nullptr;
+  return it->second;
+}
+
 const ParamValue& NodeContext::param_value(const std::string& name) const {
   auto it = params_.find(name);
   if (it == params_.end()) throw Error("module " + spec_.name() + " asked for undeclared parameter '" + name + "'");

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <set>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -44,6 +45,12 @@ public:
               std::function<void(const std::string&)> on_warning);
 
   [[nodiscard]] DataPtr input_data(const std::string& port) const override;
+  [[nodiscard]] DataPtr take_input_data(const std::string& port) override;
+  // The executor hands input `port` over for in-place use (RunContext::take_input).
+  void hand_over(const std::string& port) { handed_over_.insert(port); }
+  [[nodiscard]] bool output_wanted(const std::string& port) const override { return !unwanted_.contains(port); }
+  // The executor drops output `port` unread (RunContext::output_wanted).
+  void set_unwanted(const std::string& port) { unwanted_.insert(port); }
   [[nodiscard]] const ParamValue& param_value(const std::string& name) const override;
   void output(const std::string& port, DataPtr data) override;
   using RunContext::output;
@@ -78,6 +85,7 @@ private:
   std::vector<std::string> warnings_, written_;
   std::map<std::string, std::filesystem::path> tmp_paths_;
   const BlockPlan* blocks_ = nullptr;
+  std::set<std::string> handed_over_, unwanted_;
 };
 
 // Resolves a (possibly relative) path against `base`.

@@ -615,7 +615,9 @@ public:
 
 private:
   std::map<std::string, DataPtr> gather_inputs(size_t i);
-  void run_module(size_t i, std::map<std::string, DataPtr> inputs, NodeReport& nr);
+  void run_module(size_t i, std::map<std::string, DataPtr> inputs, const std::set<std::string>& handed_over,
+                  NodeReport& nr);
+  std::set<std::string> hand_over_in_place(size_t i);
   void run_node(size_t i);
   void node_done(size_t i, NodeReport nr);
   void node_failed(size_t i);
@@ -728,8 +730,45 @@ static std::map<std::string, DataPtr> load_for_in_memory_module(std::map<std::st
   return inputs;
 }
 
+// In-memory headless runs: the inputs node i may write in place (ModuleSpec::in_place). The upstream
+// output is handed over (dropped from results_, so that only i's inputs hold it) when every other node
+// reading that output is done (nodes reading other outputs of the same node do not matter: the
+// phantom's truth graph may still be written while its image is smoothed), and nothing else may need
+// it: it is no target, not kept for the GUI, not from the cache, and i reads it on no other port.
+// NodeContext::take_input_data checks when the module asks that nobody else holds the data (a
+// caller's reference, a node passing it through, the CLI's kept tables); without a taker the data is
+// freed with i's inputs, as release_inputs would have freed it.
+std::set<std::string> Executor::Scheduler::hand_over_in_place(size_t i) {
+  std::set<std::string> ports;
+  const PipelineNode& node = *node_of_[i];
+  const ModuleSpec& spec = *im_.registry.find(node.module);
+  if (spec.in_place_ports().empty() || opt_.keep_outputs || plan_.memory_budget > 0) return ports;
+  std::lock_guard lock(m_);
+  for (const auto& ip : spec.in_place_ports()) {
+    auto it = node.inputs.find(ip.input);
+    if (it == node.inputs.end()) continue;
+    const PortRef& ref = it->second;
+    const size_t d = idx_.at(ref.node);
+    if (is_target(d) || plan_.nodes[d].cached) continue;
+    const bool other_reader = std::any_of(plan_.nodes[d].users.begin(), plan_.nodes[d].users.end(), [&](size_t u) {
+      if (u == i || state_[u] == NodeState::Done || state_[u] == NodeState::Cached) return false;
+      return std::any_of(node_of_[u]->inputs.begin(), node_of_[u]->inputs.end(),
+                         [&](const auto& in) { return in.second == ref; });
+    });
+    if (other_reader) continue;
+    const bool read_twice = std::any_of(node.inputs.begin(), node.inputs.end(), [&](const auto& in) {
+      return in.first != ip.input && in.second == ref;
+    });
+    if (read_twice) continue;
+    results_[d].erase(ref.port);
+    ports.insert(ip.input);
+  }
+  return ports;
+}
+
 // Calls the module's run() with progress, cancellation and warnings wired to the run.
-void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> inputs, NodeReport& nr) {
+void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> inputs,
+                                     const std::set<std::string>& handed_over, NodeReport& nr) {
   const PipelineNode& node = *node_of_[i];
   const ModuleSpec& spec = *im_.registry.find(node.module);
   ParamMap eff = effective_params(node, spec);
@@ -757,6 +796,10 @@ void Executor::Scheduler::run_module(size_t i, std::map<std::string, DataPtr> in
                             if (opt_.on_warning) opt_.on_warning(plan_.nodes[i].id, w);
                           });
   if (plan_.nodes[i].blockwise) ctx.set_blocks(&blocks);
+  for (const std::string& port : handed_over) ctx.hand_over(port);
+  if (drops_unread_outputs(i))
+    for (const PortSpec& out : spec.outputs())
+      if (!output_read(i, out.name)) ctx.set_unwanted(out.name);
   status(i, NodeState::Running, 0.0, {});
   auto mod = im_.registry.create(node.module);
   ++modules_run_;
@@ -786,7 +829,8 @@ void Executor::Scheduler::run_node(size_t i) {
       auto inputs = gather_inputs(i);
       if (plan_.memory_budget > 0 && !plan_.nodes[i].blockwise)
         inputs = load_for_in_memory_module(std::move(inputs), plan_.memory_budget, node.module);
-      run_module(i, std::move(inputs), nr);
+      const std::set<std::string> handed_over = hand_over_in_place(i);
+      run_module(i, std::move(inputs), handed_over, nr);
       if (!resume_dir_.empty()) checkpoint(i, nr);
       close_journal(i, true);
     }

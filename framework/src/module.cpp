@@ -192,6 +192,15 @@ ModuleSpec& ModuleSpec::blockwise(int64_t halo, int64_t bytes_per_voxel) {
   block_support_ = {true, halo, bytes_per_voxel};
   return *this;
 }
+ModuleSpec& ModuleSpec::in_place(const std::string& input_port, const std::string& output_port) {
+  const PortSpec* in = find_input(input_port);
+  const PortSpec* out = find_output(output_port);
+  if (!in || !out)
+    throw Error(name_ + ": in_place('" + input_port + "', '" + output_port + "') names an undeclared " +
+                (in ? "output" : "input") + " port");
+  in_place_.push_back({input_port, output_port});
+  return *this;
+}
 const PortSpec* ModuleSpec::find_input(const std::string& n) const {
   for (const auto& p : inputs_)
     if (p.name == n) return &p;

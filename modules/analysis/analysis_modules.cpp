@@ -50,7 +50,10 @@ public:
   static ModuleSpec spec() {
     return ModuleSpec(names::network_statistics, "Segment, node and network statistics of a graph")
         .input<SpatialGraph>("graph", "spatial graph (point attribute radius optional)")
-        .optional_input<VolumeU8>("mask", "region for the length density (default: the graph's source grid box)")
+        .add_input("mask", all_volume_types(),
+                   "region for the length density, its non-zero voxels (a mask, or a distance map: positive exactly "
+                   "on the object); default: the graph's source grid box",
+                   false)
         .output<Table>("segments", "per edge: length, chord, tortuosity, radius stats, volume, surface")
         .output<Table>("nodes", "per node: degree, position")
         .output<Table>("summary", "one row: totals, densities, branch/end points, loops, orientation histogram")
@@ -82,9 +85,9 @@ public:
   void run(RunContext& ctx) override {
     auto g = ctx.input<SpatialGraph>("graph");
     auto o = ctx.options<NetworkStatisticsOptions>();
-    if (auto m = ctx.optional_input<VolumeU8>("mask")) {
-      units::check_same(g->unit, "input 'graph'", m->unit(), "input 'mask'");
-      o.reference_volume = mask_volume(*m);
+    if (DataPtr m = ctx.input_data("mask")) {
+      units::check_same(g->unit, "input 'graph'", volume_grid(*m, "input 'mask'").unit, "input 'mask'");
+      o.reference_volume = mask_volume(*m, "input 'mask'");
     }
     auto st = network_statistics(*g, o);
     ctx.output("segments", std::move(st.segments));

@@ -28,6 +28,14 @@ double mask_volume(const VolumeU8& mask) {
   return static_cast<double>(n) * mask.spacing()[0] * mask.spacing()[1] * mask.spacing()[2];
 }
 
+double mask_volume(const DataObject& region, const std::string& what) {
+  return visit_volume(region, what, [](const auto& v) {
+    int64_t n = 0;
+    for (auto x : v) n += x != 0;
+    return static_cast<double>(n) * v.spacing()[0] * v.spacing()[1] * v.spacing()[2];
+  });
+}
+
 NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatisticsOptions& options) {
   if (options.orientation_bins < 1)
     throw InputError("parameter 'orientation_bins': expected >= 1, got " + std::to_string(options.orientation_bins));

@@ -56,6 +56,9 @@ NetworkStatistics network_statistics(const SpatialGraph& graph, const NetworkSta
 
 // Volume of the non-zero voxels of `mask` in physical units³ (reference volume for densities).
 double mask_volume(const VolumeU8& mask);
+// The same for a volume of any voxel type (non-zero = inside: a mask, a label image, a distance map
+// that is positive exactly on the object). Throws InputError naming `what` for a non-volume.
+double mask_volume(const DataObject& region, const std::string& what);
 
 struct TreeOptions {
   std::vector<int64_t> roots;        // root node ids

@@ -247,7 +247,10 @@ void check_connectivity(int connectivity) {
 
 }  // namespace
 
-ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& o) {
+namespace {
+// The kept mask goes to `mask_out` (the input's own buffer for connected_components_in_place: it is
+// read only before, by extract_runs) or, when null, to res.mask.
+ComponentsResult components_impl(const VolumeU8& mask, const ComponentOptions& o, uint8_t* mask_out) {
   check_connectivity(static_cast<int>(o.connectivity));
   if (mask.nx() >= (int64_t{1} << 31) - 1) throw InputError("connected_components: nx must be < 2^31 - 1");
   const int64_t ny = mask.ny(), nz = mask.nz();
@@ -285,20 +288,23 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   const std::vector<uint32_t> label_of = label_components(comps, o, order, next, warning);
   o.interrupter.check(0.7);
   ComponentsResult res;
-  res.labels = VolumeU32::uninitialized(mask.grid());
-  res.mask = VolumeU8::uninitialized(mask.grid());
+  if (o.labels) res.labels = VolumeU32::uninitialized(mask.grid());
+  if (!mask_out) {
+    res.mask = VolumeU8::uninitialized(mask.grid());
+    mask_out = res.mask.data();
+  }
   const int64_t nx = mask.nx();
   parallel_for(0, ny * nz, o.threads, [&](int64_t b, int64_t e) {
     for (int64_t row = b; row < e; ++row) {
-      uint32_t* L = res.labels.data() + row * nx;
-      uint8_t* M = res.mask.data() + row * nx;
-      std::fill_n(L, nx, 0u);
+      uint32_t* L = o.labels ? res.labels.data() + row * nx : nullptr;
+      uint8_t* M = mask_out + row * nx;
+      if (L) std::fill_n(L, nx, 0u);
       std::fill_n(M, nx, uint8_t{0});
       for (int64_t i = r.row_start[static_cast<size_t>(row)]; i < r.row_start[static_cast<size_t>(row + 1)]; ++i) {
         const auto si = static_cast<size_t>(i);
         const uint32_t l = label_of[static_cast<size_t>(comp[si])];
         if (!l) continue;
-        std::fill(L + r.x0[si], L + r.x1[si], l);
+        if (L) std::fill(L + r.x0[si], L + r.x1[si], l);
         std::fill(M + r.x0[si], M + r.x1[si], uint8_t{1});
       }
     }
@@ -308,6 +314,15 @@ ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptio
   res.table = component_table(comps, order, label_of, mask.grid());
   o.interrupter.check(1.0);
   return res;
+}
+}  // namespace
+
+ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& o) {
+  return components_impl(mask, o, nullptr);
+}
+
+ComponentsResult connected_components_in_place(VolumeU8& mask, const ComponentOptions& o) {
+  return components_impl(mask, o, mask.data());
 }
 
 // ---------------------------------------------------------------- block-wise (out-of-core)

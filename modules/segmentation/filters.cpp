@@ -161,11 +161,25 @@ void gaussian_in_place(VolumeF32& image, const Vec3& sigma, double truncate, Gau
   else smooth_axes<GaussianSum::sequential>(image, k, threads, interrupter);
 }
 
-VolumeF32 gaussian(const DataObject& image, const GaussianOptions& o) {
+static void check_gaussian_options(const GaussianOptions& o) {
   for (int a = 0; a < 3; ++a)
     if (!(o.sigma[a] >= 0) || !std::isfinite(o.sigma[a]))
       throw InputError("param 'sigma': expected finite values >= 0, got " + std::to_string(o.sigma[a]) + " on axis " + "xyz"[a]);
   if (!(o.truncate > 0)) throw InputError("param 'truncate': expected > 0");
+}
+
+void gaussian_in_place(VolumeF32& out, const GaussianOptions& o) {
+  check_gaussian_options(o);
+  if (out.size() == 0) return;
+  // Sigma in voxels; an axis of one voxel is left as it is.
+  Vec3 s{0, 0, 0};
+  for (int a = 0; a < 3; ++a)
+    if (out.dims()[a] > 1) s[a] = o.sigma[a] / out.spacing()[a];
+  gaussian_in_place(out, s, o.truncate, GaussianSum::paired, o.threads, o.interrupter);
+}
+
+VolumeF32 gaussian(const DataObject& image, const GaussianOptions& o) {
+  check_gaussian_options(o);
   VolumeF32 out = visit_volume(image, "image", [&](const auto& v) {
     VolumeF32 f = VolumeF32::uninitialized(v.grid());
     parallel_for(0, v.size(), o.threads, [&](int64_t b, int64_t e) {
@@ -173,12 +187,7 @@ VolumeF32 gaussian(const DataObject& image, const GaussianOptions& o) {
     }, 1 << 16);
     return f;
   });
-  if (out.size() == 0) return out;
-  // Sigma in voxels; an axis of one voxel is left as it is.
-  Vec3 s{0, 0, 0};
-  for (int a = 0; a < 3; ++a)
-    if (out.dims()[a] > 1) s[a] = o.sigma[a] / out.spacing()[a];
-  gaussian_in_place(out, s, o.truncate, GaussianSum::paired, o.threads, o.interrupter);
+  gaussian_in_place(out, o);
   return out;
 }
 

@@ -61,6 +61,9 @@ struct GaussianOptions {
   Interrupter interrupter;
 };
 VolumeF32 gaussian(const DataObject& image, const GaussianOptions& options = {});
+// gaussian() of a float32 image written into the image itself (segmentation.gaussian when the
+// executor hands it its input): the same bytes, without the output volume and the copy.
+void gaussian_in_place(VolumeF32& image, const GaussianOptions& options);
 // Block-wise Gaussian (out-of-core): every block of `block` voxels is read with the kernel's radius
 // around it (gaussian_halo, per axis), smoothed as in memory and its interior written into `out`
 // (float32 on disk, the image's grid). The same values as gaussian(). Progress "gaussian k/n blocks".
@@ -85,6 +88,7 @@ struct ComponentOptions {
   int64_t min_size = 0;       // smaller components are removed (voxels)
   double min_fraction = 0.0;  // components smaller than this fraction of the largest are removed
   bool keep_largest = false;
+  bool labels = true;  // false: no label volume (ComponentsResult::labels stays empty; 4 bytes per voxel less)
   int threads = 0;
   Interrupter interrupter;
 };
@@ -96,6 +100,9 @@ struct ComponentsResult {
   std::string warning;  // non-empty when the selection removed a large component (see selection_warning)
 };
 ComponentsResult connected_components(const VolumeU8& mask, const ComponentOptions& options = {});
+// The same, with the kept components written into `mask` itself as 0/1 (ComponentsResult::mask
+// stays empty): 1 byte per voxel less. Labels, table, count and warning as connected_components.
+ComponentsResult connected_components_in_place(VolumeU8& mask, const ComponentOptions& options = {});
 
 // Block-wise connected components (out-of-core), two passes over the blocks: components inside
 // every block of `block` voxels (union-find over runs, as in memory) become pieces, kept in memory

@@ -86,15 +86,23 @@ sampled Gaussian of radius max(1, ceil(truncate·sigma/spacing)) voxels; the bor
 (SciPy mode "nearest"). The x pass works on padded rows, the y and z passes combine whole x-rows
 (vectorised over x, one slice or one xz-plane copied per task). Parallel over rows/slices; the result
 does not depend on the thread count. Memory: 4 bytes per voxel (output, also the work buffer) plus one
-slice per thread.
+slice per thread; none for the output when the input is float32 and this node is its last reader in a
+headless in-memory run: the executor then hands the input over and the image is smoothed in place
+(the same bytes).
 
 Block-wise under a memory budget: each block is read with the kernel radius around it (halo =
 max(1, ceil(truncate·sigma/spacing)) voxels per axis), smoothed as in memory and its interior
 written: the same values as in memory. Memory per block with halo: 8 (input) + 4 (float) bytes per
 voxel. With --resume a killed run continues from its finished blocks.)")
-        .blockwise(8, 12);
+        .blockwise(8, 12)
+        .in_place("image", "image");
   }
   void run(RunContext& ctx) override {
+    if (auto image = ctx.take_input<VolumeF32>("image")) {
+      gaussian_in_place(*image, ctx.options<GaussianOptions>());
+      ctx.output("image", DataPtr(std::move(image)));
+      return;
+    }
     if (const BlockPlan* blocks = ctx.blocks()) {
       const DistributedStage stage;  // blocks split over the ranks (skelflow-mpi)
       const DataObject& image = *ctx.input_data("image");
@@ -137,7 +145,9 @@ the largest one's voxels, a warning names its size: a vessel network cut in two 
 by the volume's border) would otherwise lose half of itself silently. For networks, min_fraction
 (e.g. 0.05) removes noise at any volume size and keeps every large piece.
 Memory: 4 (labels) + 1 (mask) bytes per voxel of output, plus 16 bytes per run and 8 per row
-(typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel).
+(typically < 1 byte per voxel; worst case, alternating voxels, 8 per voxel). In a headless in-memory
+run the label volume is not made when no node reads `labels`, and the kept mask is written into the
+input mask when this node is its last reader (the executor hands it over): then only the runs.
 
 Block-wise under a memory budget: two passes over the blocks. Pass 1 finds the components of each
 block (pieces) and keeps in memory their statistics and their runs on the block's six faces; pieces
@@ -147,7 +157,8 @@ in memory, and no scratch volume besides the two outputs. Memory per block: 1 (m
 (outputs) bytes per voxel plus its runs; for the whole volume ~100 bytes per piece and 24 per piece
 run on a block face. With --resume a killed run continues from the finished blocks of the pass it was
 in (each block's pieces are kept with it).)")
-        .blockwise(0, 8);
+        .blockwise(0, 8)
+        .in_place("mask", "mask");
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
@@ -164,11 +175,24 @@ in (each block's pieces are kept with it).)")
       ctx.output("table", std::move(r.table));
       return;
     }
-    auto r = connected_components(mask_input(ctx), ctx.options<ComponentOptions>());
+    ComponentOptions o = ctx.options<ComponentOptions>();
+    o.labels = ctx.output_wanted("labels");
+    std::string not_binary;
+    ComponentsResult r;
+    if (std::shared_ptr<VolumeU8> taken = ctx.take_input<VolumeU8>("mask")) {  // kept components written into it
+      (void)shared_mask(taken, "input 'mask'", &not_binary);
+      if (!not_binary.empty()) ctx.warn(not_binary);
+      r = connected_components_in_place(*taken, o);
+      ctx.output("mask", DataPtr(std::move(taken)));
+    } else {
+      auto m = shared_mask(ctx.input_data("mask"), "input 'mask'", &not_binary);
+      if (!not_binary.empty()) ctx.warn(not_binary);
+      r = connected_components(*m, o);
+      ctx.output("mask", std::move(r.mask));
+    }
     if (r.count == 0) ctx.warn("no component left (empty mask or min_size too large)");
     if (!r.warning.empty()) ctx.warn(r.warning);
-    ctx.output("labels", std::move(r.labels));
-    ctx.output("mask", std::move(r.mask));
+    if (o.labels) ctx.output("labels", std::move(r.labels));
     ctx.output("table", std::move(r.table));
   }
 };

@@ -64,6 +64,10 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
   const int64_t nx = mask.nx(), ny = mask.ny(), nz = mask.nz();
   const uint8_t* m = mask.data();
   const uint8_t* lk = locked ? locked->data() : nullptr;
+  // In place (thin_doht_in_place: the state is the mask's own buffer): the scan below reads the
+  // mask's neighbours, so the state is written afterwards, by a second pass over the rows that gives
+  // the same bytes as the one-pass scan writes.
+  const bool in_place = st == m;
   std::vector<PlaneScan> planes(static_cast<size_t>(nz));
   parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z) {
@@ -73,7 +77,7 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
         const bool edge_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
         const uint8_t* mr = m + row;
         uint8_t* sr = st + row;
-        std::memset(sr, 0, static_cast<size_t>(nx));
+        if (!in_place) std::memset(sr, 0, static_cast<size_t>(nx));
         for (int64_t x = 0; x < nx; ++x) {
           if (x + 8 <= nx) {  // skip background eight voxels at a time
             uint64_t w;
@@ -88,7 +92,7 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
           const bool edge = edge_row || x == 0 || x == nx - 1;
           uint8_t s = kObject;
           if (lk && lk[i]) s |= kLocked;
-          sr[x] = s;
+          if (!in_place) sr[x] = s;
           ++pl.objects;
           const T v = pv[i];
           if constexpr (std::is_floating_point_v<T>) {
@@ -102,6 +106,7 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
           const bool boundary = edge || !(m[i - 1] && m[i + 1] && m[i - nx] && m[i + nx] && m[i - nx * ny] && m[i + nx * ny]);
           if (boundary) pl.boundary.push_back(i);
         }
+        if (in_place) continue;
         if (edge_row) {
           for (int64_t x = 0; x < nx; ++x) sr[x] |= kBorder;
         } else {
@@ -111,6 +116,28 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
       }
     }
   });
+  if (in_place) {
+    parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
+      for (int64_t z = z0; z < z1; ++z)
+        for (int64_t y = 0; y < ny; ++y) {
+          const int64_t row = nx * (y + ny * z);
+          const bool edge_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
+          uint8_t* sr = st + row;
+          const uint8_t* lr = lk ? lk + row : nullptr;
+          for (int64_t x = 0; x < nx; ++x) {
+            uint8_t s = sr[x] ? kObject : uint8_t{0};
+            if (s && lr && lr[x]) s |= kLocked;
+            sr[x] = s;
+          }
+          if (edge_row) {
+            for (int64_t x = 0; x < nx; ++x) sr[x] |= kBorder;
+          } else {
+            sr[0] |= kBorder;
+            sr[nx - 1] |= kBorder;
+          }
+        }
+    });
+  }
   return planes;
 }
 
@@ -475,13 +502,18 @@ namespace {
 
 using namespace detail;
 
+// `state`: where the state and then the skeleton go; null: a new volume (res.skeleton), else the
+// mask's own buffer (thin_doht_in_place; res.skeleton stays empty).
 template <class T>
 ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const VolumeU8* locked,
-                         const ThinningOptions& opt) {
+                         const ThinningOptions& opt, uint8_t* state) {
   ThinningResult res;
   ThinningStatistics& stats = res.stats;
-  res.skeleton = VolumeU8::uninitialized(mask.grid());
-  uint8_t* st = res.skeleton.data();
+  if (!state) {
+    res.skeleton = VolumeU8::uninitialized(mask.grid());
+    state = res.skeleton.data();
+  }
+  uint8_t* st = state;
   const T* pv = priority.data();
   const int threads = opt.threads;
   const Interrupter& irq = opt.interrupter;
@@ -518,8 +550,9 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
 
 uint32_t thinning_directions(uint32_t nb) { return detail::matched_directions(nb, detail::direction_masks()); }
 
-ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
-                         const ThinningOptions& options) {
+namespace {
+ThinningResult thin_checked(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
+                            const ThinningOptions& options, uint8_t* state) {
   if (options.end_point_length < 0)
     throw InputError("end_point_length: expected >= 0, got " + std::to_string(options.end_point_length));
   const Grid& pg = volume_grid(priority, "priority");
@@ -532,7 +565,19 @@ ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const
     throw InputError("locked: dims " + dims_text(locked->dims()) + " differ from the mask's " +
                      dims_text(mask.dims()));
   return visit_volume(priority, "priority",
-                      [&](const auto& pv) { return thin_impl(mask, pv, locked, options); });
+                      [&](const auto& pv) { return thin_impl(mask, pv, locked, options, state); });
+}
+}  // namespace
+
+ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
+                         const ThinningOptions& options) {
+  return thin_checked(mask, priority, locked, options, nullptr);
+}
+
+ThinningResult thin_doht_in_place(VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
+                                  const ThinningOptions& options) {
+  if (locked && locked->data() == mask.data()) throw Error("thin_doht_in_place: `locked` is the mask itself");
+  return thin_checked(mask, priority, locked, options, mask.data());
 }
 
 }  // namespace skel::thinning

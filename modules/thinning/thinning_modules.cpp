@@ -76,7 +76,9 @@ locked voxel is counted as stuck; the module warns with the number of such compo
 
 Memory: the skeleton output (1 byte per voxel) doubles as the state array; the queue holds 8 bytes
 per queued voxel (at most the object voxels; typically the boundary layer); 1-2 bytes per voxel for
-the priority levels when there are at most 65536 of them; the input mask and priority are read only.
+the priority levels when there are at most 65536 of them; the input mask and priority are read only,
+except in a headless in-memory run where this node is the mask's last reader: the executor then hands
+the mask over and the skeleton is thinned in its buffer (1 byte per voxel less; the same skeleton).
 
 Block-wise under a memory budget (thesis ch. 5.2, Algorithm 5): the mask is copied into the
 skeleton (on disk), then every block is thinned as a sub-block (the block plus a halo of H voxels on
@@ -109,17 +111,22 @@ uint32 chamfer of the lock test 1 + 4, skeleton 1, priority levels 2 and queue (
 bytes (24 for a float64 priority). With --resume a killed run continues from the finished blocks of
 the pass it was in: each block keeps its statistics and the box it changed, so the blocks visited
 again and the skeleton are the uninterrupted run's.)")
-        .blockwise(16, 20);
+        .blockwise(16, 20)
+        .in_place("mask", "skeleton");
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
       run_blocks(ctx, *blocks);
       return;
     }
-    auto mask = ctx.input<VolumeU8>("mask");
     DataPtr priority = ctx.input_data("priority");
     auto locked = ctx.optional_input<VolumeU8>("locked");
-    ThinningResult r = thin_doht(*mask, *priority, locked.get(), ctx.options<ThinningOptions>());
+    // Handed the mask (its last reader, docs/architecture.md): the skeleton is thinned in its buffer.
+    std::shared_ptr<VolumeU8> in_place = ctx.take_input<VolumeU8>("mask");
+    if (in_place && locked && locked.get() == in_place.get()) in_place.reset();
+    ThinningResult r = in_place ? thin_doht_in_place(*in_place, *priority, locked.get(), ctx.options<ThinningOptions>())
+                                : thin_doht(*ctx.input<VolumeU8>("mask"), *priority, locked.get(),
+                                            ctx.options<ThinningOptions>());
     const ThinningStatistics& s = r.stats;
     if (s.object_voxels == 0) ctx.warn("the mask is empty: the skeleton is empty");
     if (s.stuck_components > 0) {
@@ -140,7 +147,8 @@ again and the skeleton are the uninterrupted run's.)")
     t.add("stuck_voxels", std::vector<int64_t>{s.stuck_voxels});
     t.add("interior_voxels", std::vector<int64_t>{s.interior_voxels});
     t.add("working_bytes", std::vector<int64_t>{static_cast<int64_t>(s.bytes)}, "bytes");
-    ctx.output("skeleton", std::move(r.skeleton));
+    if (in_place) ctx.output("skeleton", DataPtr(std::move(in_place)));
+    else ctx.output("skeleton", std::move(r.skeleton));
     ctx.output("table", std::move(t));
   }
 

@@ -3,11 +3,13 @@
 
 #include <atomic>
 #include <memory>
+#include <set>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <thread>
 
+#include "context.hpp"
 #include "skel/executor.hpp"
 #include "skel/pipeline.hpp"
 #include "skel/run_module.hpp"
@@ -621,6 +623,7 @@ nodes:
 namespace {
 std::weak_ptr<const DataObject> g_unread;
 std::atomic<int> g_unread_alive_when_read{-1};
+std::atomic<int> g_unread_wanted{-1}, g_read_wanted{-1};  // RunContext::output_wanted in TwoOutputs
 class TwoOutputs final : public Module {
 public:
   static ModuleSpec spec() {
@@ -629,6 +632,8 @@ public:
         .output<VolumeU8>("unread", "read by nobody in the test");
   }
   void run(RunContext& ctx) override {
+    g_unread_wanted = ctx.output_wanted("unread") ? 1 : 0;
+    g_read_wanted = ctx.output_wanted("read") ? 1 : 0;
     auto unread = std::make_shared<VolumeU8>(Dims{4, 4, 4});
     g_unread = unread;
     ctx.output("read", VolumeU8(Dims{2, 2, 2}, 1));
@@ -660,6 +665,8 @@ nodes:
     g_unread_alive_when_read = -1;
     ASSERT_TRUE(ex.run(p, one).ok);
     EXPECT_EQ(g_unread_alive_when_read.load(), 0);  // dropped before `user` ran
+    EXPECT_EQ(g_unread_wanted.load(), 0);  // the module was told, so it may skip it
+    EXPECT_EQ(g_read_wanted.load(), 1);
   }
   {
     Executor ex;
@@ -669,6 +676,7 @@ nodes:
     ASSERT_TRUE(ex.run(p, keep).ok);
     EXPECT_EQ(g_unread_alive_when_read.load(), 1);
     EXPECT_NE(ex.output(p, "two", "unread"), nullptr);
+    EXPECT_EQ(g_unread_wanted.load(), 1);
   }
   {
     Executor ex;
@@ -677,6 +685,7 @@ nodes:
     g_unread_alive_when_read = -1;
     ASSERT_TRUE(ex.run(p, target).ok);
     EXPECT_EQ(g_unread_alive_when_read.load(), 1);
+    EXPECT_EQ(g_unread_wanted.load(), 1);
   }
 }
 
@@ -722,4 +731,239 @@ TEST(Engine, OutputTypeFromNarrowsTypesAtValidation) {
   EXPECT_EQ(broken[0], "p.yaml:3:3: node 'src': cannot tell the voxel type");
   // Unknown output port: a programming error when the spec is built.
   EXPECT_THROW(ModuleSpec("x.y", "z").output_type_from("nope", {}), Error);
+}
+
+// In-place execution (ModuleSpec::in_place, RunContext::take_input): the executor hands a node its
+// input's buffer only when that node is the input's last reader and nothing else may still need it.
+namespace {
+std::atomic<int> g_in_place_taken{0}, g_in_place_runs{0};
+std::atomic<int> g_scale_runs_before_take{-1};
+class InPlaceScale final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("test_engine.in_place_scale", "Doubles a float volume, in place when handed over")
+        .input<VolumeF32>("volume", "input")
+        .optional_input<VolumeF32>("other", "read only (tests: the same output on two ports)")
+        .output<VolumeF32>("volume", "doubled")
+        .param<double>("factor", 2.0, "factor")
+        .in_place("volume", "volume");
+  }
+  void run(RunContext& ctx) override {
+    ++g_in_place_runs;
+    const auto f = static_cast<float>(ctx.param<double>("factor"));
+    if (auto v = ctx.take_input<VolumeF32>("volume")) {
+      ++g_in_place_taken;
+      g_scale_runs_before_take = test_counters::g_scale_runs.load();
+      for (auto& x : *v) x *= f;
+      EXPECT_EQ(ctx.take_input<VolumeF32>("volume"), nullptr);  // handed over once
+      ctx.output("volume", DataPtr(std::move(v)));
+      return;
+    }
+    VolumeF32 out(*ctx.input<VolumeF32>("volume"));
+    for (auto& x : out) x *= f;
+    ctx.output("volume", std::move(out));
+  }
+};
+SKEL_REGISTER_MODULE(InPlaceScale);
+
+struct InPlaceRun {
+  bool ok = false;
+  std::map<std::string, std::shared_ptr<const VolumeF32>> volumes;  // node -> its `volume` output
+  std::map<std::string, const float*> buffers;                      // node -> its output's voxels
+};
+// Runs p keeping every node's `volume` output from on_outputs (only its address for `src`, or the nodes
+// in `address_only`: a reference
+// would keep the data alive and rightly stop the hand-over).
+InPlaceRun run_in_place(const Pipeline& p, ExecOptions o, Executor* executor = nullptr,
+                        const std::set<std::string>& address_only = {"src"}) {
+  InPlaceRun r;
+  std::mutex m;
+  o.on_outputs = [&](const std::string& node, const std::map<std::string, DataPtr>& outputs) {
+    auto it = outputs.find("volume");
+    if (it == outputs.end()) return;
+    auto v = std::dynamic_pointer_cast<const VolumeF32>(it->second);
+    std::lock_guard lock(m);
+    r.buffers[node] = v->data();
+    if (!address_only.contains(node)) r.volumes[node] = v;
+  };
+  g_in_place_taken = 0;
+  g_in_place_runs = 0;
+  g_scale_runs_before_take = -1;
+  Executor local;
+  r.ok = (executor ? *executor : local).run(p, o).ok;
+  return r;
+}
+VolumeF32 doubled_ramp(Dims d, float factor = 2.0f) {  // test.source's ramp, doubled
+  VolumeF32 v(d);
+  for (int64_t i = 0; i < v.size(); ++i) v[i] = factor * static_cast<float>(i % 97);
+  return v;
+}
+}  // namespace
+
+TEST(Executor, InPlaceHandsTheLastReaderItsInputBuffer) {
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [5, 4, 3]}}
+  twice: {module: test_engine.in_place_scale, inputs: {volume: src.volume}}
+)");
+  ExecOptions one;
+  one.threads = 1;
+  InPlaceRun r = run_in_place(p, one);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(g_in_place_taken.load(), 1);
+  EXPECT_EQ(r.buffers["twice"], r.buffers["src"]);  // written into the source's voxels
+  EXPECT_TRUE(*r.volumes["twice"] == doubled_ramp(Dims{5, 4, 3}));
+  // The GUI keeps every output: nothing is handed over, and the result is the same bit for bit.
+  ExecOptions keep = one;
+  keep.keep_outputs = true;
+  Executor gui;
+  InPlaceRun g = run_in_place(p, keep, &gui);
+  ASSERT_TRUE(g.ok);
+  EXPECT_EQ(g_in_place_taken.load(), 0);
+  EXPECT_NE(g.buffers["twice"], g.buffers["src"]);
+  EXPECT_TRUE(*g.volumes["twice"] == *r.volumes["twice"]);
+  auto src = std::dynamic_pointer_cast<const VolumeF32>(gui.output(p, "src", "volume"));
+  ASSERT_NE(src, nullptr);
+  EXPECT_EQ(src->data()[7], 7.0f);  // the kept input is untouched
+  // A headless run on the executor whose cache holds `src` from the GUI run: `src` comes from the
+  // cache, which still holds it, so the new reader `again` (the last one, after the cached `twice`)
+  // does not get it.
+  Pipeline p2 = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [5, 4, 3]}}
+  twice: {module: test_engine.in_place_scale, inputs: {volume: src.volume}}
+  again: {module: test_engine.in_place_scale, inputs: {volume: src.volume}, params: {factor: 3}}
+)");
+  InPlaceRun c = run_in_place(p2, one, &gui);
+  ASSERT_TRUE(c.ok);
+  EXPECT_EQ(g_in_place_runs.load(), 1);
+  EXPECT_EQ(g_in_place_taken.load(), 0);
+  EXPECT_EQ(src->data()[7], 7.0f);
+  EXPECT_TRUE(*c.volumes["again"] == doubled_ramp(Dims{5, 4, 3}, 3.0f));
+}
+
+TEST(Executor, InPlaceNeverTakesABufferSomethingElseStillReads) {
+  // Another node reads src too: whichever of the two runs first must not get the buffer; the one
+  // that runs last may, once the other is done. Both results are right either way.
+  Pipeline fan = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [6, 5, 4]}}
+  twice: {module: test_engine.in_place_scale, inputs: {volume: src.volume}}
+  other: {module: test.scale, inputs: {volume: src.volume}, params: {sleep_ms: 20}}
+)");
+  for (int threads : {1, 2}) {
+    ExecOptions o;
+    o.threads = threads;
+    const int scale_runs = test_counters::g_scale_runs.load();
+    InPlaceRun r = run_in_place(fan, o);
+    ASSERT_TRUE(r.ok);
+    EXPECT_TRUE(*r.volumes["twice"] == doubled_ramp(Dims{6, 5, 4}));
+    EXPECT_TRUE(*r.volumes["other"] == doubled_ramp(Dims{6, 5, 4}));  // test.scale: factor 2
+    if (g_in_place_taken.load() == 1) {
+      EXPECT_EQ(g_scale_runs_before_take.load(), scale_runs + 1) << threads;
+    }
+  }
+  // The same output on two ports of the node: not handed over (the other port still reads it).
+  Pipeline twice_read = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [3, 3, 3]}}
+  twice: {module: test_engine.in_place_scale, inputs: {volume: src.volume, other: src.volume}}
+)");
+  ExecOptions one;
+  one.threads = 1;
+  InPlaceRun r = run_in_place(twice_read, one);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(g_in_place_runs.load(), 1);
+  EXPECT_EQ(g_in_place_taken.load(), 0);
+  EXPECT_TRUE(*r.volumes["twice"] == doubled_ramp(Dims{3, 3, 3}));
+  // A target's outputs are what the caller asked for: kept, not handed over.
+  Pipeline chain = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [3, 3, 3]}}
+  twice: {module: test_engine.in_place_scale, inputs: {volume: src.volume}}
+)");
+  ExecOptions target = one;
+  target.targets = {"src", "twice"};
+  r = run_in_place(chain, target);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(g_in_place_taken.load(), 0);
+  // Under a memory budget volumes live on disk: nothing is handed over.
+  ExecOptions budget = one;
+  budget.memory_budget = 64ull << 20;
+  budget.scratch_dir = scratch("in_place_budget");
+  fs::create_directories(budget.scratch_dir);
+  r = run_in_place(chain, budget);
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(g_in_place_taken.load(), 0);
+  EXPECT_TRUE(*r.volumes["twice"] == doubled_ramp(Dims{3, 3, 3}));
+}
+
+namespace {
+class SlowTableReader final : public Module {
+public:
+  static ModuleSpec spec() {
+    return ModuleSpec("test_engine.slow_table_reader", "Reads a table for 300 ms")
+        .input<Table>("table", "any table");
+  }
+  void run(RunContext& ctx) override {
+    (void)ctx.input<Table>("table");
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  }
+};
+SKEL_REGISTER_MODULE(SlowTableReader);
+}  // namespace
+
+TEST(Executor, InPlaceIgnoresReadersOfTheUpstreamNodesOtherOutputs) {
+  // `slow` reads sum.table while `twice` runs: it does not read sum.volume, so `twice` gets that
+  // buffer (counted per output, not per upstream node: the vessel pipeline's phantom image is smoothed
+  // in place while its truth graph is still being written).
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  src: {module: test.source, params: {size: [5, 4, 3]}}
+  sum: {module: test.sum, inputs: {a: src.volume}}
+  twice: {module: test_engine.in_place_scale, inputs: {volume: sum.volume}}
+  slow: {module: test_engine.slow_table_reader, inputs: {table: sum.table}}
+)");
+  ExecOptions two;
+  two.threads = 2;
+  InPlaceRun r = run_in_place(p, two, nullptr, {"sum"});
+  ASSERT_TRUE(r.ok);
+  EXPECT_EQ(g_in_place_taken.load(), 1);
+  EXPECT_EQ(r.buffers["twice"], r.buffers["sum"]);
+  EXPECT_TRUE(*r.volumes["twice"] == doubled_ramp(Dims{5, 4, 3}));
+}
+
+TEST(Executor, TakeInputRefusesDataHeldElsewhereOrWrapped) {
+  const ModuleSpec spec = InPlaceScale::spec();
+  detail::OutputFiles files;
+  auto make = [&](DataPtr d) {
+    return std::make_unique<detail::NodeContext>(spec, "n", std::map<std::string, DataPtr>{{"volume", std::move(d)}},
+                                                 ParamMap{}, 1, Interrupter{}, fs::path("."), fs::path("."), files,
+                                                 [](const std::string&) {});
+  };
+  // Not handed over: nullptr.
+  auto ctx = make(std::make_shared<VolumeF32>(Dims{2, 2, 2}));
+  EXPECT_EQ(ctx->take_input<VolumeF32>("volume"), nullptr);
+  // Handed over but someone else holds a reference: nullptr.
+  auto held = std::make_shared<VolumeF32>(Dims{2, 2, 2});
+  ctx = make(held);
+  ctx->hand_over("volume");
+  EXPECT_EQ(ctx->take_input<VolumeF32>("volume"), nullptr);
+  // Handed over and held by the context alone: the data itself.
+  ctx = make(std::make_shared<VolumeF32>(Dims{2, 2, 2}));
+  ctx->hand_over("volume");
+  auto taken = ctx->take_input<VolumeF32>("volume");
+  ASSERT_NE(taken, nullptr);
+  EXPECT_EQ(taken.get(), ctx->input_data("volume").get());
+  // Wrapped outside memory (NumPy arrays from Python): never written.
+  auto owner = std::make_shared<std::vector<float>>(8, 1.0f);
+  ctx = make(std::make_shared<VolumeF32>(VolumeF32::wrap(Grid(Dims{2, 2, 2}), owner->data(), owner)));
+  ctx->hand_over("volume");
+  EXPECT_EQ(ctx->take_input<VolumeF32>("volume"), nullptr);
+  // Another type than asked for: nullptr.
+  ctx = make(std::make_shared<VolumeF32>(Dims{2, 2, 2}));
+  ctx->hand_over("volume");
+  EXPECT_EQ(ctx->take_input<VolumeU8>("volume"), nullptr);
+  // An in_place declaration must name declared ports.
+  EXPECT_THROW(ModuleSpec("x.y", "z").in_place("a", "b"), Error);
 }

@@ -90,7 +90,7 @@ TEST(Pipelines, VesselPipelineRecoversTheGroundTruth) {
   EXPECT_LE(std::abs(rl - length), 0.05 * length);
 }
 
-// The float volumes of the vessel pipeline have one reader each, so the executor frees each one after
+// The float volumes of the vessel pipeline have one reader each (the distance map aside), so the executor frees each one after
 // its only consumer: the phantom's image after the Gaussian (the report projects the mask), the
 // Gaussian's output after the threshold. Before, the report read phantom.image and kept 4 bytes per
 // voxel alive through the distance and thinning stages (15.1 bytes per voxel peak at 1024³).
@@ -101,6 +101,14 @@ TEST(Pipelines, VesselPipelineReadsEachFloatVolumeOnce) {
     for (const auto& [port, from] : n.inputs) readers[from.str()].push_back(n.id + "." + port);
   EXPECT_EQ(readers["phantom.image"], (std::vector<std::string>{"smooth.image"}));
   EXPECT_EQ(readers["smooth.image"], (std::vector<std::string>{"seg.image"}));
+  // In place (docs/architecture.md): the components are the thresholded mask's only reader and read
+  // no label volume downstream; the mask's readers end with the thinning (the statistics and the
+  // report read the distance map instead), so the skeleton can be thinned in the mask's buffer.
+  EXPECT_EQ(readers["seg.mask"], (std::vector<std::string>{"largest.mask"}));
+  EXPECT_TRUE(readers["largest.labels"].empty());
+  std::vector<std::string> mask_readers = readers["largest.mask"];
+  std::sort(mask_readers.begin(), mask_readers.end());
+  EXPECT_EQ(mask_readers, (std::vector<std::string>{"distance.mask", "save_mask.volume", "skeleton.mask"}));
 }
 
 // The bone pipelines run end to end and write their meshes: the mixed skeleton's plates as

@@ -8,6 +8,8 @@
 #include <random>
 
 #include "segmentation/segmentation.hpp"
+#include "skel/executor.hpp"
+#include "skel/pipeline.hpp"
 #include "skel/run_module.hpp"
 
 using namespace skel;
@@ -199,6 +201,103 @@ TEST(Gaussian, IdenticalFor1_2_4Threads) {
   o.threads = 2;
   VolumeF32 c = gaussian(VolumeF32(Dims{9, 8, 7}, 3.0f), o);
   for (float x : c) EXPECT_NEAR(x, 3.0f, 1e-5);
+}
+
+TEST(Gaussian, InPlaceInAPipelineGivesTheSameBytesAsOutOfPlace) {
+  // The phantom's float image has one reader, the Gaussian: a headless run hands it over and the
+  // image is smoothed in its own buffer; the GUI (keep_outputs) smooths out of place. Same bytes, and
+  // the same as gaussian() on the phantom's image.
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  phantom: {module: synthetic.vessel_tree, params: {size: [40, 36, 28], seed: 3, roots: 2, noise: 0.1}}
+  smooth: {module: segmentation.gaussian, inputs: {image: phantom.image}, params: {sigma: [1.2, 0.7, 0.9]}}
+)");
+  for (int threads : {1, 2}) {
+    const float* phantom_voxels = nullptr;
+    std::shared_ptr<const VolumeF32> headless;
+    ExecOptions o;
+    o.threads = threads;
+    o.on_outputs = [&](const std::string& node, const std::map<std::string, DataPtr>& out) {
+      auto v = std::dynamic_pointer_cast<const VolumeF32>(out.at("image"));
+      if (node == "phantom") phantom_voxels = v->data();  // its address only: a reference keeps it
+      else headless = v;
+    };
+    Executor ex;
+    ASSERT_TRUE(ex.run(p, o).ok);
+    ASSERT_NE(headless, nullptr);
+    EXPECT_EQ(headless->data(), phantom_voxels);  // written in place
+    Executor gui;
+    ExecOptions keep;
+    keep.threads = threads;
+    keep.keep_outputs = true;
+    ASSERT_TRUE(gui.run(p, keep).ok);
+    auto image = std::dynamic_pointer_cast<const VolumeF32>(gui.output(p, "phantom", "image"));
+    auto smooth = std::dynamic_pointer_cast<const VolumeF32>(gui.output(p, "smooth", "image"));
+    ASSERT_NE(image, nullptr);
+    ASSERT_NE(smooth, nullptr);
+    EXPECT_NE(smooth->data(), image->data());
+    EXPECT_TRUE(*smooth == *headless);
+    GaussianOptions g;
+    g.sigma = {1.2, 0.7, 0.9};
+    g.threads = threads;
+    EXPECT_TRUE(gaussian(*image, g) == *headless);
+    EXPECT_FALSE(*image == *headless);  // it did smooth
+  }
+}
+
+TEST(ConnectedComponents, InPlaceAndWithoutUnreadLabelsInAPipeline) {
+  // `largest` is the last reader of the phantom's mask (four balls of 167-470 voxels) and nobody reads
+  // its labels: a headless run writes the kept mask into the phantom's buffer and makes no label
+  // volume; the GUI run (everything kept) and the function give the same mask and table.
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  seg: {module: synthetic.network, params: {size: [48, 40, 32], shape: spheres, seed: 5}}
+  largest: {module: segmentation.connected_components, inputs: {mask: seg.mask}, params: {connectivity: 26, min_size: 200}}
+  distance: {module: distance.euclidean, inputs: {mask: largest.mask}}
+)");
+  const uint8_t* seg_voxels = nullptr;
+  std::map<std::string, DataPtr> headless;
+  ExecOptions o;
+  o.threads = 2;
+  o.on_outputs = [&](const std::string& node, const std::map<std::string, DataPtr>& out) {
+    if (node == "seg") seg_voxels = std::dynamic_pointer_cast<const VolumeU8>(out.at("mask"))->data();
+    if (node == "largest") headless = out;
+  };
+  Executor ex;
+  ASSERT_TRUE(ex.run(p, o).ok);
+  EXPECT_FALSE(headless.contains("labels"));
+  auto mask = std::dynamic_pointer_cast<const VolumeU8>(headless.at("mask"));
+  ASSERT_NE(mask, nullptr);
+  EXPECT_EQ(mask->data(), seg_voxels);  // written into the thresholded mask
+  Executor gui;
+  ExecOptions keep;
+  keep.threads = 2;
+  keep.keep_outputs = true;
+  ASSERT_TRUE(gui.run(p, keep).ok);
+  auto seg = std::dynamic_pointer_cast<const VolumeU8>(gui.output(p, "seg", "mask"));
+  auto kept = std::dynamic_pointer_cast<const VolumeU8>(gui.output(p, "largest", "mask"));
+  ASSERT_NE(seg, nullptr);
+  ASSERT_NE(kept, nullptr);
+  EXPECT_NE(gui.output(p, "largest", "labels"), nullptr);
+  EXPECT_TRUE(*kept == *mask);
+  ComponentOptions c;
+  c.min_size = 200;
+  const auto ref = connected_components(*seg, c);
+  EXPECT_TRUE(ref.mask == *mask);
+  EXPECT_EQ(ref.count, 2);
+  EXPECT_FALSE(*seg == *mask);  // two balls removed: the test does test something
+  auto table = std::dynamic_pointer_cast<const Table>(headless.at("table"));
+  ASSERT_NE(table, nullptr);
+  EXPECT_EQ(table->rows(), ref.table.rows());
+  // The function forms: in place and without labels, the same mask, table and count.
+  VolumeU8 copy = *seg;
+  c.labels = false;
+  const auto in_place = connected_components_in_place(copy, c);
+  EXPECT_TRUE(copy == ref.mask);
+  EXPECT_EQ(in_place.labels.size(), 0);
+  EXPECT_EQ(in_place.mask.size(), 0);
+  EXPECT_EQ(in_place.count, ref.count);
+  EXPECT_EQ(in_place.table.rows(), ref.table.rows());
 }
 
 TEST(ConnectedComponents, IdenticalFor1_2_4ThreadsAndEmptyFullVolumes) {
