@@ -22,11 +22,12 @@ YAML
 # A denser network than the small default: 64 roots, thicker root vessels, longer segments.
 params=(--set "phantom.size=[$n,$n,$n]" --set phantom.roots=64 --set phantom.root_radius=9
         --set phantom.min_radius=2.5 --set phantom.length_scale=2)
+load0=$(cut -d' ' -f1 /proc/loadavg)
 "$build/cli/skelflow" run "$work/p.yaml" "${params[@]}" --threads "$threads" --output-dir "$work/out" \
   --report "$work/run.json" >"$work/log.txt" 2>&1
-"$py" - "$work" "$n" "$threads" "${params[*]}" <<'PY'
+"$py" - "$work" "$n" "$threads" "${params[*]}" "$load0" <<'PY'
 import csv, json, sys
-work, n, threads, params = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+work, n, threads, params, load0 = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4], sys.argv[5]
 r = json.load(open(work + "/run.json"))
 print("## Vessel pipeline (whole, %d³)" % n)
 print()
@@ -48,24 +49,27 @@ floor_bytes = {"segmentation.gaussian": 4 + 4, "segmentation.threshold": 4 + 1,
                "segmentation.connected_components": 1 + 1, "io.write_volume": 1,
                "distance.euclidean": 1 + 4, "thinning.doht": 1 + 4 + 1}
 voxels = float(n) ** 3
-print("| stage | module | time (s) | peak RSS (MiB) | RSS after (MiB) | floor (s) | time / floor |")
-print("|---|---|---|---|---|---|---|")
+print("| stage | module | time (s) | CPU (s) | peak RSS (MiB) | RSS after (MiB) | floor (s) | time / floor |")
+print("|---|---|---|---|---|---|---|---|")
 processing = 0.0
+processing_cpu = 0.0
 phantom_peak = 0.0
 for node in r["nodes"]:
     fb = floor_bytes.get(node["module"])
     fl = "%.3f | %.1f×" % (fb * voxels / bw, node["seconds"] / (fb * voxels / bw)) if fb else " | "
-    print("| %s | %s | %.3f | %.0f | %.0f | %s |" % (node["id"], node["module"], node["seconds"], node["peak_rss_mib"],
-                                               node.get("rss_mib", 0.0), fl))
+    print("| %s | %s | %.3f | %.2f | %.0f | %.0f | %s |" % (node["id"], node["module"], node["seconds"],
+          node.get("cpu_seconds", 0.0), node["peak_rss_mib"], node.get("rss_mib", 0.0), fl))
     if node["module"] != "synthetic.vessel_tree":
         processing += node["seconds"]
+        processing_cpu += node.get("cpu_seconds", 0.0)
     else:
         phantom_peak = node["peak_rss_mib"]
-print("| **total** | | **%.2f** | **%.0f** | | | |" % (r["seconds"], r["peak_rss_mib"]))
+print("| **total** | | **%.2f** | | **%.0f** | | | |" % (r["seconds"], r["peak_rss_mib"]))
 print()
 bpv = lambda mib: mib * 1048576.0 / voxels
-print("Processing (every stage but the phantom): %.1f s; peak RSS %.2f bytes per voxel (%.0f MiB; the phantom"
-      " stage alone reached %.2f); memory bandwidth %.1f GB/s." % (processing, bpv(r["peak_rss_mib"]), r["peak_rss_mib"],
+print("Processing (every stage but the phantom; stages that overlap are counted each): %.1f s wall, %.1f s CPU"
+      " (cpu_seconds: the process's CPU time while a stage ran); load average %s at the start, %s at the end; peak RSS %.2f bytes per voxel (%.0f MiB; the phantom"
+      " stage alone reached %.2f); memory bandwidth %.1f GB/s." % (processing, processing_cpu, load0, open("/proc/loadavg").read().split()[0], bpv(r["peak_rss_mib"]), r["peak_rss_mib"],
                                                                 bpv(phantom_peak), bw / 1e9))
 print()
 def row(path):

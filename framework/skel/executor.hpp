@@ -68,6 +68,9 @@ struct NodeReport {
   double seconds = 0;           // wall time of run()
   double peak_rss_mib = 0;      // process peak RSS when the node finished
   double rss_mib = 0;           // process RSS when the node finished (0 for nodes under 10 ms)
+  // Process CPU time (user + system, every thread) while the node ran: its own work, plus that of
+  // the nodes running beside it. Less sensitive than `seconds` to a machine shared with other work.
+  double cpu_seconds = 0;
   std::map<std::string, uint64_t> output_bytes;
   std::map<std::string, std::string> output_units;  // physical unit per output port that has one
   std::vector<std::string> outputs_written;  // final file paths

@@ -96,6 +96,15 @@ double peak_rss_mib() {
 }
 double current_rss_mib() { return read_status_kib("VmRSS:") / 1024.0; }
 
+namespace {
+double process_cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  auto s = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+  return s(u.ru_utime) + s(u.ru_stime);
+}
+}  // namespace
+
 std::string RunReport::to_json() const {
   std::ostringstream o;
   o << "{\n  \"pipeline\": \"" << json_escape(pipeline) << "\",\n  \"ok\": " << (ok ? "true" : "false")
@@ -105,7 +114,8 @@ std::string RunReport::to_json() const {
     const auto& n = nodes[i];
     o << (i ? ",\n" : "\n") << "    {\"id\": \"" << json_escape(n.id) << "\", \"module\": \"" << json_escape(n.module)
       << "\", \"cached\": " << (n.cached ? "true" : "false") << ", \"seconds\": " << num(n.seconds)
-      << ", \"peak_rss_mib\": " << num(n.peak_rss_mib) << ", \"rss_mib\": " << num(n.rss_mib) << ", \"output_bytes\": {";
+      << ", \"cpu_seconds\": " << num(n.cpu_seconds) << ", \"peak_rss_mib\": " << num(n.peak_rss_mib)
+      << ", \"rss_mib\": " << num(n.rss_mib) << ", \"output_bytes\": {";
     size_t k = 0;
     for (const auto& [port, b] : n.output_bytes)
       o << (k++ ? ", " : "") << "\"" << json_escape(port) << "\": " << b;
@@ -822,6 +832,7 @@ void Executor::Scheduler::run_node(size_t i) {
   nr.id = node.id;
   nr.module = node.module;
   const auto t0 = std::chrono::steady_clock::now();
+  const double cpu0 = process_cpu_seconds();
   try {
     if (plan_.nodes[i].cached) {
       nr.cached = true;
@@ -835,6 +846,7 @@ void Executor::Scheduler::run_node(size_t i) {
       close_journal(i, true);
     }
     nr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    nr.cpu_seconds = process_cpu_seconds() - cpu0;
     nr.peak_rss_mib = peak_rss_mib();
     // Reading /proc costs ~10 µs: skip it for nodes too short to change the resident set much.
     if (nr.seconds > 0.01) nr.rss_mib = current_rss_mib();

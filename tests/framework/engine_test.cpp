@@ -9,6 +9,8 @@
 #include <fstream>
 #include <thread>
 
+#include <time.h>
+
 #include "context.hpp"
 #include "skel/executor.hpp"
 #include "skel/pipeline.hpp"
@@ -966,4 +968,39 @@ TEST(Executor, TakeInputRefusesDataHeldElsewhereOrWrapped) {
   EXPECT_EQ(ctx->take_input<VolumeU8>("volume"), nullptr);
   // An in_place declaration must name declared ports.
   EXPECT_THROW(ModuleSpec("x.y", "z").in_place("a", "b"), Error);
+}
+
+// The run report's cpu_seconds: the process's CPU time while a node ran (here one node at a time).
+namespace {
+class BusyCpu final : public Module {
+public:
+  static ModuleSpec spec() { return ModuleSpec("test_engine.busy_cpu", "Spins until its thread used 0.2 s of CPU"); }
+  void run(RunContext&) override {
+    auto thread_cpu = [] {
+      timespec t{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+      return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+    };
+    const double start = thread_cpu();
+    volatile uint64_t x = 0;
+    while (thread_cpu() - start < 0.2) x = x + 1;
+  }
+};
+SKEL_REGISTER_MODULE(BusyCpu);
+}  // namespace
+
+TEST(Executor, ReportsCpuSecondsPerNode) {
+  Pipeline p = Pipeline::parse(R"(skelflow: 1
+nodes:
+  busy: {module: test_engine.busy_cpu}
+)");
+  ExecOptions one;
+  one.threads = 1;
+  Executor ex;
+  RunReport r = ex.run(p, one);
+  ASSERT_TRUE(r.ok);
+  ASSERT_EQ(r.nodes.size(), 1u);
+  EXPECT_GE(r.nodes[0].cpu_seconds, 0.19);  // rusage granularity
+  EXPECT_LE(r.nodes[0].cpu_seconds, r.nodes[0].seconds * std::thread::hardware_concurrency() + 0.05);
+  EXPECT_NE(r.to_json().find("\"cpu_seconds\": "), std::string::npos);
 }
