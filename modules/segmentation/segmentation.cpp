@@ -141,7 +141,16 @@ ThresholdResult threshold(const DataObject& image, const ThresholdOptions& optio
     r.high = std::numeric_limits<double>::infinity();
   }
   r.mask = threshold(image, r.low, r.high, options.threads);
-  for (auto v : r.mask) r.object_voxels += v;
+  // Counted in parallel (a sequential byte sum took ~1.5 s of the stage at 1280³).
+  const int64_t n = r.mask.size(), chunks = std::clamp<int64_t>(n >> 22, 1, 256);
+  std::vector<int64_t> count(static_cast<size_t>(chunks), 0);
+  const uint8_t* m = r.mask.data();
+  parallel_chunks(0, n, chunks, options.threads, [&](int64_t c, int64_t b, int64_t e) {
+    int64_t k = 0;
+    for (int64_t i = b; i < e; ++i) k += m[i];
+    count[static_cast<size_t>(c)] = k;
+  });
+  for (int64_t k : count) r.object_voxels += k;
   return r;
 }
 

@@ -236,6 +236,26 @@ TEST(Gaussian, EqualsBruteForceAndIsThreadIndependent) {
       }
 }
 
+TEST(Threshold, ObjectVoxelsCountedInParallelForAnyThreadCount) {
+  // 9.4 M voxels: three chunks of the parallel count; the count is the mask's sum for 1, 2, 4 threads.
+  VolumeF32 v(Dims{300, 250, 125});
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (auto& x : v) x = u(rng);
+  for (int t : {1, 2, 4}) {
+    ThresholdOptions o;
+    o.method = ThresholdMethod::manual;
+    o.low = 0.25;
+    o.high = 0.5;
+    o.threads = t;
+    const ThresholdResult r = threshold(v, o);
+    int64_t brute = 0;
+    for (float x : v) brute += x >= 0.25f && x <= 0.5f;
+    EXPECT_EQ(r.object_voxels, brute) << t;
+    EXPECT_GT(brute, v.size() / 5);
+  }
+}
+
 TEST(Threshold, OtsuSplitsABimodalImageAndMasksAreCheckedByPort) {
   VolumeF32 v(Dims{20, 20, 2}, 0.0f);
   std::mt19937 rng(1);
