@@ -137,7 +137,12 @@ finished slabs of the pass it was in.)")
       DataPtr mask = ctx.input_data("mask");
       const Grid& g = any_volume_grid(*mask, "input 'mask'");
       auto out = ctx.scratch_volume("distance", type_ids::volume_f32, g);
-      const Dims cross = blocks->block_from_user ? blocks->block : euclidean_cross_section(blocks->memory_budget, g.dims);
+      Dims cross = blocks->block_from_user ? blocks->block : euclidean_cross_section(blocks->memory_budget, g.dims);
+      // A chosen cross-section is cut down to whole chunks of the scratch volume: every slab then
+      // writes whole chunks (skelflow-mpi writes shared scratch volumes a chunk at a time).
+      if (!blocks->block_from_user)
+        for (int k = 0; k < 3; ++k)
+          if (cross[k] > blocks->chunk[k]) cross[k] -= cross[k] % blocks->chunk[k];
       euclidean_blocks(*mask, *out, ctx.options<EuclideanOptions>(), cross);
       ctx.output("distance", DataPtr(std::move(out)));
       return;
