@@ -159,8 +159,9 @@ Dims block_for_budget(uint64_t budget, int64_t halo, int64_t bytes_per_voxel, co
 
 // The chunk shape of the scratch volumes of a stage with blocks of `block` voxels: per axis the
 // largest divisor of the block's edge that is at most 32, or min(edge, 32) when that divisor is
-// below 8 (an edge such as 37). A block interior is then whole chunks (but at the grid's end), so
-// skelflow-mpi's shared scratch volumes are written a chunk at a time (mpi/parallel_store.cpp).
+// below 16 (edges such as 376 = 8 · 47 or 37: chunks of 8³ made a 1024³ EDT 5× slower). A block
+// interior is then whole chunks (but at the grid's end), so skelflow-mpi's shared scratch volumes are
+// written a chunk at a time (mpi/parallel_store.cpp).
 Dims scratch_chunk(const Dims& block);
 
 // Calls f(T{}) with the voxel type T of volume type id `type_id` ("volume.u8" -> uint8_t); throws

@@ -196,7 +196,7 @@ Dims scratch_chunk(const Dims& block) {
     const int64_t edge = std::max<int64_t>(1, block[k]);
     int64_t d = std::min<int64_t>(edge, 32);
     while (edge % d != 0) --d;
-    c[k] = d >= 8 || d == edge ? d : std::min<int64_t>(edge, 32);
+    c[k] = d >= 16 || d == edge ? d : std::min<int64_t>(edge, 32);
   }
   return c;
 }
