@@ -127,6 +127,6 @@ for np in (1, 2, 4):
     b = sum(k["bytes_read"] + k["bytes_written"] for k in ks)
     coll = max(k["collectives"] for k in ks)
     wait = sum(k["seconds_waiting"] for k in ks) / max(1, len(ks))
-    print("| -np %d | %.1f | %.1f | %.2f | %.0f | %d | %.4f |" % (np, comp, io, b / 2**30, (b / 2**20) / io / len(ks) if io > 0 else 0,
+    print("| -np %d | %.1f | %.1f | %.2f | %.0f | %d | %.4f |" % (np, comp, io, b / 2**30, (b / 2**20) / io if io > 0 else 0,
                                                               coll, wait / coll if coll else 0))
 PY
