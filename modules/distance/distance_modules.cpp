@@ -125,7 +125,8 @@ along z: 64 columns of floats and the envelope's sites).
 Block-wise under a memory budget: the same three passes, each over slabs of whole lines along its
 axis (the squared distances on disk between passes), bit-identical to the in-memory result. A slab
 takes 5 bytes per voxel (mask + float32); its cross-section is chosen so that one slab along the
-longest axis fits a quarter of the budget, or is the `block` of the pipeline's `execution:`. When
+longest axis fits a quarter of the budget (cut down to whole chunks of the scratch volume), or is
+the `block` of the pipeline's `execution:`. When
 such a slab holds whole xy-planes, the x and y passes run together on slabs of whole planes (one
 read and one write of the float volume less). With --resume a killed run continues from the
 finished slabs of the pass it was in.)")
