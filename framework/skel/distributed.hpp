@@ -50,6 +50,8 @@ struct CommStats {
   double seconds_waiting = 0;  // wall time inside collectives (waiting for the slowest rank + transfer)
   double seconds_blocks = 0;   // wall time computing this rank's share of distributed block loops
   int64_t blocks = 0;          // blocks this rank computed in distributed loops
+  double seconds_io = 0;       // wall time reading and writing shared scratch volumes (part of seconds_blocks)
+  uint64_t bytes_read = 0, bytes_written = 0;  // moved by those reads and writes (file side)
 };
 CommStats comm_stats();
 
@@ -119,6 +121,8 @@ int test_fail_rank();
 
 namespace detail {
 void add_block_seconds(double s, int64_t blocks);
+// A read or write of a shared scratch volume by this rank (skelflow-mpi's store).
+void add_io(double s, uint64_t bytes_read, uint64_t bytes_written);
 void run_owned_blocks(const BlockLayout& layout, const Interrupter& interrupter, const std::string& label,
                       const std::function<void(const Block&)>& f, const std::function<double(const Block&)>& cost);
 }  // namespace detail

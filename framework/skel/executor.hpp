@@ -87,6 +87,8 @@ struct RankReport {
   int64_t blocks = 0;          // blocks it computed in distributed loops
   int64_t collectives = 0;
   uint64_t bytes_sent = 0, bytes_received = 0;  // by its collectives
+  double seconds_io = 0;                        // reading and writing shared scratch volumes
+  uint64_t bytes_read = 0, bytes_written = 0;   // by those reads and writes
 };
 
 struct RunReport {

@@ -147,6 +147,7 @@ struct BlockPlan {
   uint64_t memory_budget = 0;  // bytes
   Dims block{64, 64, 64};      // interior block shape (x, y, z)
   bool block_from_user = false;  // `block` was given (execution: block); else chosen from the budget
+  Dims chunk{32, 32, 32};      // chunk shape of the scratch volumes (scratch_chunk(block))
   // Makes an empty on-disk volume for output port `port` (every voxel 0), removed when the run ends.
   std::function<std::shared_ptr<ChunkedVolume>(const std::string& port, const std::string& type_id, const Grid& grid)>
       scratch;
@@ -155,6 +156,13 @@ struct BlockPlan {
 // The largest cube block (edge a multiple of 8, at least 16, at most the grid's largest side) whose
 // blocks with halo, at `bytes_per_voxel`, take at most a quarter of `budget`.
 Dims block_for_budget(uint64_t budget, int64_t halo, int64_t bytes_per_voxel, const Dims& grid_dims);
+
+// The chunk shape of the scratch volumes of a stage with blocks of `block` voxels: per axis the
+// largest divisor of the block's edge that is at most 32, or min(edge, 32) when that divisor is
+// below 16 (edges such as 376 = 8 · 47 or 37: chunks of 8³ made a 1024³ EDT 5× slower). A block
+// interior is then whole chunks (but at the grid's end), so skelflow-mpi's shared scratch volumes are
+// written a chunk at a time (mpi/parallel_store.cpp).
+Dims scratch_chunk(const Dims& block);
 
 // Calls f(T{}) with the voxel type T of volume type id `type_id` ("volume.u8" -> uint8_t); throws
 // InputError naming `what` for a type id that is no volume.

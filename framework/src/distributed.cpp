@@ -88,6 +88,9 @@ std::string encode_outcome(const RankOutcome& o) {
   put(s, o.stats.seconds_waiting);
   put(s, o.stats.seconds_blocks);
   put(s, o.stats.blocks);
+  put(s, o.stats.seconds_io);
+  put(s, o.stats.bytes_read);
+  put(s, o.stats.bytes_written);
   put(s, o.seconds);
   return s;
 }
@@ -103,6 +106,9 @@ RankOutcome decode_outcome(const std::string& s) {
   o.stats.seconds_waiting = r.get<double>();
   o.stats.seconds_blocks = r.get<double>();
   o.stats.blocks = r.get<int64_t>();
+  o.stats.seconds_io = r.get<double>();
+  o.stats.bytes_read = r.get<uint64_t>();
+  o.stats.bytes_written = r.get<uint64_t>();
   o.seconds = r.get<double>();
   return o;
 }
@@ -273,6 +279,13 @@ void add_block_seconds(double s, int64_t blocks) {
   std::lock_guard lock(comm_mutex());
   stats_slot().seconds_blocks += s;
   stats_slot().blocks += blocks;
+}
+
+void add_io(double s, uint64_t bytes_read, uint64_t bytes_written) {
+  std::lock_guard lock(comm_mutex());
+  stats_slot().seconds_io += s;
+  stats_slot().bytes_read += bytes_read;
+  stats_slot().bytes_written += bytes_written;
 }
 
 void run_owned_blocks(const BlockLayout& layout, const Interrupter& interrupter, const std::string& label,

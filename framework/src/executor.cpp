@@ -134,7 +134,8 @@ std::string RunReport::to_json() const {
   o << "\n  ]";
   if (!ranks.empty()) {
     // skelflow-mpi: per rank its wall time, its time in distributed block loops and in collectives
-    // (idle share = waiting / seconds) and the bytes its collectives moved.
+    // (idle share = waiting / seconds), the bytes its collectives moved, and its time and bytes
+    // reading and writing shared scratch volumes.
     o << ",\n  \"ranks\": [";
     for (size_t i = 0; i < ranks.size(); ++i) {
       const auto& r = ranks[i];
@@ -143,7 +144,8 @@ std::string RunReport::to_json() const {
         << ", \"seconds_waiting\": " << num(r.seconds_waiting)
         << ", \"idle_share\": " << num(r.seconds > 0 ? r.seconds_waiting / r.seconds : 0.0) << ", \"blocks\": " << r.blocks
         << ", \"collectives\": " << r.collectives << ", \"bytes_sent\": " << r.bytes_sent
-        << ", \"bytes_received\": " << r.bytes_received << "}";
+        << ", \"bytes_received\": " << r.bytes_received << ", \"seconds_io\": " << num(r.seconds_io)
+        << ", \"bytes_read\": " << r.bytes_read << ", \"bytes_written\": " << r.bytes_written << "}";
     }
     o << "\n  ]";
   }
@@ -983,9 +985,10 @@ BlockPlan Executor::Scheduler::block_plan(size_t i, const std::map<std::string, 
                 ? plan_.block
                 : block_for_budget(plan_.memory_budget, spec.block_support().halo, spec.block_support().bytes_per_voxel, grid);
   b.block_from_user = plan_.block != Dims{0, 0, 0};
-  // Chunks of at most 32³: a block with its halo covers whole chunks but for a thin edge.
-  const Dims chunk{std::min<int64_t>(b.block[0], 32), std::min<int64_t>(b.block[1], 32), std::min<int64_t>(b.block[2], 32)};
-  b.scratch = [this, i, chunk](const std::string& port, const std::string& type_id, const Grid& g) {
+  // Chunks of at most 32³ that divide the block: a block's interior is whole chunks (skelflow-mpi
+  // writes shared scratch volumes a chunk at a time), its halo covers whole chunks but for a thin edge.
+  b.chunk = scratch_chunk(b.block);
+  b.scratch = [this, i, chunk = b.chunk](const std::string& port, const std::string& type_id, const Grid& g) {
     return make_scratch(i, port, type_id, g, chunk);
   };
   return b;
@@ -1169,6 +1172,9 @@ void Executor::Scheduler::agree_with_ranks(bool& cancelled) {
     rr.collectives = o.stats.collectives;
     rr.bytes_sent = o.stats.bytes_sent;
     rr.bytes_received = o.stats.bytes_received;
+    rr.seconds_io = o.stats.seconds_io;
+    rr.bytes_read = o.stats.bytes_read;
+    rr.bytes_written = o.stats.bytes_written;
     report_.ranks.push_back(rr);
   }
   if (!mine.ok) return;

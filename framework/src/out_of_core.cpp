@@ -190,6 +190,17 @@ Dims block_for_budget(uint64_t budget, int64_t halo, int64_t bytes_per_voxel, co
   return {edge, edge, edge};
 }
 
+Dims scratch_chunk(const Dims& block) {
+  Dims c{1, 1, 1};
+  for (int k = 0; k < 3; ++k) {
+    const int64_t edge = std::max<int64_t>(1, block[k]);
+    int64_t d = std::min<int64_t>(edge, 32);
+    while (edge % d != 0) --d;
+    c[k] = d >= 16 || d == edge ? d : std::min<int64_t>(edge, 32);
+  }
+  return c;
+}
+
 void report_blocks(const Interrupter& interrupter, const std::string& label, int64_t done, int64_t total) {
   if (done > 0 && test_block_delay_ms() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(test_block_delay_ms()));
   interrupter.check(total > 0 ? static_cast<double>(done) / static_cast<double>(total) : 1.0);

@@ -125,7 +125,8 @@ along z: 64 columns of floats and the envelope's sites).
 Block-wise under a memory budget: the same three passes, each over slabs of whole lines along its
 axis (the squared distances on disk between passes), bit-identical to the in-memory result. A slab
 takes 5 bytes per voxel (mask + float32); its cross-section is chosen so that one slab along the
-longest axis fits a quarter of the budget, or is the `block` of the pipeline's `execution:`. When
+longest axis fits a quarter of the budget (cut down to whole chunks of the scratch volume), or is
+the `block` of the pipeline's `execution:`. When
 such a slab holds whole xy-planes, the x and y passes run together on slabs of whole planes (one
 read and one write of the float volume less). With --resume a killed run continues from the
 finished slabs of the pass it was in.)")
@@ -137,7 +138,12 @@ finished slabs of the pass it was in.)")
       DataPtr mask = ctx.input_data("mask");
       const Grid& g = any_volume_grid(*mask, "input 'mask'");
       auto out = ctx.scratch_volume("distance", type_ids::volume_f32, g);
-      const Dims cross = blocks->block_from_user ? blocks->block : euclidean_cross_section(blocks->memory_budget, g.dims);
+      Dims cross = blocks->block_from_user ? blocks->block : euclidean_cross_section(blocks->memory_budget, g.dims);
+      // A chosen cross-section is cut down to whole chunks of the scratch volume: every slab then
+      // writes whole chunks (skelflow-mpi writes shared scratch volumes a chunk at a time).
+      if (!blocks->block_from_user)
+        for (int k = 0; k < 3; ++k)
+          if (cross[k] > blocks->chunk[k]) cross[k] -= cross[k] % blocks->chunk[k];
       euclidean_blocks(*mask, *out, ctx.options<EuclideanOptions>(), cross);
       ctx.output("distance", DataPtr(std::move(out)));
       return;

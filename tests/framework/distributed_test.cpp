@@ -201,11 +201,15 @@ TEST(Distributed, RunReportListsRanks) {
   a.seconds_waiting = 0.5;
   a.blocks = 7;
   a.bytes_sent = 120;
+  a.seconds_io = 0.25;
+  a.bytes_read = 4096;
+  a.bytes_written = 8192;
   r.ranks.push_back(a);
   const std::string j = r.to_json();
   EXPECT_NE(j.find("\"ranks\": ["), std::string::npos) << j;
   EXPECT_NE(j.find("\"rank\": 1, \"ok\": true, \"seconds\": 2, \"seconds_blocks\": 0, \"seconds_waiting\": 0.5, "
-                   "\"idle_share\": 0.25, \"blocks\": 7, \"collectives\": 0, \"bytes_sent\": 120, \"bytes_received\": 0}"),
+                   "\"idle_share\": 0.25, \"blocks\": 7, \"collectives\": 0, \"bytes_sent\": 120, \"bytes_received\": 0, "
+                   "\"seconds_io\": 0.25, \"bytes_read\": 4096, \"bytes_written\": 8192}"),
             std::string::npos)
       << j;
   EXPECT_EQ(RunReport{}.to_json().find("ranks"), std::string::npos);  // one process: as before

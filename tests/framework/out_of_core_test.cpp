@@ -106,6 +106,21 @@ TEST(BlockLayout, BlockSizeFromBudget) {
   EXPECT_EQ(block_for_budget(1ull << 40, 0, 1, {40, 30, 20}), (Dims{40, 40, 40}));
 }
 
+TEST(BlockLayout, ScratchChunksDivideTheBlock) {
+  // The largest divisor up to 32 (so a block interior is whole chunks): 72 -> 24, 232 -> 29, 160 -> 32.
+  EXPECT_EQ(scratch_chunk({72, 232, 160}), (Dims{24, 29, 32}));
+  // Blocks up to 32 are one chunk; an edge whose divisors up to 32 are all below 16 keeps 32 (no
+  // chunks of 8³: 376 = 8 · 47).
+  EXPECT_EQ(scratch_chunk({13, 1, 37}), (Dims{13, 1, 32}));
+  EXPECT_EQ(scratch_chunk({376, 472, 16}), (Dims{32, 32, 16}));
+  for (int64_t e = 16; e <= 1024; e += 8) {
+    const Dims c = scratch_chunk({e, e, e});
+    EXPECT_TRUE(e % c[0] == 0 || c[0] == 32) << e;
+    EXPECT_GE(c[0], 16) << e;
+    EXPECT_LE(c[0], 32) << e;
+  }
+}
+
 // A store in memory, to test ChunkedVolume without a file format.
 class MemoryStore final : public VolumeStore {
 public:

@@ -67,6 +67,7 @@ same)
     ranks=$(grep -c '"rank": ' "$work/report$np.json" || true)
     [ "$ranks" = "$np" ] || { echo "FAIL: -np $np: the report lists $ranks ranks"; cat "$work/report$np.json"; exit 1; }
     grep -q '"idle_share": ' "$work/report$np.json" || { echo "FAIL: no idle share in the report"; exit 1; }
+    grep -q '"seconds_io": ' "$work/report$np.json" || { echo "FAIL: no I/O time in the report"; exit 1; }
     # shellcheck disable=SC2086
     "$mpiexec" $mpiflags -np "$np" "$skelflow_mpi" run "$work/read.yaml" --output-dir "$work/read$np" --quiet
     for f in $read_outputs; do
@@ -76,6 +77,7 @@ same)
   # Every rank computed blocks of the distributed stages.
   for r in 0 1 2; do
     grep "\"rank\": $r," "$work/report3.json" | grep -qv '"blocks": 0,' || { echo "FAIL: rank $r computed no block"; cat "$work/report3.json"; exit 1; }
+    grep "\"rank\": $r," "$work/report3.json" | grep -qv '"bytes_written": 0}' || { echo "FAIL: rank $r wrote nothing to the shared volumes"; cat "$work/report3.json"; exit 1; }
   done
   # Nothing left beside the pipeline: no scratch file, no temporary.
   extra=$(cd "$work" && find . -maxdepth 1 -mindepth 1 -name '.*' | tr '\n' ' ')
