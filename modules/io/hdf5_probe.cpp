@@ -288,6 +288,13 @@ int walk_file(const char* path, const std::string& dataset, int out) {
 #ifdef SKEL_PROBE_ASAN
   __sanitizer_set_death_callback(nullptr);  // libFuzzer's would save the input as its own finding
 #endif
+  // Silent: the verdict is the exit status (a sanitizer's report of libhdf5's bug would otherwise
+  // reach the user's terminal; SKEL_HDF5_PROBE=0 reproduces it in-process).
+  const int null = open("/dev/null", O_WRONLY | O_CLOEXEC);
+  if (null >= 0) {
+    dup2(null, STDOUT_FILENO);
+    dup2(null, STDERR_FILENO);
+  }
   const rlimit no_core{0, 0};
   setrlimit(RLIMIT_CORE, &no_core);
   const rlimit as{address_limit, address_limit};
@@ -362,6 +369,7 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
   const uint64_t limit = mapped_bytes() + kChildMemory;
   const pid_t parent = getpid();
   const std::string path = file.string();
+  const auto start = std::chrono::steady_clock::now();  // the time counts from the fork
   const pid_t pid = fork();
   if (pid < 0) {
     const int err = errno;
@@ -382,7 +390,7 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
   fcntl(fds[0], F_SETFL, O_NONBLOCK);
   // Reads what the child reports and waits for it, at most `timeout` seconds. The pipe is not relied
   // on for the end: a process forked meanwhile by another thread may hold its write end.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout);
+  const auto deadline = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(timeout));
   std::string out;
   int status = 0;
   bool timed_out = false;
@@ -399,18 +407,19 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
     }
   };
   for (;;) {
-    const pid_t w = waitpid(pid, &status, WNOHANG);
-    if (w == pid) break;
-    if (w < 0 && errno != EINTR) {
-      status = -1;
-      break;
-    }
+    // The deadline first: a child the parent sees only after the deadline did not finish in time.
     const auto now = std::chrono::steady_clock::now();
     if (now >= deadline) {
       kill(pid, SIGKILL);
       while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
       }
       timed_out = true;
+      break;
+    }
+    const pid_t w = waitpid(pid, &status, WNOHANG);
+    if (w == pid) break;
+    if (w < 0 && errno != EINTR) {
+      status = -1;
       break;
     }
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count();
