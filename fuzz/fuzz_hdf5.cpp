@@ -3,10 +3,18 @@
 // through the structure probe (io/hdf5_probe.hpp): libhdf5's metadata walk runs first in a forked,
 // limited child, and a file that crashes it is refused. The probe's verdict cache is cleared for
 // every input: the scratch file is rewritten in place, often with the same size in the same clock tick.
+#include <cstdlib>
+
 #include "fuzz_common.hpp"
 #include "io/hdf5_probe.hpp"
 #include "io/hdf5_volume.hpp"
 #include "skel/error.hpp"
+
+// A probe that hangs must be refused within libFuzzer's 10 s per input (-timeout=10, scripts/fuzz.sh).
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  setenv("SKEL_HDF5_PROBE_TIMEOUT", "5", 0);
+  return 0;
+}
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static skel::fuzz::ScratchFile file(".h5");
