@@ -51,6 +51,10 @@ for t in "${targets[@]}"; do
   log="$build_dir/fuzz-$t.log"
   mkdir -p "$crashes"
   common=(-rss_limit_mb=2048 -malloc_limit_mb=1024 -timeout=10 "-artifact_prefix=$crashes/")
+  # hdf5: no leak check per input. libhdf5 1.10 leaks a few hundred bytes on many corrupt files
+  # (suppressed, fuzz/lsan.supp), and each such input made libFuzzer run a full leak check (186
+  # inputs/s). Skelflow's own leaks are covered by the other targets and the ASan + UBSan ctest.
+  [ "$t" = hdf5 ] && common+=(-detect_leaks=0)
   if [ $mode = regress ]; then
     # Each seed once (libFuzzer runs the files given and exits).
     if "$exe" "${common[@]}" "$seeds"/* >"$log" 2>&1; then rc=0; else rc=$?; fi

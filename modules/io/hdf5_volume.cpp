@@ -12,6 +12,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "io/hdf5_probe.hpp"
 #include "io/hdf5_write_driver.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
@@ -92,10 +93,14 @@ struct Handle {
               (err != 0 ? std::string(std::strerror(err)) : hdf5.empty() ? std::string("HDF5 error") : hdf5.substr(2, hdf5.size() - 3)));
 }
 
-Handle open_file(const fs::path& file, bool write = false) {
+// Opens `file`. A user's file opened for reading is first walked by the structure probe
+// (hdf5_probe.hpp: libhdf5 crashes on some corrupt files) together with the lookup of `dataset`;
+// files opened for writing are Skelflow's own outputs and are not probed. Caller holds the mutex.
+Handle open_file(const fs::path& file, bool write = false, const std::string& dataset = {}) {
   std::error_code ec;
   if (!fs::exists(file, ec)) throw InputError(file.string() + ": file not found");
   if (fs::is_directory(file, ec)) throw InputError(file.string() + ": is a folder, not an HDF5 file");
+  if (!write) probe_hdf5_file(file, dataset);
   const htri_t is = H5Fis_hdf5(file.c_str());
   if (is <= 0) fail(file, "not an HDF5 file, or the file is truncated or corrupt");
   Handle fapl(write ? detail::safe_write_fapl() : H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
@@ -165,7 +170,7 @@ struct Opened {
 
 Opened open_volume(const fs::path& file, const std::string& dataset, bool write = false) {
   Opened o;
-  o.file = open_file(file, write);
+  o.file = open_file(file, write, dataset);
   o.dset = open_dataset(o.file.id, file, dataset);
   o.space = Handle(H5Dget_space(o.dset.id), H5Sclose);
   const int rank = H5Sget_simple_extent_ndims(o.space.id);
@@ -754,7 +759,7 @@ void write_string_attribute(const fs::path& file, const std::string& dataset, co
 std::string read_string_attribute(const fs::path& file, const std::string& dataset, const std::string& name) {
   std::lock_guard lock(hdf5_mutex());
   quiet();
-  Handle f = open_file(file);
+  Handle f = open_file(file, false, dataset);
   Handle d = open_dataset(f.id, file, dataset);
   std::string out;
   read_string_attr(d.id, name.c_str(), out, file);

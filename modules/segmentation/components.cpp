@@ -444,6 +444,7 @@ void unpack_pieces(const std::string& s, std::map<int64_t, BlockPieces>& pieces)
   size_t pos = 0;
   auto get = [&](void* p, size_t n) {
     if (pos + n > s.size()) throw Error("components: truncated piece list from another rank");
+    if (n == 0) return;  // p is the data() of an empty vector, maybe null: memcpy(nullptr, ..., 0) is undefined
     std::memcpy(p, s.data() + pos, n);
     pos += n;
   };

@@ -2,7 +2,9 @@
 # temporary prefix, builds examples/plugin against it with find_package(Skelflow), runs the
 # example's own test, and runs a pipeline that uses its module through the installed skelflow with
 # SKELFLOW_PLUGIN_PATH set, checking the table it writes.
-# Variables: BIN (this build), SRC (the source tree), WORK (a scratch folder), GENERATOR, LAUNCHER.
+# Variables: BIN (this build), SRC (the source tree), WORK (a scratch folder), GENERATOR, LAUNCHER,
+# SANITIZE (this build has ASan + UBSan, -DSKEL_SANITIZE=ON: the example is built with the same
+# flags, since a program linking the instrumented libskelflow_core.so needs the ASan runtime first).
 # Run by example_plugin_test.sh, which skips it (exit code 77) when no cmake program is at hand.
 
 function(step what)
@@ -30,8 +32,14 @@ set(launcher)
 if(LAUNCHER)
   set(launcher "-DCMAKE_CXX_COMPILER_LAUNCHER=${LAUNCHER}")
 endif()
+set(sanitize)
+if(SANITIZE)
+  set(flags "-fsanitize=address,undefined")
+  set(sanitize "-DCMAKE_CXX_FLAGS=${flags} -fno-omit-frame-pointer" "-DCMAKE_EXE_LINKER_FLAGS=${flags}"
+               "-DCMAKE_SHARED_LINKER_FLAGS=${flags}" "-DCMAKE_MODULE_LINKER_FLAGS=${flags}")
+endif()
 step("configuring examples/plugin" "${CMAKE_COMMAND}" -S "${SRC}/examples/plugin" -B "${WORK}/build" -G "${GENERATOR}"
-     -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}" ${launcher})
+     -DCMAKE_BUILD_TYPE=Release "-DCMAKE_PREFIX_PATH=${prefix}" ${launcher} ${sanitize})
 step("building examples/plugin" "${CMAKE_COMMAND}" --build "${WORK}/build")
 step("the example's test" "${CMAKE_CTEST_COMMAND}" --test-dir "${WORK}/build" --output-on-failure)
 if(NOT EXISTS "${WORK}/build/example_voxel_count.so")
