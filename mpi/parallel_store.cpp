@@ -19,6 +19,7 @@
 #include "mpi_communicator.hpp"
 #include "skel/distributed.hpp"
 #include "skel/out_of_core.hpp"
+#include "skel/resume_io.hpp"
 
 namespace skel::mpi {
 
@@ -134,6 +135,12 @@ public:
     });
   }
   [[nodiscard]] const fs::path& file() const override { return file_; }
+  // Data and metadata to disk (collective: every rank flushes the volume at the same point, the
+  // executor's checkpoint of the stage that made it), so that the file is readable after kill -9.
+  void flush() const {
+    std::lock_guard lock(store_mutex());
+    if (H5Fflush(file_id_, H5F_SCOPE_GLOBAL) < 0) throw Error("cannot flush the shared scratch file " + file_.string());
+  }
 
 private:
   // f(box begin, box size, chunk begin, chunk size) for every chunk the box [begin, begin + size)
@@ -221,6 +228,16 @@ private:
 }  // namespace
 
 void register_parallel_scratch_store() {
+  // --resume: the executor flushes the volumes of a finished stage; a shared one flushes collectively.
+  // Kept volumes are opened again by io's (serial, read-only) open on every rank.
+  if (const ResumeVolumeIo* serial = resume_volume_io()) {
+    ResumeVolumeIo io = *serial;
+    io.flush = [serial_flush = serial->flush](const VolumeStore& store) {
+      if (const auto* p = dynamic_cast<const ParallelScratchStore*>(&store)) p->flush();
+      else serial_flush(store);
+    };
+    register_resume_volume_io(std::move(io));
+  }
   register_volume_store_factory([](const fs::path& file, const std::string& type_id, const Grid& grid,
                                    const Dims& chunk) -> std::shared_ptr<VolumeStore> {
     if (!distributing()) return io::create_scratch_store(file, type_id, grid, chunk);

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "skel/block_journal.hpp"
 #include "skel/error.hpp"
 #include "skel/out_of_core.hpp"
 
@@ -94,12 +95,18 @@ std::vector<RankOutcome> agree_outcome(const RankOutcome& mine);
 // before it makes its scratch volumes): scratch volumes made while one is alive are shared by all
 // ranks (the store factory of skelflow-mpi asks distributed_stage_active()), and
 // for_each_owned_block splits blocks over the ranks. Without one, or with one rank, nothing changes.
+// With several ranks the stage keeps no block journal (skel/block_journal.hpp): a distributed stage
+// killed mid-way runs again from its first block on `--resume` (every rank's blocks of it; the
+// stages before it are loaded, and non-distributed stages resume per block on every rank).
 class DistributedStage {
 public:
   DistributedStage();
   ~DistributedStage();
   DistributedStage(const DistributedStage&) = delete;
   DistributedStage& operator=(const DistributedStage&) = delete;
+
+private:
+  ScopedBlockJournal journal_;
 };
 bool distributed_stage_active();
 // True when blocks are split over ranks now: a distributed stage is active and there are 2+ ranks.
@@ -109,6 +116,14 @@ bool distributing();
 // cost, each to the rank with the least total cost so far; ties to the lower block index and rank).
 // Deterministic: every rank computes the same owners. Returns the owner rank per block.
 std::vector<int> assign_blocks(const std::vector<double>& costs, int ranks);
+
+// A distributed loop over items 0..n-1 that need not be blocks of one layout (thinning's wavefront
+// levels): when distributing, this rank calls f(i) for the items assign_blocks(costs) gives it, in
+// increasing i, and one exchange gives every rank every item's result (f's return value), indexed by
+// item. An exception thrown by f on any rank ends the loop on every rank (RankFailed on the others).
+// When not distributing: f(i) for every i in order. Counted in the run report's blocks.
+std::vector<std::string> exchange_owned_items(int64_t n, const std::vector<double>& costs,
+                                              const std::function<std::string(int64_t)>& f);
 
 // A part of a distributed stage that one rank computes: when distributing, rank 0 runs f while the
 // others wait (sync_ranks); an exception from f ends the stage on every rank (RankFailed on the

@@ -208,7 +208,9 @@ std::vector<RankOutcome> agree_outcome(const RankOutcome& mine) {
 }
 
 // ---------------------------------------------------------------- distributed stages
-DistributedStage::DistributedStage() { ++stage_depth(); }
+DistributedStage::DistributedStage() : journal_(communicator().size() > 1 ? nullptr : current_block_journal()) {
+  ++stage_depth();
+}
 DistributedStage::~DistributedStage() { --stage_depth(); }
 bool distributed_stage_active() { return stage_depth().load() > 0; }
 bool distributing() { return distributed_stage_active() && communicator().size() > 1; }
@@ -272,6 +274,58 @@ void on_root_rank(const std::function<void()>& f) {
     detail::add_block_seconds(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 0);
   }
   conclude_section(failure, message);
+}
+
+std::vector<std::string> exchange_owned_items(int64_t n, const std::vector<double>& costs,
+                                              const std::function<std::string(int64_t)>& f) {
+  std::vector<std::string> out(static_cast<size_t>(std::max<int64_t>(0, n)));
+  if (!distributing()) {
+    for (int64_t i = 0; i < n; ++i) out[static_cast<size_t>(i)] = f(i);
+    return out;
+  }
+  if (static_cast<int64_t>(costs.size()) != n) throw Error("exchange_owned_items: " + std::to_string(costs.size()) + " costs for " + std::to_string(n) + " items");
+  const int me = communicator().rank();
+  const std::vector<int> owner = assign_blocks(costs, communicator().size());
+  // Payload: failed (1 byte), message, then (item, result) of each item this rank computed.
+  std::string mine;
+  std::exception_ptr failure;
+  std::string message;
+  std::string results;
+  int64_t done = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    for (int64_t i = 0; i < n; ++i) {
+      if (owner[static_cast<size_t>(i)] != me) continue;
+      if (test_fail_rank() == me) throw Error("failure injected on rank " + std::to_string(me) + " (SKELFLOW_TEST_FAIL_RANK)");
+      const std::string r = f(i);
+      put<int64_t>(results, i);
+      put_str(results, r);
+      ++done;
+    }
+  } catch (const std::exception& e) {
+    failure = std::current_exception();
+    message = e.what();
+  } catch (...) {
+    failure = std::current_exception();
+    message = "unknown error";
+  }
+  detail::add_block_seconds(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), done);
+  put<uint8_t>(mine, failure ? 1 : 0);
+  put_str(mine, message);
+  mine += results;
+  const std::vector<std::string> all = exchange(mine);
+  if (failure) std::rethrow_exception(failure);
+  for (size_t r = 0; r < all.size(); ++r) {
+    Reader rd{all[r]};
+    if (rd.get<uint8_t>() != 0) throw RankFailed(static_cast<int>(r), rd.get_str());
+    (void)rd.get_str();
+    while (rd.pos < all[r].size()) {
+      const auto i = rd.get<int64_t>();
+      if (i < 0 || i >= n) throw Error("rank exchange: item " + std::to_string(i) + " out of range");
+      out[static_cast<size_t>(i)] = rd.get_str();
+    }
+  }
+  return out;
 }
 
 namespace detail {

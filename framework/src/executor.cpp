@@ -450,6 +450,17 @@ std::string hex8(uint64_t v) {
   std::snprintf(b, sizeof b, "%08llx", static_cast<unsigned long long>(v & 0xffffffffull));
   return b;
 }
+// Several ranks: every rank's error (empty: none); the first in rank order is thrown on every rank.
+// One process: its own.
+void agree_on_error(const std::string& error) {
+  if (communicator().size() == 1) {
+    if (!error.empty()) throw InputError(error);
+    return;
+  }
+  const std::vector<std::string> all = exchange(error);
+  for (size_t r = 0; r < all.size(); ++r)
+    if (!all[r].empty()) throw InputError(r == 0 ? all[r] : "rank " + std::to_string(r) + ": " + all[r]);
+}
 std::string budget_text(uint64_t budget, const Dims& block) {
   return format_byte_size(budget) + ", " +
          (block == Dims{0, 0, 0} ? std::string("blocks from the budget")
@@ -468,24 +479,25 @@ detail::ResumeManifest Executor::Impl::prepare_resume(ExecutionPlan& plan, const
                        "SIZE} in the pipeline) keep what they finished");
     return {};
   }
-  if (communicator().size() > 1) {  // skelflow-mpi: the ranks would share one resume folder
-    if (opt.resume)
-      throw InputError("--resume: not available with several ranks yet (skelflow-mpi with " +
-                       std::to_string(communicator().size()) + " ranks); run again without --resume");
-    return {};
-  }
   if (opt.keep_outputs) {  // the GUI keeps volumes in its cache; it has nothing to resume
     if (opt.resume) throw InputError("--resume: not available while outputs are kept for viewing");
     return {};
   }
+  // skelflow-mpi (several ranks): one folder for the job; every rank keeps its own manifest there
+  // (rank 0's is manifest.txt) and names its private files with ".rR"; the decisions below are taken
+  // together (agree_on_error, kept stages ANDed over the ranks), so every rank loads the same stages
+  // and runs the same ones. A run resumes only with the ranks and blocks of the run it continues.
+  const int rank = communicator().rank(), ranks = communicator().size();
   const Pipeline& p = plan.pipeline;
   const std::string file = fs::absolute(p.file()).lexically_normal().string();
   std::string stem = fs::path(p.file()).stem().string();
   if (stem.empty()) stem = "pipeline";
   dir = plan.scratch_dir / (".skelflow-resume-" + stem + "-" + hex8(fnv1a(file + "\n" + plan.output_base.string())));
+  const fs::path manifest_file = dir / detail::resume_manifest_name(rank, ranks);
 
   detail::ResumeManifest m;
   m.pid = static_cast<int64_t>(::getpid());
+  m.ranks = ranks;
   std::string structure;
   for (const auto& n : p.nodes()) {
     structure += n.id + " " + n.module + "\n";
@@ -513,56 +525,77 @@ detail::ResumeManifest Executor::Impl::prepare_resume(ExecutionPlan& plan, const
   m.memory_budget = plan.memory_budget;
   m.block = plan.block;
 
+  // Reading: every rank its own manifest; nothing is changed before every rank has read.
   std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    std::optional<detail::ResumeManifest> old;
+  const bool exists = broadcast_from_root(fs::exists(dir, ec) ? "1" : "0") == "1";
+  const size_t n = plan.nodes.size();
+  std::vector<char> kept(n, 0);
+  std::optional<detail::ResumeManifest> old;
+  std::string error;
+  const std::string head = "--resume: cannot continue the run kept in " + dir.string() + ": ";
+  const std::string tail = "; run without --resume to start over (that removes it)";
+  if (exists) {
     std::string damaged;
     try {
-      old = detail::parse_manifest(dir / detail::kResumeManifest);
+      old = detail::parse_manifest(manifest_file);
     } catch (const Error& e) {
       damaged = e.what();
     }
-    if (old && detail::other_process_alive(old->pid))
-      throw InputError("scratch folder " + plan.scratch_dir.string() + ": a running skelflow (pid " + std::to_string(old->pid) +
-                       ") keeps its resume state of this pipeline in " + dir.string() +
-                       "; wait for it to end, or give another --scratch");
-    if (!opt.resume) {
-      fs::remove_all(dir, ec);
-      notes.push_back("removed the resume state of a run of this pipeline that did not finish (" + dir.string() +
-                      (old ? ", " + std::to_string(old->done.size()) + " finished stage(s)" : std::string()) +
-                      "); `skelflow run --resume` continues such a run instead");
-    } else {
-      const std::string head = "--resume: cannot continue the run kept in " + dir.string() + ": ";
-      const std::string tail = "; run without --resume to start over (that removes it)";
-      if (!old) throw InputError(head + damaged + tail);
-      if (old->pipeline_hash != m.pipeline_hash)
-        throw InputError(head + "the pipeline's nodes or connections changed since that run" + tail);
-      if (old->memory_budget != m.memory_budget || old->block != m.block)
-        throw InputError(head + "the memory budget or block shape changed (that run: " +
-                         budget_text(old->memory_budget, old->block) + "; now: " + budget_text(m.memory_budget, m.block) +
-                         ")" + tail);
-      for (const auto& id : p.topological_order()) {
-        auto a = old->keys.find(id);
-        if (a == old->keys.end() || a->second != m.keys.at(id))
-          throw InputError(head + "the parameters of node '" + id + "' changed since that run" + tail);
+    const ResumeVolumeIo* io = resume_volume_io();
+    if (old && detail::other_process_alive(old->pid)) {
+      error = "scratch folder " + plan.scratch_dir.string() + ": a running skelflow (pid " + std::to_string(old->pid) +
+              ") keeps its resume state of this pipeline in " + dir.string() + "; wait for it to end, or give another --scratch";
+    } else if (opt.resume) {
+      if (!old) {
+        error = head + damaged + tail;
+      } else if (old->ranks != m.ranks) {
+        error = head + "that run had " + std::to_string(old->ranks) + " rank(s), this one has " + std::to_string(m.ranks) +
+                " (the blocks of the distributed stages are split by the number of ranks: resume with mpirun -np " +
+                std::to_string(old->ranks) + (old->ranks == 1 ? ", or with skelflow" : "") + ")" + tail;
+      } else if (old->pipeline_hash != m.pipeline_hash) {
+        error = head + "the pipeline's nodes or connections changed since that run" + tail;
+      } else if (old->memory_budget != m.memory_budget || old->block != m.block) {
+        error = head + "the memory budget or block shape changed (that run: " + budget_text(old->memory_budget, old->block) +
+                "; now: " + budget_text(m.memory_budget, m.block) + ")" + tail;
+      } else {
+        for (const auto& id : p.topological_order()) {
+          auto a = old->keys.find(id);
+          if (a == old->keys.end() || a->second != m.keys.at(id)) {
+            error = head + "the parameters of node '" + id + "' changed since that run" + tail;
+            break;
+          }
+        }
+        for (const auto& [f, stamp] : m.inputs) {
+          auto a = old->inputs.find(f);
+          if (error.empty() && (a == old->inputs.end() || a->second != stamp))
+            error = head + "the input file " + f + " changed since that run" + tail;
+        }
+        if (error.empty() && old->params_hash != m.params_hash) error = head + "the parameters changed since that run" + tail;
       }
-      for (const auto& [f, stamp] : m.inputs) {
-        auto a = old->inputs.find(f);
-        if (a == old->inputs.end() || a->second != stamp)
-          throw InputError(head + "the input file " + f + " changed since that run" + tail);
-      }
-      if (old->params_hash != m.params_hash) throw InputError(head + "the parameters changed since that run" + tail);
+      if (error.empty())
+        for (size_t i = 0; i < n; ++i) {
+          auto d = old->done.find(plan.nodes[i].id);
+          if (d == old->done.end() || d->second.key != plan.nodes[i].cache_key || !io) continue;
+          kept[i] = std::all_of(d->second.outputs.begin(), d->second.outputs.end(),
+                                [&](const detail::ResumeOutput& o) { return fs::exists(dir / o.file, ec); });
+        }
+    }
+  }
+  agree_on_error(error);
+  if (ranks > 1) {  // a stage is kept when every rank kept it
+    for (const std::string& other : exchange(std::string(kept.begin(), kept.end()))) {
+      if (other.size() != n) throw Error("--resume: the ranks plan different pipelines");
+      for (size_t i = 0; i < n; ++i) kept[i] = static_cast<char>(kept[i] && other[i]);
+    }
+  }
+
+  // Changing: loading what is kept, or removing the state of a run not continued, then this run's manifest.
+  try {
+    if (exists && opt.resume) {
       // Which stages run: a stage runs when it is not kept and its outputs are wanted (it ends the
       // pipeline, or a stage that runs reads them); a kept stage is loaded when they are wanted.
       const ResumeVolumeIo* io = resume_volume_io();
-      const size_t n = plan.nodes.size();
-      std::vector<char> kept(n, 0), runs(n, 0), wanted(n, 0);
-      for (size_t i = 0; i < n; ++i) {
-        auto d = old->done.find(plan.nodes[i].id);
-        if (d == old->done.end() || d->second.key != plan.nodes[i].cache_key || !io) continue;
-        kept[i] = std::all_of(d->second.outputs.begin(), d->second.outputs.end(),
-                              [&](const detail::ResumeOutput& o) { return fs::exists(dir / o.file, ec); });
-      }
+      std::vector<char> runs(n, 0), wanted(n, 0);
       for (size_t i = n; i-- > 0;) {
         wanted[i] = plan.nodes[i].users.empty() ||
                     std::any_of(plan.nodes[i].users.begin(), plan.nodes[i].users.end(), [&](size_t u) { return runs[u] != 0; });
@@ -586,13 +619,29 @@ detail::ResumeManifest Executor::Impl::prepare_resume(ExecutionPlan& plan, const
         ++loaded;
       }
       notes.push_back("resumed from " + dir.string() + ": " + std::to_string(loaded) + " finished stage(s) loaded, " +
-                      std::to_string(std::count(runs.begin(), runs.end(), 1)) + " to run");
+                      std::to_string(std::count(runs.begin(), runs.end(), 1)) + " to run" +
+                      (ranks > 1 ? " (on " + std::to_string(ranks) + " ranks)" : std::string()));
+    } else if (exists) {
+      if (rank == 0) fs::remove_all(dir, ec);
+      notes.push_back("removed the resume state of a run of this pipeline that did not finish (" + dir.string() +
+                      (old ? ", " + std::to_string(old->done.size()) + " finished stage(s)" : std::string()) +
+                      "); `skelflow run --resume` continues such a run instead");
+    } else if (opt.resume) {
+      notes.push_back("--resume: no interrupted run of this pipeline in " + plan.scratch_dir.string() + "; running from the start");
     }
-  } else if (opt.resume) {
-    notes.push_back("--resume: no interrupted run of this pipeline in " + plan.scratch_dir.string() + "; running from the start");
+  } catch (const std::exception& e) {
+    if (ranks == 1) throw;
+    error = e.what();
   }
-  fs::create_directories(dir, ec);
-  write_file_atomically(dir / detail::kResumeManifest, detail::manifest_text(m));
+  agree_on_error(error);  // also: every rank has loaded its files, or rank 0 has removed the old folder
+  try {
+    fs::create_directories(dir, ec);
+    write_file_atomically(manifest_file, detail::manifest_text(m));
+  } catch (const std::exception& e) {
+    if (ranks == 1) throw;
+    error = e.what();
+  }
+  agree_on_error(error);
   return m;
 }
 
@@ -648,6 +697,10 @@ private:
   void agree_with_ranks(bool& cancelled);
   void checkpoint(size_t i, const NodeReport& nr);
   void remove_resume_dir();
+  // Several ranks: ".rR", the mark of this rank's own files in the job's resume folder; else "".
+  static std::string rank_suffix() {
+    return communicator().size() > 1 ? ".r" + std::to_string(communicator().rank()) : std::string();
+  }
 
   void status(size_t i, NodeState s, double prog, const std::string& msg) const {
     if (opt_.on_status) opt_.on_status(plan_.nodes[i].id, NodeStatus{s, prog, msg});
@@ -1008,7 +1061,7 @@ std::shared_ptr<ChunkedVolume> Executor::Scheduler::make_scratch(size_t i, const
     std::error_code ec;
     fs::create_directories(plan_.scratch_dir, ec);
     file = resume_dir_.empty() ? temp_sibling(plan_.scratch_dir / (stem + ".scratch.h5"), files_.run_id())
-                               : resume_dir_ / (stem + ".h5");
+                               : resume_dir_ / (stem + rank_suffix() + ".h5");
     scratch_files_.push_back(file);
   }
   std::shared_ptr<VolumeStore> store = create_volume_store(file, type_id, grid, chunk);
@@ -1026,7 +1079,7 @@ std::shared_ptr<ChunkedVolume> Executor::Scheduler::make_scratch(size_t i, const
 BlockJournalFile* Executor::Scheduler::open_journal(size_t i) {
   const std::string& id = plan_.nodes[i].id;
   try {
-    auto j = std::make_unique<BlockJournalFile>(resume_dir_ / (id + ".blocks"), plan_.nodes[i].cache_key);
+    auto j = std::make_unique<BlockJournalFile>(resume_dir_ / (id + rank_suffix() + ".blocks"), plan_.nodes[i].cache_key);
     if (const int64_t kept = j->kept_blocks(); kept > 0) {
       const std::string note = "resumed node '" + id + "' from " + std::to_string(kept) + " finished block(s)";
       std::lock_guard lock(m_);
@@ -1101,13 +1154,13 @@ void Executor::Scheduler::checkpoint(size_t i, const NodeReport& nr) {
         o.grid = c->grid();
       } else if (voxel_bytes(d->type_id()) > 0) {
         o.kind = "volume";
-        o.file = id + "." + port + ".memory.h5";
+        o.file = id + "." + port + rank_suffix() + ".memory.h5";
         o.type_id = d->type_id();
         o.grid = any_volume_grid(*d, "output '" + port + "'");
         io->save(resume_dir_ / o.file, *d);
       } else if (const auto* t = dynamic_cast<const Table*>(d.get())) {
         o.kind = "table";
-        o.file = id + "." + port + ".table";
+        o.file = id + "." + port + rank_suffix() + ".table";
         detail::save_table(resume_dir_ / o.file, *t);
       } else {
         return;
@@ -1116,14 +1169,24 @@ void Executor::Scheduler::checkpoint(size_t i, const NodeReport& nr) {
     }
     std::lock_guard lock(manifest_m_);
     manifest_.done[id] = std::move(rn);
-    write_file_atomically(resume_dir_ / detail::kResumeManifest, detail::manifest_text(manifest_));
+    write_file_atomically(resume_dir_ / detail::resume_manifest_name(communicator().rank(), communicator().size()),
+                          detail::manifest_text(manifest_));
   } catch (const std::exception& e) {
     if (opt_.on_warning) opt_.on_warning(id, std::string("not kept for --resume: ") + e.what());
   }
 }
 
+// Several ranks: the folder is the job's; rank 0 removes it once every rank is done with its files.
 void Executor::Scheduler::remove_resume_dir() {
   if (resume_dir_.empty()) return;
+  if (communicator().size() > 1) {
+    try {
+      sync_ranks();
+    } catch (const std::exception&) {
+      return;  // the ranks are out of step: the folder stays for a later run to remove
+    }
+    if (communicator().rank() != 0) return;
+  }
   std::error_code ec;
   fs::remove_all(resume_dir_, ec);
 }

@@ -41,10 +41,15 @@ std::string num(double v) {
 
 }  // namespace
 
+std::string resume_manifest_name(int rank, int ranks) {
+  return ranks > 1 && rank > 0 ? "manifest.r" + std::to_string(rank) + ".txt" : std::string(kResumeManifest);
+}
+
 std::string manifest_text(const ResumeManifest& m) {
   std::ostringstream o;
   o << "skelflow-resume 1\n";
   o << "pid " << m.pid << "\n";
+  if (m.ranks != 1) o << "ranks " << m.ranks << "\n";
   o << "pipeline " << hex(m.pipeline_hash) << "\n";
   o << "params " << hex(m.params_hash) << "\n";
   o << "budget " << m.memory_budget << "\n";
@@ -88,6 +93,7 @@ ResumeManifest parse_manifest(const fs::path& file) {
       continue;
     }
     if (what == "pid") l >> m.pid;
+    else if (what == "ranks") l >> m.ranks;
     else if (what == "pipeline") { std::string h; l >> h; m.pipeline_hash = from_hex(h, where); }
     else if (what == "params") { std::string h; l >> h; m.params_hash = from_hex(h, where); }
     else if (what == "budget") l >> m.memory_budget;

@@ -32,6 +32,9 @@ struct ResumeNode {
 
 struct ResumeManifest {
   int64_t pid = 0;
+  // skelflow-mpi: the number of ranks of the run (1 for skelflow); each rank keeps a manifest of its
+  // own in the folder (resume_manifest_name), rank 0's is kResumeManifest.
+  int64_t ranks = 1;
   uint64_t pipeline_hash = 0, params_hash = 0;
   uint64_t memory_budget = 0;
   Dims block{0, 0, 0};
@@ -41,6 +44,9 @@ struct ResumeManifest {
 };
 
 inline constexpr const char* kResumeManifest = "manifest.txt";
+// The manifest of `rank` of a run on `ranks` ranks: kResumeManifest for rank 0 (and one process),
+// manifest.rR.txt for the others.
+std::string resume_manifest_name(int rank, int ranks);
 
 // Text form (one record per line) and back; parse throws Error naming the file and line.
 std::string manifest_text(const ResumeManifest& m);

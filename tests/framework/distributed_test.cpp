@@ -161,6 +161,83 @@ TEST(Distributed, AFailingBlockEndsTheLoopOnEveryRank) {
   EXPECT_EQ(errors[2], "rank 1: block broke");
 }
 
+// Thinning's wavefronts and skeleton_to_graph's gather: every item computed once, by the rank
+// assign_blocks names, and every rank gets every item's result in item order.
+TEST(Distributed, OwnedItemsAreComputedOnceAndEveryRankGetsEveryResult) {
+  const std::vector<double> costs{5, 1, 1, 9, 0, 3, 3, 2, 7, 1};
+  const int64_t n = static_cast<int64_t>(costs.size());
+  const std::vector<int> owner = assign_blocks(costs, 3);
+  std::mutex m;
+  std::vector<int> computed_by(costs.size(), -1), times(costs.size(), 0);
+  std::vector<std::vector<std::string>> got(3);
+  const auto errors = on_ranks(3, [&](int r) {
+    const DistributedStage stage;
+    got[static_cast<size_t>(r)] = exchange_owned_items(n, costs, [&](int64_t i) {
+      std::lock_guard lock(m);
+      computed_by[static_cast<size_t>(i)] = r;
+      ++times[static_cast<size_t>(i)];
+      return "item " + std::to_string(i) + std::string(static_cast<size_t>(i), 'x');
+    });
+  });
+  for (const auto& e : errors) EXPECT_EQ(e, "");
+  for (int64_t i = 0; i < n; ++i) {
+    EXPECT_EQ(times[static_cast<size_t>(i)], 1) << i;
+    EXPECT_EQ(computed_by[static_cast<size_t>(i)], owner[static_cast<size_t>(i)]) << i;
+    for (int r = 0; r < 3; ++r)
+      EXPECT_EQ(got[static_cast<size_t>(r)][static_cast<size_t>(i)], "item " + std::to_string(i) + std::string(static_cast<size_t>(i), 'x'));
+  }
+  // One process: every item in order.
+  std::vector<int64_t> order;
+  const auto one = exchange_owned_items(3, {1, 1, 1}, [&](int64_t i) {
+    order.push_back(i);
+    return std::to_string(i);
+  });
+  EXPECT_EQ(order, (std::vector<int64_t>{0, 1, 2}));
+  EXPECT_EQ(one, (std::vector<std::string>{"0", "1", "2"}));
+}
+
+TEST(Distributed, AFailingItemEndsTheExchangeOnEveryRank) {
+  const auto errors = on_ranks(3, [&](int r) {
+    const DistributedStage stage;
+    (void)exchange_owned_items(6, std::vector<double>(6, 1.0), [&](int64_t) -> std::string {
+      if (r == 2) throw InputError("item broke");
+      return "ok";
+    });
+  });
+  EXPECT_EQ(errors[2], "item broke");
+  EXPECT_EQ(errors[0], "rank 2: item broke");
+  EXPECT_EQ(errors[1], "rank 2: item broke");
+}
+
+// With several ranks a distributed stage keeps no block journal (its blocks are split by the number
+// of ranks; --resume runs it again from its first block); with one rank it keeps the executor's.
+TEST(Distributed, ADistributedStageHidesTheBlockJournalWithSeveralRanks) {
+  struct NoJournal final : BlockJournal {
+    int64_t begin_pass() override { return 0; }
+    [[nodiscard]] const std::string* kept(int64_t, int64_t) const override { return nullptr; }
+    void commit(int64_t, int64_t, std::string_view) override {}
+  } journal;
+  {
+    const ScopedBlockJournal scoped(&journal);
+    const DistributedStage stage;
+    EXPECT_EQ(current_block_journal(), &journal);
+  }
+  std::vector<const BlockJournal*> seen(2, &journal), after(2, nullptr);
+  const auto errors = on_ranks(2, [&](int r) {
+    const ScopedBlockJournal scoped(&journal);
+    {
+      const DistributedStage stage;
+      seen[static_cast<size_t>(r)] = current_block_journal();
+    }
+    after[static_cast<size_t>(r)] = current_block_journal();
+  });
+  for (int r = 0; r < 2; ++r) {
+    EXPECT_EQ(errors[static_cast<size_t>(r)], "");
+    EXPECT_EQ(seen[static_cast<size_t>(r)], nullptr);
+    EXPECT_EQ(after[static_cast<size_t>(r)], &journal);  // given back when the stage ends
+  }
+}
+
 TEST(Distributed, ARankThatFailedOutOfStepStopsTheOthersAtTheirNextExchange) {
   std::vector<std::vector<RankOutcome>> outcomes(3);
   const auto errors = on_ranks(3, [&](int r) {
