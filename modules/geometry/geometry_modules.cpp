@@ -3,6 +3,7 @@
 #include "geometry/names.hpp"
 #include "geometry/skeleton_to_graph.hpp"
 #include "geometry/skeleton_to_mesh.hpp"
+#include "skel/distributed.hpp"
 #include "skel/module.hpp"
 
 namespace skel::geometry {
@@ -50,11 +51,14 @@ public:
             "(+ the distance's bytes + 1 B/voxel for `manifold`) plus ~65 B per skeleton voxel, resident "
             "(a 1 % skeleton of 1280³ voxels: ~1.4 GB; ~50 B while gathering), independent of the volume's size. "
             "With --resume a killed run keeps the blocks it gathered (20 bytes per skeleton voxel in the "
-            "journal) and the finished blocks of `manifold`; the graph is built again from them.")
+            "journal) and the finished blocks of `manifold`; the graph is built again from them. skelflow-mpi: "
+            "the ranks gather the blocks (each its share, exchanged in block order) and write their blocks "
+            "of `manifold`; every rank builds the same graph from the gathered voxels.")
         .blockwise(1, 10);
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // blocks gathered by the ranks (skelflow-mpi)
       const DataObject& skel_data = *ctx.input_data("skeleton");
       DataPtr dist = ctx.input_data("distance");
       const auto o = ctx.options<SkeletonToGraphOptions>();

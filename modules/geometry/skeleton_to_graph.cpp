@@ -12,6 +12,7 @@
 
 #include "geometry/skeleton_to_graph_phases.hpp"
 #include "skel/block_journal.hpp"
+#include "skel/distributed.hpp"
 #include "skel/error.hpp"
 #include "skel/out_of_core.hpp"
 #include "skel/parallel.hpp"
@@ -365,8 +366,9 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
   // Resumable per block (--resume): a block commits the voxels it gathered (index, neighbourhood,
   // radius: 20 bytes per skeleton voxel), and a block kept from an earlier run adds them back.
   const bool journaled = current_block_journal() != nullptr;
-  auto gathered = [&](size_t first) {
-    if (!journaled) return std::string();
+  // The voxels gathered from index `first` on, as a block's payload (also what a rank sends for
+  // each of its blocks when the ranks share the blocks).
+  auto packed = [&](size_t first) {
     const auto n = static_cast<uint64_t>(vox.size() - first);
     std::string p(reinterpret_cast<const char*>(&n), sizeof n);
     p.append(reinterpret_cast<const char*>(vox.data() + first), n * sizeof(int64_t));
@@ -374,6 +376,7 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
     if (distance != nullptr) p.append(reinterpret_cast<const char*>(rad.data() + first), n * sizeof(double));
     return p;
   };
+  auto gathered = [&](size_t first) { return journaled ? packed(first) : std::string(); };
   auto add_gathered = [&](const Block&, const std::string& p) {
     uint64_t n = 0;
     const size_t per = sizeof(int64_t) + sizeof(uint32_t) + (distance != nullptr ? sizeof(double) : 0);
@@ -392,7 +395,7 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
       std::memcpy(rad.data() + first, at, n * sizeof(double));
     }
   };
-  for_each_block_resumable(layout, intr, "skeleton_to_graph", [&](const Block& b) {
+  auto gather = [&](const Block& b) {
     // The block with a one-voxel halo (clipped to the grid, where the in-core accessor sees
     // background too): every interior voxel's 27-neighbourhood is the one of the whole volume.
     const VolumeU8 v = read_block<uint8_t>(skeleton, b.outer_begin, b.outer_size, "input 'skeleton'");
@@ -418,7 +421,32 @@ SkeletonVoxels collect_voxels_blocks(const DataObject& skeleton, const Dims& blo
       }
     });
     return gathered(first);
-  }, add_gathered);
+  };
+  if (distributing()) {
+    // skelflow-mpi: each rank gathers its blocks; every rank adds every block's voxels in block
+    // order, so the gathered voxels (and the graph built from them on every rank) are one process's.
+    const Dims c = layout.count();
+    auto block_at = [&](int64_t i) { return layout.at(i % c[0], (i / c[0]) % c[1], i / (c[0] * c[1])); };
+    std::vector<double> costs(static_cast<size_t>(layout.total()));
+    for (int64_t i = 0; i < layout.total(); ++i) {
+      const Block b = block_at(i);
+      costs[static_cast<size_t>(i)] = static_cast<double>(b.size[0] * b.size[1] * b.size[2]);
+    }
+    int64_t mine = 0;
+    const std::vector<std::string> all = exchange_owned_items(layout.total(), costs, [&](int64_t i) {
+      const size_t first = vox.size();
+      (void)gather(block_at(i));
+      std::string p = packed(first);
+      vox.resize(first);
+      hood.resize(first);
+      if (distance != nullptr) rad.resize(first);
+      report_blocks(intr, "skeleton_to_graph", ++mine, layout.total());
+      return p;
+    });
+    for (int64_t i = 0; i < layout.total(); ++i) add_gathered(block_at(i), all[static_cast<size_t>(i)]);
+  } else {
+    for_each_block_resumable(layout, intr, "skeleton_to_graph", gather, add_gathered);
+  }
   // Blocks come in block order; the phases want raster order (ids ascending by linear index).
   std::vector<int64_t> order(vox.size());
   std::iota(order.begin(), order.end(), int64_t{0});
@@ -903,7 +931,7 @@ SpatialGraph skeleton_to_graph_blocks(const DataObject& skeleton, const DataObje
       std::vector<int64_t> fill(start.begin(), start.end() - 1);
       for (int64_t i = 0; i < sv.size(); ++i) ids[static_cast<size_t>(fill[static_cast<size_t>(block_of(sv.vox[i]))]++)] = i;
     }
-    for_each_block_resumable(layout, intr.sub(0.9, 1.0), "skeleton_to_graph manifold", [&](const Block& b) {
+    auto write_block = [&](const Block& b) {
       const int64_t k = block_of(b.begin[0] + nx * (b.begin[1] + ny * b.begin[2]));
       VolumeU8 out(manifold->box_grid(b.begin, b.size), 0);
       for (int64_t a = start[static_cast<size_t>(k)]; a < start[static_cast<size_t>(k) + 1]; ++a) {
@@ -911,7 +939,10 @@ SpatialGraph skeleton_to_graph_blocks(const DataObject& skeleton, const DataObje
         out(idx % nx - b.begin[0], idx / nx % ny - b.begin[1], idx / (nx * ny) - b.begin[2]) = sv.cls[i];
       }
       manifold->write(out, b.begin);
-    });
+    };
+    // skelflow-mpi: each rank writes its blocks of the shared manifold volume.
+    if (distributing()) for_each_owned_block(layout, intr.sub(0.9, 1.0), "skeleton_to_graph manifold", write_block);
+    else for_each_block_resumable(layout, intr.sub(0.9, 1.0), "skeleton_to_graph manifold", write_block);
   }
   intr.check(1.0);
   return g;

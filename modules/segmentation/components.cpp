@@ -785,19 +785,11 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
     if (pv.border[i]) open[static_cast<size_t>(pv.root[i])] = 1;
   int64_t filled = 0;
   const Dims n = layout.count();
-  ResumablePass pass;  // per block (--resume), each committing its filled count
-  int64_t index = 0;
-  for (int64_t bz = 0; bz < n[2]; ++bz)
-    for (int64_t by = 0; by < n[1]; ++by)
-      for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
-        if (const std::string* p = pass.kept(index)) {
-          filled += payload_as<int64_t>(*p);
-          block_done();
-          continue;
-        }
-        int64_t here = 0;
-        const Block b = layout.at(bx, by, bz);
-        VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
+  // Fills the cavities of block b into `out`; returns the voxels filled.
+  auto fill_block = [&](const Block& b) {
+    const int64_t bx = b.index[0], by = b.index[1], bz = b.index[2];
+    int64_t here = 0;
+    VolumeU8 m = read_mask_block(mask, b.begin, b.size, "input 'mask'");
         const BlockRuns br = block_runs(m, 6, true, threads);
         const Runs& r = br.runs;
         for (uint8_t& v : m) v = v != 0;
@@ -809,7 +801,27 @@ int64_t fill_cavities_blocks(const DataObject& mask, const ChunkedVolume& out, c
             std::fill(m.data() + row * b.size[0] + r.x0[si], m.data() + row * b.size[0] + r.x1[si], uint8_t{1});
             here += r.x1[si] - r.x0[si];
           }
-        out.write(m, b.begin);
+    out.write(m, b.begin);
+    return here;
+  };
+  if (distributing()) {  // skelflow-mpi: each rank fills its blocks of the shared output
+    for_each_owned_block(layout, Interrupter(), "fill_cavities", [&](const Block& b) {
+      filled += fill_block(b);
+      block_done();
+    });
+    return sum_over_ranks(filled);
+  }
+  ResumablePass pass;  // per block (--resume), each committing its filled count
+  int64_t index = 0;
+  for (int64_t bz = 0; bz < n[2]; ++bz)
+    for (int64_t by = 0; by < n[1]; ++by)
+      for (int64_t bx = 0; bx < n[0]; ++bx, ++index) {
+        if (const std::string* p = pass.kept(index)) {
+          filled += payload_as<int64_t>(*p);
+          block_done();
+          continue;
+        }
+        const int64_t here = fill_block(layout.at(bx, by, bz));
         filled += here;
         pass.commit(index, payload_of(here));
         block_done();

@@ -329,11 +329,13 @@ Block-wise under a memory budget: background components per block, united across
 memory (their runs on the block faces are kept), then each block is read again and its cavities
 filled; the same mask as in memory, no scratch volume besides the output. Memory per block: 1 (mask)
 + 1 (output) bytes per voxel plus its runs; ~100 bytes per background piece and 24 per piece run on
-a block face. With --resume a killed run continues from the finished blocks of the pass it was in.)")
+a block face. With --resume a killed run continues from the finished blocks of the pass it was in.
+skelflow-mpi: both passes are split over the ranks (the pieces exchanged, as in connected_components).)")
         .blockwise(0, 4);
   }
   void run(RunContext& ctx) override {
     if (const BlockPlan* blocks = ctx.blocks()) {
+      const DistributedStage stage;  // blocks split over the ranks (skelflow-mpi)
       const DataObject& mask = *ctx.input_data("mask");
       const Grid& g = any_volume_grid(mask, "input 'mask'");
       auto out = ctx.scratch_volume("mask", type_ids::volume_u8, g);

@@ -12,6 +12,7 @@
 
 #include "distance/distance.hpp"
 #include "skel/block_journal.hpp"
+#include "skel/distributed.hpp"
 
 namespace skel::thinning {
 namespace {
@@ -213,17 +214,37 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
     Dims lo{0, 0, 0}, hi{-1, -1, -1};  // changed voxels, global (hi[0] < 0: none)
   };
 
-  // The state: the mask as 0/1 in the skeleton volume.
-  {
+  // The state: the mask as 0/1 in the skeleton volume. Object voxels per block: the cost estimate
+  // of a block when the ranks share the blocks (skelflow-mpi).
+  std::vector<int64_t> block_objects(static_cast<size_t>(res.blocks), 0);
+  auto copy_block = [&](const Block& b) {
+    const VolumeU8 m = binary(read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'"));
+    int64_t n = 0;
+    for (const uint8_t v : m) n += v;
+    skeleton.write(m, b.begin);
+    return n;
+  };
+  if (distributing()) {
+    const BlockLayout copy(g.dims, res.block);
+    std::vector<double> costs(static_cast<size_t>(res.blocks));
+    for (int64_t i = 0; i < res.blocks; ++i) {
+      const Block b = copy.at(i % count[0], (i / count[0]) % count[1], i / (count[0] * count[1]));
+      costs[static_cast<size_t>(i)] = static_cast<double>(b.size[0] * b.size[1] * b.size[2]);
+    }
+    const std::vector<std::string> n = exchange_owned_items(res.blocks, costs, [&](int64_t i) {
+      return payload_of(copy_block(copy.at(i % count[0], (i / count[0]) % count[1], i / (count[0] * count[1]))));
+    });
+    for (int64_t i = 0; i < res.blocks; ++i) {
+      block_objects[static_cast<size_t>(i)] = payload_as<int64_t>(n[static_cast<size_t>(i)]);
+      res.stats.object_voxels += block_objects[static_cast<size_t>(i)];
+    }
+  } else {
     const BlockLayout copy(g.dims, res.block);
     for_each_block_resumable(
         copy, irq, "thinning (copy)",
         [&](const Block& b) {
-          const VolumeU8 m = binary(read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'"));
-          int64_t n = 0;
-          for (const uint8_t v : m) n += v;
+          const int64_t n = copy_block(b);
           res.stats.object_voxels += n;
-          skeleton.write(m, b.begin);
           return payload_of(n);
         },
         [&](const Block&, const std::string& p) { res.stats.object_voxels += payload_as<int64_t>(p); });
@@ -269,23 +290,15 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
             if (pj < 0 || pj < k) again[static_cast<size_t>(j)] = 1;
           }
     };
-    for (int64_t k = 0; k < total; ++k) {
-      const int64_t bi = order[static_cast<size_t>(k)];
-      if (const std::string* p = pass.kept(bi)) {
-        apply(bi, k, payload_as<BlockRecord>(*p));
-        continue;
-      }
+    // Thins block bi (at place k of the pass) on the state; returns its record.
+    auto thin_block = [&](int64_t bi, int64_t k) {
       const int64_t bx = bi % count[0], by = (bi / count[0]) % count[1], bz = bi / (count[0] * count[1]);
       const Block b = layout.at(bx, by, bz);
       const Dims& ob = b.outer_begin;
       const Dims& os = b.outer_size;
       BlockRecord rec;
       const VolumeU8 state = skeleton.read<uint8_t>(ob, os);
-      if (std::find(state.begin(), state.end(), uint8_t{1}) == state.end()) {  // no object: nothing to thin
-        pass.commit(bi, payload_of(rec));
-        report_blocks(irq, label, k + 1, total);
-        continue;
-      }
+      if (std::find(state.begin(), state.end(), uint8_t{1}) == state.end()) return rec;  // no object: nothing to thin
       const VolumeU8 orig = binary(read_block<uint8_t>(mask, ob, os, "input 'mask'"));
       VolumeU8 locks(os, 0);
       const int64_t unreached = border_locks(orig, ob, g.dims, b.begin, b.size, o.threads, locks);
@@ -332,9 +345,73 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
           rec.hi[a] = ob[a] + hi[a];
         }
       }
-      apply(bi, k, rec);
-      pass.commit(bi, payload_of(rec));
-      report_blocks(irq, label, k + 1, total);
+      return rec;
+    };
+    if (distributing()) {
+      // skelflow-mpi: the pass's blocks in wavefronts (docs/architecture.md, "Running on several
+      // processes"). Block k of the pass reads and writes its sub-block only, so its result depends
+      // on exactly the blocks before it in the pass whose sub-blocks overlap its own; its wavefront is
+      // one past the latest of theirs. Blocks of one wavefront have pairwise disjoint sub-blocks and
+      // run on the ranks at the same time; each wavefront starts when the one before it has been
+      // written to the shared skeleton. Every block thus sees the state it sees in the serial order,
+      // and the skeleton, the records and the blocks marked for the next pass are the serial run's.
+      std::vector<int64_t> wave(static_cast<size_t>(total), 0);
+      Dims reach{};
+      for (int a = 0; a < 3; ++a) reach[a] = 2 * H / std::max<int64_t>(1, res.block[a]) + 1;
+      int64_t waves = 0;
+      for (int64_t k = 0; k < total; ++k) {
+        const int64_t bi = order[static_cast<size_t>(k)];
+        const Dims bc{bi % count[0], (bi / count[0]) % count[1], bi / (count[0] * count[1])};
+        const Block b = layout.at(bc[0], bc[1], bc[2]);
+        int64_t w = 0;
+        for (int64_t z = std::max<int64_t>(0, bc[2] - reach[2]); z <= std::min(count[2] - 1, bc[2] + reach[2]); ++z)
+          for (int64_t y = std::max<int64_t>(0, bc[1] - reach[1]); y <= std::min(count[1] - 1, bc[1] + reach[1]); ++y)
+            for (int64_t x = std::max<int64_t>(0, bc[0] - reach[0]); x <= std::min(count[0] - 1, bc[0] + reach[0]); ++x) {
+              const int64_t pj = pos[static_cast<size_t>(block_index(count, x, y, z))];
+              if (pj < 0 || pj >= k) continue;
+              const Block c = layout.at(x, y, z);
+              bool overlap = true;
+              for (int a = 0; a < 3; ++a)
+                overlap = overlap && b.outer_begin[a] < c.outer_begin[a] + c.outer_size[a] &&
+                          c.outer_begin[a] < b.outer_begin[a] + b.outer_size[a];
+              if (overlap) w = std::max(w, wave[static_cast<size_t>(pj)] + 1);
+            }
+        wave[static_cast<size_t>(k)] = w;
+        waves = std::max(waves, w + 1);
+      }
+      std::vector<std::vector<int64_t>> in_wave(static_cast<size_t>(waves));
+      for (int64_t k = 0; k < total; ++k) in_wave[static_cast<size_t>(wave[static_cast<size_t>(k)])].push_back(k);
+      std::vector<BlockRecord> recs(static_cast<size_t>(total));
+      int64_t done = 0;
+      for (const auto& places : in_wave) {
+        std::vector<double> costs;  // reading the sub-block, and thinning its object
+        for (const int64_t k : places) {
+          const int64_t bi = order[static_cast<size_t>(k)];
+          costs.push_back(1.0 + static_cast<double>(block_objects[static_cast<size_t>(bi)]));
+        }
+        const int64_t n = static_cast<int64_t>(places.size());
+        const std::vector<std::string> got = exchange_owned_items(n, costs, [&](int64_t t) {
+          const int64_t k = places[static_cast<size_t>(t)];
+          return payload_of(thin_block(order[static_cast<size_t>(k)], k));
+        });
+        for (int64_t t = 0; t < n; ++t)
+          recs[static_cast<size_t>(places[static_cast<size_t>(t)])] = payload_as<BlockRecord>(got[static_cast<size_t>(t)]);
+        done += n;
+        report_blocks(irq, label, done, total);
+      }
+      for (int64_t k = 0; k < total; ++k) apply(order[static_cast<size_t>(k)], k, recs[static_cast<size_t>(k)]);
+    } else {
+      for (int64_t k = 0; k < total; ++k) {
+        const int64_t bi = order[static_cast<size_t>(k)];
+        if (const std::string* p = pass.kept(bi)) {
+          apply(bi, k, payload_as<BlockRecord>(*p));
+          continue;
+        }
+        const BlockRecord rec = thin_block(bi, k);
+        apply(bi, k, rec);
+        pass.commit(bi, payload_of(rec));
+        report_blocks(irq, label, k + 1, total);
+      }
     }
     order.clear();
     for (int64_t j = 0; j < res.blocks; ++j)

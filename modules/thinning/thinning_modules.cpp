@@ -2,6 +2,7 @@
 #include <string>
 #include <vector>
 
+#include "skel/distributed.hpp"
 #include "skel/module.hpp"
 #include "skel/table.hpp"
 #include "thinning/lee94.hpp"
@@ -110,7 +111,9 @@ Memory per sub-block voxel: mask and state 1 + 1, priority 4 (float32), locks 1 
 uint32 chamfer of the lock test 1 + 4, skeleton 1, priority levels 2 and queue (budgeted) 4: 20
 bytes (24 for a float64 priority). With --resume a killed run continues from the finished blocks of
 the pass it was in: each block keeps its statistics and the box it changed, so the blocks visited
-again and the skeleton are the uninterrupted run's.)")
+again and the skeleton are the uninterrupted run's. skelflow-mpi: each pass runs in wavefronts of
+blocks whose sub-blocks do not overlap, one past the latest overlapping block before them in the
+pass's order, split over the ranks by object voxels: the skeleton and table of one process.)")
         .blockwise(16, 20)
         .in_place("mask", "skeleton");
   }
@@ -154,6 +157,7 @@ again and the skeleton are the uninterrupted run's.)")
 
 private:
   static void run_blocks(RunContext& ctx, const BlockPlan& blocks) {
+    const DistributedStage stage;  // blocks split over the ranks in wavefronts (skelflow-mpi)
     DataPtr mask = ctx.input_data("mask");
     DataPtr priority = ctx.input_data("priority");
     DataPtr locked = ctx.input_data("locked");
