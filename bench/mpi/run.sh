@@ -11,6 +11,10 @@
 # is the bytes of one process's. Then the inputs of the cost model (bench/RESULTS.md, "skelflow-mpi"):
 # compute seconds per block voxel, I/O bandwidth per rank, seconds per collective.
 #   bench/mpi/run.sh BUILD_DIR [SIZE] [BUDGET] [WORK_DIR]
+# SKEL_BENCH_PIPELINE=skeleton: the stages distributed since (session 8) instead: read -> Gaussian ->
+# Otsu -> fill_cavities -> exact Euclidean DT -> block-wise thinning (DOHT, priority the DT) ->
+# skeleton_to_graph; same: the graph file (and the fill's mask) equal one process's.
+# SKEL_BENCH_NPS: the rank counts (default "1 2 4").
 # Memory: the phantom generator holds about 5 bytes per voxel (5 GiB at 1024³), each rank about its
 # budget plus ~300 MiB: run it under `flock /work/bigmem.lock` on shared machines. Disk: about 16
 # bytes per voxel at the peak (input, scratch volumes) in WORK_DIR (default: a new folder under the
@@ -52,6 +56,25 @@ nodes:
   distance: {module: distance.euclidean, inputs: {mask: largest.mask}}
   save_table: {module: io.write_table, inputs: {table: largest.table}, params: {path: components.csv}}
 YAML
+pipeline=${SKEL_BENCH_PIPELINE:-components}
+compare=components.csv
+if [ "$pipeline" = skeleton ]; then
+  cat >"$work/bench.yaml" <<'YAML'
+skelflow: 1
+nodes:
+  read: {module: io.read_volume, params: {path: image.h5}}
+  smooth: {module: segmentation.gaussian, inputs: {image: read.volume}, params: {sigma: [0.7, 0.7, 0.7]}}
+  seg: {module: segmentation.threshold, inputs: {image: smooth.image}, params: {method: otsu}}
+  fill: {module: segmentation.fill_cavities, inputs: {mask: seg.mask}}
+  distance: {module: distance.euclidean, inputs: {mask: fill.mask}}
+  thin: {module: thinning.doht, inputs: {mask: fill.mask, priority: distance.distance}}
+  graph: {module: geometry.skeleton_to_graph, inputs: {skeleton: thin.skeleton, distance: distance.distance}}
+  save_graph: {module: io.write_graph, inputs: {graph: graph.graph}, params: {path: graph.vtp}}
+  save_thin: {module: io.write_table, inputs: {table: thin.table}, params: {path: thinning.csv}}
+YAML
+  compare=graph.vtp
+fi
+read -r -a nps <<<"${SKEL_BENCH_NPS:-1 2 4}"
 t0=$(date +%s)
 "$bin" run "$work/make.yaml" --quiet --threads 2
 t1=$(date +%s)
@@ -68,7 +91,7 @@ run() {
   local same=no
   if [ "$label" = serial ]; then
     same=-
-  elif cmp -s "$work/serial/components.csv" "$work/$label/components.csv"; then
+  elif cmp -s "$work/serial/$compare" "$work/$label/$compare"; then
     same=yes
   fi
   "$py" - "$work" "$label" "$rc" "$same" >>"$work/rows.md" <<'PY'
@@ -92,17 +115,22 @@ PY
 }
 
 run serial "$bin"
-for np in 1 2 4; do
+for np in "${nps[@]}"; do
   run "np$np" mpirun --oversubscribe --bind-to none -np "$np" "$mpibin"
 done
 
 echo "## skelflow-mpi at ${n}³"
 echo
 echo "\`bench/mpi/run.sh\`: the vessel phantom of vessel_budget.sh at ${n}³ (uint8, made in $((t1 - t0)) s, not"
-echo "timed) read from HDF5 -> Gaussian (sigma 0.7) -> Otsu -> components (26, min_fraction 0.05) -> exact"
-echo "Euclidean DT, \`--memory-budget $budget ${run_args[*]}\` per rank, $threads thread(s) per rank, $(nproc) cores shared with other"
+if [ "$pipeline" = skeleton ]; then
+  echo "timed) read from HDF5 -> Gaussian (sigma 0.7) -> Otsu -> fill_cavities -> exact Euclidean DT -> thinning"
+  echo "(DOHT, block-wise) -> skeleton_to_graph, \`--memory-budget $budget ${run_args[*]}\` per rank, $threads thread(s) per rank, $(nproc) cores shared with other"
+else
+  echo "timed) read from HDF5 -> Gaussian (sigma 0.7) -> Otsu -> components (26, min_fraction 0.05) -> exact"
+  echo "Euclidean DT, \`--memory-budget $budget ${run_args[*]}\` per rank, $threads thread(s) per rank, $(nproc) cores shared with other"
+fi
 echo "users of the machine (load average at the start: $(cut -d' ' -f1-3 /proc/loadavg)). CPU: all ranks; RSS: the"
-echo "largest rank. same: the component table equals one process's (cmp)."
+echo "largest rank. same: $compare equals one process's (cmp)."
 echo
 echo "| run | wall s | CPU s | peak RSS MiB | same | seconds per stage (rank 0) | per rank |"
 echo "|---|---|---|---|---|---|---|"
@@ -116,7 +144,7 @@ import json, sys
 work, n = sys.argv[1], int(sys.argv[2])
 print("| run | compute s (all ranks) | I/O s (all ranks) | I/O GiB | I/O MiB/s per rank | collectives per rank | waiting s per collective |")
 print("|---|---|---|---|---|---|---|")
-for np in (1, 2, 4):
+for np in (1, 2, 3, 4, 8):
     try:
         r = json.load(open(f"{work}/np{np}.json"))
     except Exception:

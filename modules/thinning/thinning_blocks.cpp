@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -201,6 +202,16 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
 
   const BlockLayout layout(g.dims, res.block, H);
   const Dims count = layout.count();
+  // The box [begin, begin + size) widened to whole chunks of the skeleton volume (clipped to the grid).
+  const Dims chunk = plan.chunk;
+  auto widen_to_chunks = [&](Dims& begin, Dims& size) {
+    for (int a = 0; a < 3; ++a) {
+      const int64_t c = std::max<int64_t>(1, chunk[a]);
+      const int64_t lo = begin[a] / c * c, hi = std::min(g.dims[a], (begin[a] + size[a] + c - 1) / c * c);
+      begin[a] = lo;
+      size[a] = hi - lo;
+    }
+  };
   res.blocks = layout.total();
 
   // Resumable per block (--resume): the copy and every thinning pass are passes of the journal. The
@@ -290,14 +301,28 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
             if (pj < 0 || pj < k) again[static_cast<size_t>(j)] = 1;
           }
     };
-    // Thins block bi (at place k of the pass) on the state; returns its record.
-    auto thin_block = [&](int64_t bi, int64_t k) {
+    // Thins block bi (at place k of the pass) on the state; returns its record. `aligned`
+    // (skelflow-mpi): the sub-block is read and written back within its box widened to whole chunks
+    // of the skeleton volume (the voxels outside the sub-block written back as they were read), so
+    // that the shared store writes whole chunks, not row by row; the wavefronts keep the widened
+    // boxes of concurrent blocks disjoint.
+    auto thin_block = [&](int64_t bi, int64_t k, bool aligned) {
       const int64_t bx = bi % count[0], by = (bi / count[0]) % count[1], bz = bi / (count[0] * count[1]);
       const Block b = layout.at(bx, by, bz);
       const Dims& ob = b.outer_begin;
       const Dims& os = b.outer_size;
       BlockRecord rec;
-      const VolumeU8 state = skeleton.read<uint8_t>(ob, os);
+      Dims wb = ob, ws = os;
+      if (aligned) widen_to_chunks(wb, ws);
+      VolumeU8 wide = skeleton.read<uint8_t>(wb, ws);
+      std::optional<VolumeU8> boxed;
+      if (aligned) {
+        boxed.emplace(skeleton.box_grid(ob, os), 0);
+        for (int64_t z = 0; z < os[2]; ++z)
+          for (int64_t y = 0; y < os[1]; ++y)
+            std::memcpy(&(*boxed)(0, y, z), &wide(ob[0] - wb[0], ob[1] - wb[1] + y, ob[2] - wb[2] + z), static_cast<size_t>(os[0]));
+      }
+      const VolumeU8& state = boxed ? *boxed : wide;
       if (std::find(state.begin(), state.end(), uint8_t{1}) == state.end()) return rec;  // no object: nothing to thin
       const VolumeU8 orig = binary(read_block<uint8_t>(mask, ob, os, "input 'mask'"));
       VolumeU8 locks(os, 0);
@@ -338,8 +363,15 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
                 hi[a] = std::max(hi[a], p[a]);
               }
             }
-      if (hi[0] >= 0) {
+      if (hi[0] >= 0 && aligned) {
+        for (int64_t z = 0; z < os[2]; ++z)
+          for (int64_t y = 0; y < os[1]; ++y)
+            std::memcpy(&wide(ob[0] - wb[0], ob[1] - wb[1] + y, ob[2] - wb[2] + z), &r.skeleton(0, y, z), static_cast<size_t>(os[0]));
+        skeleton.write(wide, wb);
+      } else if (hi[0] >= 0) {
         skeleton.write(r.skeleton, ob);
+      }
+      if (hi[0] >= 0) {
         for (int a = 0; a < 3; ++a) {
           rec.lo[a] = ob[a] + lo[a];
           rec.hi[a] = ob[a] + hi[a];
@@ -357,12 +389,14 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
       // and the skeleton, the records and the blocks marked for the next pass are the serial run's.
       std::vector<int64_t> wave(static_cast<size_t>(total), 0);
       Dims reach{};
-      for (int a = 0; a < 3; ++a) reach[a] = 2 * H / std::max<int64_t>(1, res.block[a]) + 1;
+      for (int a = 0; a < 3; ++a) reach[a] = (2 * H + 2 * chunk[a]) / std::max<int64_t>(1, res.block[a]) + 1;
       int64_t waves = 0;
       for (int64_t k = 0; k < total; ++k) {
         const int64_t bi = order[static_cast<size_t>(k)];
         const Dims bc{bi % count[0], (bi / count[0]) % count[1], bi / (count[0] * count[1])};
         const Block b = layout.at(bc[0], bc[1], bc[2]);
+        Dims bb = b.outer_begin, bs = b.outer_size;
+        widen_to_chunks(bb, bs);
         int64_t w = 0;
         for (int64_t z = std::max<int64_t>(0, bc[2] - reach[2]); z <= std::min(count[2] - 1, bc[2] + reach[2]); ++z)
           for (int64_t y = std::max<int64_t>(0, bc[1] - reach[1]); y <= std::min(count[1] - 1, bc[1] + reach[1]); ++y)
@@ -370,10 +404,10 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
               const int64_t pj = pos[static_cast<size_t>(block_index(count, x, y, z))];
               if (pj < 0 || pj >= k) continue;
               const Block c = layout.at(x, y, z);
+              Dims cb = c.outer_begin, cs = c.outer_size;
+              widen_to_chunks(cb, cs);
               bool overlap = true;
-              for (int a = 0; a < 3; ++a)
-                overlap = overlap && b.outer_begin[a] < c.outer_begin[a] + c.outer_size[a] &&
-                          c.outer_begin[a] < b.outer_begin[a] + b.outer_size[a];
+              for (int a = 0; a < 3; ++a) overlap = overlap && bb[a] < cb[a] + cs[a] && cb[a] < bb[a] + bs[a];
               if (overlap) w = std::max(w, wave[static_cast<size_t>(pj)] + 1);
             }
         wave[static_cast<size_t>(k)] = w;
@@ -392,7 +426,7 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
         const int64_t n = static_cast<int64_t>(places.size());
         const std::vector<std::string> got = exchange_owned_items(n, costs, [&](int64_t t) {
           const int64_t k = places[static_cast<size_t>(t)];
-          return payload_of(thin_block(order[static_cast<size_t>(k)], k));
+          return payload_of(thin_block(order[static_cast<size_t>(k)], k, true));
         });
         for (int64_t t = 0; t < n; ++t)
           recs[static_cast<size_t>(places[static_cast<size_t>(t)])] = payload_as<BlockRecord>(got[static_cast<size_t>(t)]);
@@ -407,7 +441,7 @@ BlockThinningResult thin_doht_blocks(const DataObject& mask, const DataObject& p
           apply(bi, k, payload_as<BlockRecord>(*p));
           continue;
         }
-        const BlockRecord rec = thin_block(bi, k);
+        const BlockRecord rec = thin_block(bi, k, false);
         apply(bi, k, rec);
         pass.commit(bi, payload_of(rec));
         report_blocks(irq, label, k + 1, total);
