@@ -1269,6 +1269,14 @@ void Executor::Scheduler::conclude(double seconds) {
         std::lock_guard lock(im_.cache_mutex);
         im_.last = report_;
       }
+      // Several ranks: rank 0's outputs failed after the others concluded; it meets their
+      // collectives below (the shared stores' closing, then remove_resume_dir's wait) in their order,
+      // and keeps the resume folder.
+      if (communicator().size() > 1 && plan_.memory_budget > 0) try {
+          if (!opt_.keep_outputs) results_.clear();
+          if (!resume_dir_.empty()) sync_ranks();
+        } catch (const std::exception&) {
+        }
       throw;
     }
     report_.ok = true;

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # skelflow-mpi against skelflow (issue 17), run by ctest when MPI is found:
 #   mpi_pipeline_test.sh same    SKELFLOW SKELFLOW_MPI MPIEXEC "MPI_FLAGS" WORKDIR
+#     skelflow links no MPI library (ldd);
 #     the outputs of -np 1, 2 and 3 are the bytes of one skelflow process with the same budget and
 #     blocks (odd block sizes, objects crossing block corners); no scratch or temporary is left; the
 #     report lists every rank.
@@ -86,6 +87,11 @@ thin_outputs="out/graph.vtp out/skeleton.h5 out/thinning.csv"
 
 case "$mode" in
 same)
+  # The serial program needs no MPI at run time (only skelflow-mpi links it).
+  if command -v ldd > /dev/null; then
+    mpi_libs=$(ldd "$skelflow" | grep -E 'libmpi|openmpi|libhdf5_openmpi|libhdf5_mpich' || true)
+    [ -z "$mpi_libs" ] || { echo "FAIL: skelflow links MPI: $mpi_libs"; exit 1; }
+  fi
   "$skelflow" run "$work/p.yaml" --output-dir "$work/ref" --quiet
   "$skelflow" run "$work/read.yaml" --output-dir "$work/read_ref" --quiet
   "$skelflow" run "$work/thin.yaml" --output-dir "$work/thin_ref" --quiet
