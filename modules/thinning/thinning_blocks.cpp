@@ -131,20 +131,25 @@ double priority_max_distance(const DataObject& mask, const DataObject& priority,
   const bool is_float = priority.type_id() == type_ids::volume_f32 || priority.type_id() == type_ids::volume_f64;
   visit_voxel_type(priority.type_id(), "input 'priority'", [&](auto tag) {
     using T = decltype(tag);
+    auto scan = [&](const Block& b) {
+      const VolumeU8 m = read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'");
+      const Volume<T> p = read_block<T>(priority, b.begin, b.size, "input 'priority'");
+      for (int64_t i = 0; i < m.size(); ++i)
+        if (m[i]) {
+          const double v = static_cast<double>(p[i]);
+          if (std::isnan(v)) throw InputError("priority: NaN at an object voxel; expected finite values");
+          best = std::max(best, v);
+        }
+    };
+    if (distributing()) {  // skelflow-mpi: each rank scans its blocks; the maximum over the ranks
+      for_each_owned_block(layout, Interrupter(), "thinning (halo)", scan);
+      best = minmax_over_ranks(best, best).second;
+      return;
+    }
     const Dims c = layout.count();
     for (int64_t bz = 0; bz < c[2]; ++bz)
       for (int64_t by = 0; by < c[1]; ++by)
-        for (int64_t bx = 0; bx < c[0]; ++bx) {
-          const Block b = layout.at(bx, by, bz);
-          const VolumeU8 m = read_block<uint8_t>(mask, b.begin, b.size, "input 'mask'");
-          const Volume<T> p = read_block<T>(priority, b.begin, b.size, "input 'priority'");
-          for (int64_t i = 0; i < m.size(); ++i)
-            if (m[i]) {
-              const double v = static_cast<double>(p[i]);
-              if (std::isnan(v)) throw InputError("priority: NaN at an object voxel; expected finite values");
-              best = std::max(best, v);
-            }
-        }
+        for (int64_t bx = 0; bx < c[0]; ++bx) scan(layout.at(bx, by, bz));
   });
   if (is_float) {
     const double s = std::min({g.spacing[0], g.spacing[1], g.spacing[2]});
