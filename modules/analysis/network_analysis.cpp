@@ -137,14 +137,14 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
       window = 10.0 * steps[steps.size() / 2];
     }
   }
-  // A piece of arc length `arc` whose chord runs from a to b adds `arc` to the bin of the chord's
-  // angle to the axis (closed loops whose piece returns to its start have no direction: skipped).
   if (options.tangent_points < 1)
     throw InputError("parameter 'tangent_points': expected >= 1, got " + std::to_string(options.tangent_points));
   const auto deg = g.degrees();
   std::vector<std::vector<double>> steps(static_cast<size_t>(ne));
   for (int64_t e = 0; e < ne; ++e)
     steps[e] = detail::step_lengths(g.edges[e].points, g.source_grid, options.length_estimator, options.tangent_points);
+  // A piece of arc length `arc` whose chord runs from a to b adds `arc` to the bin of the chord's
+  // angle to the axis (closed loops whose piece returns to its start have no direction: skipped).
   const auto add_piece = [&](const Vec3& a, const Vec3& b, double arc) {
     const double c = dist3(a, b);
     if (!(c > 0)) return;
