@@ -1,6 +1,7 @@
 #include "analysis/network_analysis.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -20,7 +21,80 @@ double dist3(const Vec3& a, const Vec3& b) {
   return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
 
+// True when the edge's inner points (all but the two node positions) are voxel centres of `grid` and
+// consecutive inner points are 26-neighbours: a voxel path of a skeleton, whose steps are a
+// staircase to be measured as a digital curve. The steps to the nodes may have any length (a node is
+// the centroid of its junction voxels).
+bool is_voxel_path(const std::vector<Vec3>& p, const Grid& grid) {
+  if (grid.voxel_count() <= 0 || p.size() < 3) return false;
+  std::array<int64_t, 3> prev{};
+  for (size_t i = 1; i + 1 < p.size(); ++i) {
+    std::array<int64_t, 3> q{};
+    for (int a = 0; a < 3; ++a) {
+      const double u = (p[i][a] - grid.origin[a]) / grid.spacing[a];
+      q[a] = std::llround(u);
+      if (std::abs(u - static_cast<double>(q[a])) > 1e-3) return false;
+    }
+    if (i > 1) {
+      int64_t moved = 0;
+      for (int a = 0; a < 3; ++a) {
+        const int64_t d = std::abs(q[a] - prev[a]);
+        if (d > 1) return false;
+        moved += d;
+      }
+      if (moved == 0) return false;
+    }
+    prev = q;
+  }
+  return true;
+}
+
 }  // namespace
+
+namespace detail {
+
+std::vector<double> step_lengths(const std::vector<Vec3>& p, const Grid& grid, LengthEstimator estimator,
+                                 int tangent_points) {
+  const size_t n = p.size();
+  std::vector<double> c(n, 0.0);
+  for (size_t i = 1; i < n; ++i) c[i] = dist3(p[i - 1], p[i]);
+  if (estimator == LengthEstimator::polyline || !is_voxel_path(p, grid)) return c;
+  if (estimator == LengthEstimator::chain_code) {
+    // Kiryati & Kübler's weights for steps changing 1, 2, 3 coordinates (per voxel unit: scaled by the
+    // step's physical length over its length in voxels, which is exact for isotropic spacing). The
+    // steps to the nodes are not lattice steps: measured as they are.
+    constexpr std::array<double, 4> w{0.0, 0.9016, 1.289, 1.615};
+    for (size_t i = 2; i + 1 < n; ++i) {
+      int moved = 0;
+      for (int a = 0; a < 3; ++a) moved += std::llround(std::abs(p[i][a] - p[i - 1][a]) / grid.spacing[a]) != 0;
+      c[i] *= w[static_cast<size_t>(moved)] / std::sqrt(static_cast<double>(moved));
+    }
+    return c;
+  }
+  // Tangent projection: step i (p[i-1] -> p[i]) counts with its projection onto the chord from
+  // p[i-k] to p[i-1+k] (symmetric about the step; clamped at the ends of an open edge, wrapped
+  // around a closed loop whose last point repeats the first).
+  const auto k = static_cast<int64_t>(std::max(1, tangent_points));
+  const auto last = static_cast<int64_t>(n) - 1;
+  const bool closed = n > 3 && p.front() == p.back();
+  const auto at = [&](int64_t j) -> const Vec3& {
+    if (closed) return p[static_cast<size_t>(((j % last) + last) % last)];
+    return p[static_cast<size_t>(std::clamp<int64_t>(j, 0, last))];
+  };
+  for (int64_t i = 1; i <= last; ++i) {
+    const Vec3& a = at(i - k);
+    const Vec3& b = at(i - 1 + k);
+    const Vec3 t{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const double tn = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    if (!(tn > 0)) continue;  // keeps the step's own length
+    const Vec3& u = p[static_cast<size_t>(i - 1)];
+    const Vec3& v = p[static_cast<size_t>(i)];
+    c[static_cast<size_t>(i)] = ((v[0] - u[0]) * t[0] + (v[1] - u[1]) * t[1] + (v[2] - u[2]) * t[2]) / tn;
+  }
+  return c;
+}
+
+}  // namespace detail
 
 double mask_volume(const VolumeU8& mask) {
   int64_t n = 0;
@@ -63,6 +137,12 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
       window = 10.0 * steps[steps.size() / 2];
     }
   }
+  if (options.tangent_points < 1)
+    throw InputError("parameter 'tangent_points': expected >= 1, got " + std::to_string(options.tangent_points));
+  const auto deg = g.degrees();
+  std::vector<std::vector<double>> steps(static_cast<size_t>(ne));
+  for (int64_t e = 0; e < ne; ++e)
+    steps[e] = detail::step_lengths(g.edges[e].points, g.source_grid, options.length_estimator, options.tangent_points);
   // A piece of arc length `arc` whose chord runs from a to b adds `arc` to the bin of the chord's
   // angle to the axis (closed loops whose piece returns to its start have no direction: skipped).
   const auto add_piece = [&](const Vec3& a, const Vec3& b, double arc) {
@@ -79,7 +159,15 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
     eid[e] = e;
     n0[e] = ed.node0;
     n1[e] = ed.node1;
-    double l = 0.0, wr = 0.0, v = 0.0, s = 0.0;
+    double l = 0.0, poly = 0.0, wr = 0.0, v = 0.0, s = 0.0;
+    // The measured length: the estimator's step lengths; never below the chord (no curve is shorter).
+    // The orientation pieces are cut along the polyline and count in the same proportion, so that
+    // the histogram sums to the total length.
+    for (size_t i = 1; i < p.size(); ++i) l += steps[e][i];
+    chord[e] = dist3(p.front(), p.back());
+    l = std::max(l, chord[e]);
+    const double polyline_length = g.edge_length(e);
+    const double scale = polyline_length > 0 ? l / polyline_length : 1.0;
     size_t piece_start = 0;
     double piece = 0.0;
     double rmin = std::numeric_limits<double>::infinity(), rmax = -rmin;
@@ -91,10 +179,10 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
       }
       if (i == 0) continue;
       const double h = dist3(p[i - 1], p[i]);
-      l += h;
+      poly += h;
       piece += h;
       if (piece >= window || i + 1 == p.size()) {
-        add_piece(p[piece_start], p[i], piece);
+        add_piece(p[piece_start], p[i], piece * scale);
         piece_start = i;
         piece = 0.0;
       }
@@ -106,10 +194,9 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
       }
     }
     len[e] = l;
-    chord[e] = dist3(p.front(), p.back());
     tort[e] = chord[e] > 0 ? l / chord[e] : std::numeric_limits<double>::quiet_NaN();
     if (with_r) {
-      mean_r[e] = l > 0 ? wr / l : 0.5 * (rmin + rmax);
+      mean_r[e] = poly > 0 ? wr / poly : 0.5 * (rmin + rmax);
       min_r[e] = rmin;
       max_r[e] = rmax;
       vol[e] = v;
@@ -123,7 +210,6 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
   st.graph = g;
   {
     SpatialGraph& sg = st.graph;
-    const auto deg = g.degrees();
     // Connected components (ids from 0, in node order).
     std::vector<int32_t> comp(static_cast<size_t>(nn), -1);
     {
@@ -204,7 +290,6 @@ NetworkStatistics network_statistics(const SpatialGraph& g, const NetworkStatist
     st.segments.add("volume", vol, u3).add("surface", surf, u2);
   }
 
-  const auto deg = g.degrees();
   std::vector<int64_t> nid(nn);
   std::vector<double> x(nn), y(nn), z(nn);
   int64_t branch = 0, ends = 0;
