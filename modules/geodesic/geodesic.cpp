@@ -9,6 +9,7 @@
 #include <limits>
 #include <mutex>
 #include <type_traits>
+#include <unordered_map>
 #include <vector>
 
 #include "geodesic/geodesic_phases.hpp"
@@ -100,22 +101,36 @@ void layer_coordinates(Prepared& P, int threads) {
   }, 4096);
 }
 
-void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr) {
+namespace {
+
+// Rings of object voxels as padded positions: 32-bit where the padded domain allows.
+template <class Pos>
+void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interrupter& intr) {
   const Domain& D = P.dom;
   const size_t nwords = static_cast<size_t>(D.bits() / 64);
-  // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
-  // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
-  // that is closest in physical distance (ties: lower L-id). Values depend only on earlier rings, so
-  // the result is independent of thread count.
-  const Vec3 sp = spacing;
-  const auto off = offsets26(D);
-  P.b.assign(static_cast<size_t>(P.k), kNone);
-  std::vector<uint8_t> reached(static_cast<size_t>(P.k), 0);  // ring number + 1, saturating at 255
-  std::vector<int64_t> frontier;  // positions of the previous ring (object voxels); ring 0 = L
-  // Ring 1: object voxels adjacent to L = object voxels with any background 26-neighbour.
-  std::vector<int64_t> next;
+  struct Nb {
+    int64_t off;
+    int32_t dx, dy, dz;
+  };
+  std::vector<Nb> nbs;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (dx || dy || dz) nbs.push_back(Nb{dx + D.BX * (dy + D.BY * dz), dx, dy, dz});
+  P.boff.assign(static_cast<size_t>(P.k), kUnsetOffset);
+  // Object id -> padded position of b(p) where the offset does not fit in 8 bits (rare: objects
+  // more than 127 voxels thick); read during a ring, written between rings.
+  std::unordered_map<uint64_t, int64_t> far;
+  auto coords = [&](int64_t pos, int32_t& x, int32_t& y, int32_t& z) {
+    z = static_cast<int32_t>(pos / D.plane);
+    const int64_t r = pos % D.plane;
+    y = static_cast<int32_t>(r / D.BX);
+    x = static_cast<int32_t>(r % D.BX);
+  };
+  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L).
+  std::vector<Pos> next, cur;
   {
-    std::vector<std::vector<int64_t>> parts(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
+    std::vector<std::vector<Pos>> parts(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
     parallel_chunks(0, static_cast<int64_t>(nwords), static_cast<int64_t>(parts.size()), threads,
                     [&](int64_t c, int64_t w0, int64_t w1) {
                       auto& out = parts[static_cast<size_t>(c)];
@@ -124,72 +139,142 @@ void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interru
                         while (bits) {
                           const int64_t pos = w * 64 + std::countr_zero(bits);
                           bits &= bits - 1;
-                          for (int64_t o : off)
-                            if (P.layer.test(pos + o)) {
-                              out.push_back(pos);
+                          for (const Nb& n : nbs)
+                            if (P.layer.test(pos + n.off)) {
+                              out.push_back(static_cast<Pos>(pos));
                               break;
                             }
                         }
                       }
                     });
-    for (auto& p : parts) next.insert(next.end(), p.begin(), p.end());
+    size_t total = 0;
+    for (auto& p : parts) total += p.size();
+    next.reserve(total);
+    for (auto& p : parts) {
+      next.insert(next.end(), p.begin(), p.end());
+      std::vector<Pos>().swap(p);
+    }
   }
-  auto dist2 = [&](int64_t pos, uint32_t l) {
-    const int64_t z = pos / D.plane, rem = pos % D.plane;
-    const double dx = (static_cast<double>(rem % D.BX) - P.lcoord[l].x) * sp[0];
-    const double dy = (static_cast<double>(rem / D.BX) - P.lcoord[l].y) * sp[1];
-    const double dz = (static_cast<double>(z) - P.lcoord[l].z) * sp[2];
-    return dx * dx + dy * dy + dz * dz;
-  };
-  int ring = 1;
+  for (Pos pos : next) P.boff[P.obj.rank(static_cast<int64_t>(pos))] = kQueuedOffset;
   int64_t assigned = 0;
-  std::vector<uint32_t> newb;
+  uint64_t ring_bytes = 0;
+  std::vector<BaseOffset> newb;
+  std::mutex far_mutex;
+  std::vector<std::pair<uint64_t, int64_t>> newfar;
   while (!next.empty()) {
-    for (int64_t pos : next) reached[P.obj.rank(pos)] = static_cast<uint8_t>(std::min(ring, 254));
-    newb.assign(next.size(), kNone);
+    newb.assign(next.size(), kUnsetOffset);
+    newfar.clear();
     parallel_for(0, static_cast<int64_t>(next.size()), threads, [&](int64_t i0, int64_t i1) {
+      std::vector<std::pair<uint64_t, int64_t>> myfar;
       for (int64_t i = i0; i < i1; ++i) {
-        const int64_t pos = next[static_cast<size_t>(i)];
-        uint32_t best = kNone;
+        const int64_t pos = static_cast<int64_t>(next[static_cast<size_t>(i)]);
+        int32_t px = 0, py = 0, pz = 0;
+        bool have_p = false;
+        int64_t bpos = std::numeric_limits<int64_t>::max();
+        int32_t bx = 0, by = 0, bz = 0;
         double bd = std::numeric_limits<double>::infinity();
-        for (int64_t o : off) {
-          const int64_t q = pos + o;
-          uint32_t cand = kNone;
+        for (const Nb& n : nbs) {
+          const int64_t q = pos + n.off;
+          int32_t cx, cy, cz;  // offset from p to the candidate
+          int64_t cpos;
           if (P.layer.test(q)) {
-            cand = static_cast<uint32_t>(P.layer.rank(q));
+            cx = n.dx, cy = n.dy, cz = n.dz;
+            cpos = q;
           } else if (P.obj.test(q)) {
             const uint64_t qi = P.obj.rank(q);
-            if (P.b[qi] != kNone) cand = P.b[qi];  // earlier ring (this ring's values are not committed yet)
+            const BaseOffset o = P.boff[qi];
+            if (o.dx == kFar) {
+              if (o.dy != 0) continue;  // not assigned yet (a later ring, or this one: not committed)
+              cpos = far.at(qi);
+              if (!have_p) {
+                coords(pos, px, py, pz);
+                have_p = true;
+              }
+              int32_t fx, fy, fz;
+              coords(cpos, fx, fy, fz);
+              cx = fx - px, cy = fy - py, cz = fz - pz;
+            } else {
+              cx = n.dx + o.dx, cy = n.dy + o.dy, cz = n.dz + o.dz;
+              cpos = q + o.dx + D.BX * (o.dy + D.BY * static_cast<int64_t>(o.dz));
+            }
+          } else {
+            continue;
           }
-          if (cand == kNone) continue;
-          const double d = dist2(pos, cand);
-          if (d < bd || (d == bd && cand < best)) {
+          const double ex = static_cast<double>(cx) * sp[0], ey = static_cast<double>(cy) * sp[1],
+                       ez = static_cast<double>(cz) * sp[2];
+          const double d = ex * ex + ey * ey + ez * ez;
+          // Ties: the lower position (= the lower L-id).
+          if (d < bd || (d == bd && cpos < bpos)) {
             bd = d;
-            best = cand;
+            bpos = cpos;
+            bx = cx, by = cy, bz = cz;
           }
         }
-        newb[static_cast<size_t>(i)] = best;
+        if (std::max({std::abs(bx), std::abs(by), std::abs(bz)}) <= 127) {
+          newb[static_cast<size_t>(i)] = BaseOffset{static_cast<int8_t>(bx), static_cast<int8_t>(by), static_cast<int8_t>(bz)};
+        } else {
+          newb[static_cast<size_t>(i)] = BaseOffset{kFar, 0, 0};
+          myfar.emplace_back(P.obj.rank(pos), bpos);
+        }
+      }
+      if (!myfar.empty()) {
+        std::lock_guard lock(far_mutex);
+        newfar.insert(newfar.end(), myfar.begin(), myfar.end());
       }
     }, 1024);
-    for (size_t i = 0; i < next.size(); ++i) P.b[P.obj.rank(next[i])] = newb[i];
+    for (size_t i = 0; i < next.size(); ++i) P.boff[P.obj.rank(static_cast<int64_t>(next[i]))] = newb[i];
+    for (const auto& [oid, bp] : newfar) far[oid] = bp;
     assigned += static_cast<int64_t>(next.size());
-    frontier.swap(next);
+    cur.swap(next);
     next.clear();
-    // Next ring: unreached object neighbours of this ring (deduplicated by the reached marks).
-    for (int64_t pos : frontier)
-      for (int64_t o : off) {
-        const int64_t q = pos + o;
+    // Next ring: unassigned object neighbours of this ring (deduplicated by the queued mark).
+    for (Pos p : cur)
+      for (const Nb& n : nbs) {
+        const int64_t q = static_cast<int64_t>(p) + n.off;
         if (!P.obj.test(q)) continue;
-        const uint64_t qi = P.obj.rank(q);
-        if (reached[qi]) continue;
-        reached[qi] = 255;
-        next.push_back(q);
+        BaseOffset& o = P.boff[P.obj.rank(q)];
+        if (o.dx != kFar || o.dy != kUnsetOffset.dy) continue;
+        o = kQueuedOffset;
+        next.push_back(static_cast<Pos>(q));
       }
     std::sort(next.begin(), next.end());
-    ++ring;
+    ring_bytes = std::max<uint64_t>(ring_bytes, (cur.capacity() + next.capacity()) * sizeof(Pos) + newb.capacity() * sizeof(BaseOffset));
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
-  P.prepare_bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 + reached.size();
+  P.bfar.assign(far.begin(), far.end());
+  std::sort(P.bfar.begin(), P.bfar.end());
+  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.base_bytes() + ring_bytes +
+                                                  far.size() * 32);
+}
+
+}  // namespace
+
+void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr) {
+  // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
+  // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
+  // that is closest in physical distance (ties: the lower position, i.e. the lower L-id). Values
+  // depend only on earlier rings, so the result is independent of thread count. Works on the offsets
+  // b(p) - p directly (a neighbour's candidate is its own offset plus the step), so neither the L
+  // coordinates nor the L-ids of b are needed.
+  if (P.dom.bits() <= static_cast<int64_t>(std::numeric_limits<uint32_t>::max()))
+    nearest_points_rings<uint32_t>(spacing, P, threads, intr);
+  else
+    nearest_points_rings<int64_t>(spacing, P, threads, intr);
+}
+
+void base_ids(Prepared& P, int threads) {
+  P.b.assign(static_cast<size_t>(P.k), kNone);
+  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
+  parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t bits = P.obj.word(static_cast<size_t>(w));
+      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+      for (; bits; bits &= bits - 1, ++id) {
+        const int64_t pos = w * 64 + std::countr_zero(bits);
+        P.b[id] = static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos)));
+      }
+    }
+  }, 4096);
 }
 
 void layer_components(Prepared& P) {
@@ -219,45 +304,16 @@ void layer_components(Prepared& P) {
   for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = find(static_cast<uint32_t>(i));
 }
 
-void compact_bases(Prepared& P, int threads) {
-  const Domain& D = P.dom;
-  P.boff.resize(static_cast<size_t>(P.k));
-  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
-  std::vector<std::vector<std::pair<uint32_t, int64_t>>> far(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
-  parallel_chunks(0, nwords, static_cast<int64_t>(far.size()), threads, [&](int64_t c, int64_t w0, int64_t w1) {
-    for (int64_t w = w0; w < w1; ++w) {
-      uint64_t bits = P.obj.word(static_cast<size_t>(w));
-      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
-      for (; bits; bits &= bits - 1, ++id) {
-        const int64_t pos = w * 64 + std::countr_zero(bits);
-        const int64_t z = pos / D.plane, rem = pos % D.plane;
-        const Coord& q = P.lcoord[P.b[id]];
-        const int64_t dx = q.x - rem % D.BX, dy = q.y - rem / D.BX, dz = q.z - z;
-        if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) <= 127) {
-          P.boff[id] = BaseOffset{static_cast<int8_t>(dx), static_cast<int8_t>(dy), static_cast<int8_t>(dz)};
-        } else {
-          P.boff[id] = BaseOffset{kFar, 0, 0};
-          far[static_cast<size_t>(c)].emplace_back(static_cast<uint32_t>(id), D.pos(q.x, q.y, q.z));
-        }
-      }
-    }
-  });
-  P.bfar.clear();
-  for (auto& f : far) P.bfar.insert(P.bfar.end(), f.begin(), f.end());  // chunks in order: sorted by id
-}
-
 void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
              bool components) {
   build_bitmaps(mask, P, threads, intr);
-  layer_coordinates(P, threads);
   intr.check(0.08);
   nearest_points(mask.spacing(), P, threads, intr);
-  compact_bases(P, threads);
-  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) +
-                                                  P.b.size() * 4 + P.base_bytes());
-  if (!keep_coords) {
-    std::vector<Coord>().swap(P.lcoord);
-    std::vector<uint32_t>().swap(P.b);
+  if (keep_coords) {
+    layer_coordinates(P, threads);
+    base_ids(P, threads);
+    P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) +
+                                                    P.b.size() * 4 + P.base_bytes());
   }
   if (components) layer_components(P);
   intr.check(0.22);

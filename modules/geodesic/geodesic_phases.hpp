@@ -82,15 +82,19 @@ struct BaseOffset {
   int8_t dx, dy, dz;
 };
 constexpr int8_t kFar = -128;
+// While nearest_points runs: dx == kFar with dy != 0 marks a voxel not assigned yet (unset) or
+// queued for the current ring (its value is not committed, so it is no candidate yet).
+constexpr BaseOffset kUnsetOffset{kFar, 1, 0};
+constexpr BaseOffset kQueuedOffset{kFar, 2, 0};
 
 struct Prepared {
   Domain dom;
   RankBits obj, layer;
-  std::vector<Coord> lcoord;  // L-id -> padded coordinates (freed after the nearest-point transform
-                              // unless kept for the reference; searches carry positions instead)
-  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point (freed after
-                              // compact_bases unless kept for the reference and tests)
-  std::vector<BaseOffset> boff;  // object id -> offset to b(p) (compact_bases)
+  std::vector<Coord> lcoord;  // L-id -> padded coordinates (only for the reference, cells and tests:
+                              // searches carry positions instead)
+  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point (only for the
+                              // reference, cells and tests: base_ids)
+  std::vector<BaseOffset> boff;  // object id -> offset to b(p) (nearest_points)
   std::vector<std::pair<uint32_t, int64_t>> bfar;  // object id -> position of b(p), where kFar
   std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
   int64_t k = 0, nl = 0;
@@ -119,23 +123,24 @@ struct Prepared {
 // The 26 neighbour offsets in the padded domain.
 std::vector<int64_t> offsets26(const Domain& d);
 
-// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform, its compact form and
-// (if `components`) L's components (the steps below). L coordinates and the L-ids of b are freed
-// afterwards unless `keep_coords`. Without components (P.lcomp empty) every target is searched.
+// Phase 1: builds the bitmaps, the nearest-point transform (as offsets) and (if `components`) L's
+// components (the steps below); with `keep_coords` also the L coordinates and the L-ids of b (for
+// the reference, cells and tests). Without components (P.lcomp empty) every target is searched.
 void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
              bool components = true);
 // 1a: P.obj and P.layer (L = dilate26(O) minus O over the padded domain) with their ranks, P.k, P.nl.
 void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr);
 // 1b: P.lcoord (padded coordinates of every L voxel).
 void layer_coordinates(Prepared& P, int threads);
-// 1c: P.b, by rings of 26-neighbours inward from L: ring r+1 = unreached object voxels 26-adjacent to
-// ring r; each takes, among its neighbours of earlier rings, the nearest point that is closest in
-// physical distance (ties: lower L-id). Needs P.lcoord; sets P.prepare_bytes.
+// 1c: P.boff and P.bfar (b(p) as offsets), by rings of 26-neighbours inward from L: ring r+1 =
+// unreached object voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings,
+// the nearest point that is closest in physical distance (ties: lower L-id). Sets P.prepare_bytes
+// (bitmaps, offsets and the ring lists: 4 B per ring voxel ×2 + 3 B where the domain has < 2^32 voxels).
 void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr);
+// 1e: P.b (L-ids of b(p)) from the offsets.
+void base_ids(Prepared& P, int threads);
 // 1d: P.lcomp, the 6-connected component of every L voxel (its smallest L-id).
 void layer_components(Prepared& P);
-// 1e: P.boff and P.bfar from P.b and P.lcoord.
-void compact_bases(Prepared& P, int threads);
 
 // Scratch of one worker.
 // Own searches (A*, own_bfs) mark the voxels they closed by range encoding (thesis §2.3.2): a
