@@ -319,12 +319,31 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
   intr.check(0.22);
 }
 
+namespace {
+
+// Fills the members in raster order without a cursor array: while bucket l is being filled, its
+// last slot holds the number of members placed so far (0 initially) until that slot gets its own
+// member, which is the last one.
+template <class ForEachBase>
+void members_fill(Buckets& bk, int64_t k, bool wide, ForEachBase&& for_each_base) {
+  Members& members = bk.members;
+  members.resize(static_cast<size_t>(k), wide);
+  for (size_t l = 0; l < bk.count.size(); ++l)
+    if (bk.count[l]) members.set(bk.end(static_cast<uint32_t>(l)) - 1, 0);
+  for_each_base([&](int64_t pos, uint32_t l) {
+    const uint32_t b = bk.begin(l), n = bk.members_of(l);
+    const uint32_t placed = n == 1 ? 0 : static_cast<uint32_t>(members[b + n - 1]);
+    members.set(b + placed, pos);
+    if (placed + 1 < n) members.set(b + n - 1, placed + 1);
+  });
+}
+
+}  // namespace
+
 Buckets bucket_by_base(const Prepared& P) {
   Buckets bk;
   const Domain& D = P.dom;
-  std::vector<uint32_t>& start = bk.start;
-  Members& members = bk.members;
-  start.assign(static_cast<size_t>(P.nl) + 1, 0);
+  const size_t nl = static_cast<size_t>(P.nl);
   // The L-id of every object voxel's base, in object order (one walk; reused by the fill below).
   auto for_each_base = [&](auto&& f) {
     const size_t nwords = P.obj.word_count();
@@ -337,21 +356,35 @@ Buckets bucket_by_base(const Prepared& P) {
       }
     }
   };
-  for_each_base([&](int64_t, uint32_t l) { ++start[l + 1]; });
-  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
-  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
+  bk.count.assign(nl, 0);
+  std::unordered_map<uint32_t, uint32_t> big;  // counts >= 255
+  for_each_base([&](int64_t, uint32_t l) {
+    if (bk.count[l] < 255) {
+      if (++bk.count[l] == 255) big[l] = 255;
+    } else {
+      ++big[l];
+    }
+  });
+  bk.big.assign(big.begin(), big.end());
+  std::sort(bk.big.begin(), bk.big.end());
+  std::unordered_map<uint32_t, uint32_t>().swap(big);
+  bk.block.assign((nl + 63) / 64, 0);
   {
-    // Shifted by one (start[l + 1] = first slot of l), then start[l + 1] counts up to the end of l,
-    // which is the start of l + 1 (no second array of |L| counters).
-    for (int64_t i = P.nl; i > 0; --i) start[static_cast<size_t>(i)] = start[static_cast<size_t>(i) - 1];
-    start[0] = 0;
-    for_each_base([&](int64_t pos, uint32_t l) { members.set(start[l + 1]++, pos); });
+    uint32_t s = 0;
+    for (size_t l = 0; l < nl; ++l) {
+      if ((l & 63) == 0) bk.block[l >> 6] = s;
+      s += bk.members_of(static_cast<uint32_t>(l));
+    }
   }
+  members_fill(bk, P.k, D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()), for_each_base);
   return bk;
 }
 
-int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
-                const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
+namespace {
+
+template <bool kBoxed>
+int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
+                     const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
   const Domain& D = P.dom;
   wd.assign(want.size(), kNone);
   if (want.empty()) return 0;
@@ -405,7 +438,8 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
   {
     int32_t x, y, z;
     coords(src_pos, x, y, z);
-    const Scratch::Entry e{src, 0, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen};
+    const uint32_t si = kBoxed ? S.box_index(x, y, z) : src;
+    const Scratch::Entry e{si, 0, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen};
     const uint32_t f = h(x, y, z);
     if (f <= limit) {
       lo = hi = f;
@@ -451,9 +485,9 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
     for (int n = 0; n < 6; ++n) {
       const int64_t q = pos + nb[n];
       if (!P.layer.test(q)) continue;
-      const uint32_t u = static_cast<uint32_t>(P.layer.rank(q));
-      if (S.stamp[u] == st) continue;
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
+      const uint32_t u = kBoxed ? S.box_index(x, y, z) : static_cast<uint32_t>(P.layer.rank(q));
+      if (S.stamp[u] == st) continue;
       const uint32_t nf = e.g + 1 + h(x, y, z);
       if (nf <= last)
         push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
@@ -463,29 +497,51 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
   return visited;
 }
 
-int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+template <bool kBoxed>
+int64_t pivot_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+  const Domain& D = P.dom;
+  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
+  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   auto run = [&](auto& pdist) {
     using T = typename std::decay_t<decltype(pdist)>::value_type;
     for (uint32_t v : S.pqueue) pdist[v] = 0;
+    const uint32_t si = S.index_of(D, src, src_pos);
     S.pqueue.clear();
-    S.pqueue.push_back(src);
+    S.pqueue.push_back(si);
     S.qpos.clear();
     S.qpos.push_back(src_pos);
-    pdist[src] = 1;
+    pdist[si] = 1;
     for (size_t head = 0; head < S.pqueue.size(); ++head) {
-      const T dv1 = pdist[S.pqueue[head]];  // distance + 1
+      const uint32_t v = S.pqueue[head];
+      const T dv1 = pdist[v];  // distance + 1
       if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-      for_each_layer_neighbour(P, S.qpos[head], [&](uint32_t u, int64_t q) {
-        if (pdist[u]) return;
+      const int64_t pos = S.qpos[head];
+      for (int n = 0; n < 6; ++n) {
+        const int64_t q = pos + nb[n];
+        if (!P.layer.test(q)) continue;
+        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
+        if (pdist[u]) continue;
         pdist[u] = static_cast<T>(dv1 + 1);
         S.pqueue.push_back(u);
         S.qpos.push_back(q);
-      });
+      }
     }
   };
   if (S.pdist8.empty()) run(S.pdist16);
   else run(S.pdist8);
   return static_cast<int64_t>(S.pqueue.size());
+}
+
+}  // namespace
+
+int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
+                const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
+  return S.boxed() ? own_bfs_impl<true>(P, S, src, src_pos, limit, want, want_pos, wd)
+                   : own_bfs_impl<false>(P, S, src, src_pos, limit, want, want_pos, wd);
+}
+
+int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+  return S.boxed() ? pivot_bfs_impl<true>(P, S, src, src_pos, limit) : pivot_bfs_impl<false>(P, S, src, src_pos, limit);
 }
 
 SearchShared::SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& m, float* out, uint32_t threshold,
@@ -499,11 +555,10 @@ SearchShared::SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& 
 
 void BaseWork::gather(uint32_t base_id) {
   const Prepared& P = sh_.P;
-  const std::vector<uint32_t>& start = sh_.B.start;
   const Members& members = sh_.B.members;
   targets.clear();
   tpos.clear();
-  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m)
+  for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m)
     for_each_target_at(P, members[m], [&](uint32_t c, int64_t cpos) {
       if (std::find(targets.begin(), targets.end(), c) == targets.end()) {
         targets.push_back(c);
@@ -515,12 +570,11 @@ void BaseWork::gather(uint32_t base_id) {
 
 void BaseWork::finish(uint32_t base_id) {
   const Prepared& P = sh_.P;
-  const std::vector<uint32_t>& start = sh_.B.start;
   const Members& members = sh_.B.members;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const float inf = std::numeric_limits<float>::infinity();
-  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+  for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m) {
     float v = 0.0f;
     for_each_target(P, members[m], [&](uint32_t c) {
       const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
@@ -535,7 +589,6 @@ void BaseWork::finish(uint32_t base_id) {
 
 void BaseWork::mark_needed(uint32_t base_id) {
   const Prepared& P = sh_.P;
-  const std::vector<uint32_t>& start = sh_.B.start;
   const Members& members = sh_.B.members;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
@@ -543,7 +596,7 @@ void BaseWork::mark_needed(uint32_t base_id) {
       !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
   needed.assign(targets.size(), any_saturated ? 0 : 1);
   if (!any_saturated) return;
-  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+  for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m) {
     size_t idx[6];
     int n = 0;
     bool saturated = false;
@@ -586,7 +639,6 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
 
 void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
   const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
-  const std::vector<uint32_t>& start = sh.B.start;
   BaseWork w(sh, S);
   std::vector<uint32_t>& targets = w.targets;
   std::vector<uint32_t>& tdist = w.tdist;
@@ -607,14 +659,16 @@ void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
   for (size_t i = 0; i < S.pqueue.size(); ++i) {
     const uint32_t v = S.pqueue[i];
     if (S.pivot_at(v) > pivot_margin) break;
-    if (v != a && start[v + 1] > start[v]) near.emplace_back(v, S.qpos[i]);
+    if (i == 0) continue;  // a itself
+    const uint32_t l = S.boxed() ? static_cast<uint32_t>(sh.P.layer.rank(S.qpos[i])) : v;
+    if (sh.B.has_work(l)) near.emplace_back(l, S.qpos[i]);
   }
   for (const auto& [a2, a2pos] : near) {
     if (!sh.claim(a2)) continue;
     w.gather(a2);
-    const uint32_t da2 = S.pivot_at(a2);
+    const uint32_t da2 = S.pivot_at(S.index_of(sh.P.dom, a2, a2pos));
     for (size_t i = 0; i < targets.size(); ++i) {
-      const uint32_t c = targets[i];
+      const uint32_t c = S.index_of(sh.P.dom, targets[i], w.tpos[i]);
       // g(a, c) > t + margin (unreached) or >= t + g(a, a2): then g(a2, c) >= t.
       if (!S.pivot_visited(c) || S.pivot_at(c) >= t + da2) {
         tdist[i] = t;
@@ -629,10 +683,44 @@ void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
 
 uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_progress) {
   const Prepared& P = sh.P;
+  const Domain& D = P.dom;
   const int nthreads = effective_threads(threads);
+  const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
+
+  // Work: bases with a non-empty bucket, found by walking the words of L (which gives their
+  // positions too). Each base is claimed exactly once, and every value is exact (searches) or a
+  // proven saturation, so the importance never depends on who claimed a base. The diagnostic counts
+  // (searches, pivots, saturated, visited) do depend on it, so claims are made deterministic: the
+  // padded domain is cut into blocks (x: whole words; y, z: rows and slabs), each at least
+  // 2*margin + 2 voxels thick on every axis, coloured by the parity of (x, y, z) block index, and the
+  // eight colours run one after the other. A block is processed by one worker in L order; a pivot
+  // claims only bases within `margin` 6-steps (so within `margin` on every axis): never in another
+  // block of the same colour, and no base is within reach of two blocks of one colour. So the
+  // claims, and with them every count, are those of a fixed sequential order, whatever the thread
+  // count (the blocks do not depend on it).
+  {
+    int64_t nb = 0;
+    for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
+    sh.n_bases = nb;
+  }
+  const int64_t extent = std::max<int64_t>(2 * static_cast<int64_t>(pivot_margin) + 2, 8);
+  const int64_t rw = D.row_words();
+  const int64_t nbx = std::max<int64_t>(1, rw / ((extent + 63) / 64));
+  const int64_t nby = std::max<int64_t>(1, D.BY / extent);
+  const int64_t nbz = std::max<int64_t>(1, D.BZ / extent);
+  // Scratch box: the largest block plus everything its searches reach (own searches to t from bases
+  // within `margin` of the block, pivots to t + margin from the block's bases, and one neighbour
+  // more), clipped to the domain; dense (one entry per L voxel) where that is smaller, in full mode
+  // (unbounded searches) and where the box index would not fit in 32 bits.
+  const int64_t halo = static_cast<int64_t>(t) + pivot_margin + 1;
+  const int64_t bw = std::min(D.BX, 64 * ((rw + nbx - 1) / nbx) + 2 * halo);
+  const int64_t bh = std::min(D.BY, (D.BY + nby - 1) / nby + 2 * halo);
+  const int64_t bd = std::min(D.BZ, (D.BZ + nbz - 1) / nbz + 2 * halo);
+  const bool boxed = !sh.full && (sh.force_box || bw * bh * bd < P.nl) &&
+                     bw * bh * bd < static_cast<int64_t>(std::numeric_limits<uint32_t>::max());
+
   std::mutex scratch_mutex;
   std::vector<std::unique_ptr<Scratch>> pool;
-  const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
   auto acquire = [&]() {
     std::lock_guard lock(scratch_mutex);
     if (!pool.empty()) {
@@ -640,47 +728,36 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
       pool.pop_back();
       return s;
     }
-    return std::make_unique<Scratch>(static_cast<size_t>(P.nl), pivot_margin ? t + pivot_margin : 0);
+    const uint32_t plimit = pivot_margin ? t + pivot_margin : 0;
+    return boxed ? std::make_unique<Scratch>(bw, bh, bd, plimit)
+                 : std::make_unique<Scratch>(static_cast<size_t>(P.nl), plimit);
   };
   auto release = [&](std::unique_ptr<Scratch> s) {
     std::lock_guard lock(scratch_mutex);
     pool.push_back(std::move(s));
   };
-
-  // Work: bases with a non-empty bucket, found by walking the words of L (which gives their
-  // positions too). Each base is claimed exactly once, and every value is exact (searches) or a
-  // proven saturation, so the importance never depends on who claimed a base. The diagnostic counts
-  // (searches, pivots, saturated, visited) do depend on it, so claims are made deterministic: the
-  // padded domain is cut into blocks of z-slabs x y-bands, each at least 2*margin + 2 voxels thick,
-  // coloured by the parity of (slab, band), and the four colours run one after the other. A block is
-  // processed by one worker in L order; a pivot claims only bases within `margin` steps (26-steps,
-  // so within `margin` in z and y): never in another block of the same colour, and no base is
-  // within reach of two blocks of one colour. So the claims, and with them every count, are those
-  // of a fixed sequential order, whatever the thread count (the blocks do not depend on it).
-  {
-    int64_t nb = 0;
-    for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
-    sh.n_bases = nb;
-  }
-  const Domain& D = P.dom;
-  const int64_t extent = 2 * static_cast<int64_t>(pivot_margin) + 2;
-  const int64_t nbz = std::max<int64_t>(1, D.BZ / std::max<int64_t>(extent, 8));
-  const int64_t nby = std::max<int64_t>(1, D.BY / std::max<int64_t>(extent, 8));
-  const int64_t rw = D.row_words();
-  for (int colour = 0; colour < 4; ++colour) {
-    std::vector<std::pair<int64_t, int64_t>> blocks;
-    for (int64_t iz = colour / 2; iz < nbz; iz += 2)
-      for (int64_t iy = colour % 2; iy < nby; iy += 2) blocks.emplace_back(iz, iy);
+  for (int colour = 0; colour < 8; ++colour) {
+    struct Block {
+      int64_t ix, iy, iz;
+    };
+    std::vector<Block> blocks;
+    for (int64_t iz = (colour >> 2) & 1; iz < nbz; iz += 2)
+      for (int64_t iy = (colour >> 1) & 1; iy < nby; iy += 2)
+        for (int64_t ix = colour & 1; ix < nbx; ix += 2) blocks.push_back(Block{ix, iy, iz});
     parallel_for(0, static_cast<int64_t>(blocks.size()), nthreads, [&](int64_t b0, int64_t b1) {
       auto S = acquire();
       for (int64_t bi = b0; bi < b1; ++bi) {
-        const auto [iz, iy] = blocks[static_cast<size_t>(bi)];
-        const int64_t z0 = D.BZ * iz / nbz, z1 = D.BZ * (iz + 1) / nbz;
-        const int64_t y0 = D.BY * iy / nby, y1 = D.BY * (iy + 1) / nby;
+        const Block& bl = blocks[static_cast<size_t>(bi)];
+        const int64_t z0 = D.BZ * bl.iz / nbz, z1 = D.BZ * (bl.iz + 1) / nbz;
+        const int64_t y0 = D.BY * bl.iy / nby, y1 = D.BY * (bl.iy + 1) / nby;
+        const int64_t w0 = rw * bl.ix / nbx, w1 = rw * (bl.ix + 1) / nbx;
+        if (S->boxed())
+          S->move_box(std::clamp<int64_t>(w0 * 64 - halo, 0, D.BX - bw), std::clamp<int64_t>(y0 - halo, 0, D.BY - bh),
+                      std::clamp<int64_t>(z0 - halo, 0, D.BZ - bd));
         for (int64_t z = z0; z < z1; ++z) {
           for (int64_t y = y0; y < y1; ++y) {
             const int64_t row = (z * D.BY + y) * rw;
-            for (int64_t w = row; w < row + rw; ++w) {
+            for (int64_t w = row + w0; w < row + w1; ++w) {
               uint64_t bits = P.layer.word(static_cast<size_t>(w));
               uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
               for (; bits; bits &= bits - 1, ++a) {
@@ -763,8 +840,10 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // Peak of the two phases: the nearest-point transform (with L coordinates and the ring marks) and
   // the searches (with components, buckets, claims and the workers' scratch).
   const uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.base_bytes() + P.lcomp.size() * 4 +
-                                B.start.size() * 4 + B.members.bytes() + sh.claimed.size() * 8 + scratch_bytes;
+                                B.bytes() + sh.claimed.size() * 8 + scratch_bytes;
   res.stats.bytes = std::max(P.prepare_bytes, search_bytes);
+  res.stats.bytes_prepare = P.prepare_bytes;
+  res.stats.bytes_search = search_bytes;
   opt.interrupter.check(1.0);
   return res;
 }

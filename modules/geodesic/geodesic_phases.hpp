@@ -142,17 +142,20 @@ void base_ids(Prepared& P, int threads);
 // 1d: P.lcomp, the 6-connected component of every L voxel (its smallest L-id).
 void layer_components(Prepared& P);
 
-// Scratch of one worker.
+// Scratch of one worker, indexed either by L-id (dense: |L| entries) or by position in a box of
+// the padded domain that holds everything the searches of one block of bases can touch (box: the
+// block plus t + margin + 1 on every side; search_bases moves it from block to block), whichever is
+// smaller. Only the index changes between the two; the searches are the same.
 // Own searches (A*, own_bfs) mark the voxels they closed by range encoding (thesis §2.3.2): a
-// 16-bit stamp per L voxel, and each search takes the next stamp value, so a voxel is closed in the
-// current search iff its stamp equals the search's value; nothing is cleared after a search, the
-// array only once every 65535 searches (when the stamp wraps). The open voxels wait in a bucket
-// queue by their key g + h (h = 6-step lower bound to the nearest remaining target).
+// 16-bit stamp per entry, and each search takes the next stamp value, so a voxel is closed in the
+// current search iff its stamp equals the search's value; nothing is cleared after a search (nor when
+// the box moves), the array only once every 65535 searches (when the stamp wraps). The open voxels
+// wait in a bucket queue by their key g + h (h = 6-step lower bound to the nearest remaining target).
 // Pivot searches keep 8- or 16-bit distances (d + 1, 0 = unvisited; none without pivots) because
 // targets of neighbouring bases are looked up afterwards; they are reset through their list.
 struct Scratch {
   struct Entry {  // 16 bytes; the padded position is x + BX * (y + BY * z)
-    uint32_t id, g;
+    uint32_t id, g;  // id: scratch index (L-id or box index)
     uint16_t x, y, z, gen;  // gen: targets reached when queued (the key is stale once more are)
   };
   std::vector<uint16_t> stamp;   // own search: closed iff == cur
@@ -161,12 +164,35 @@ struct Scratch {
   std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
   std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
   std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
-  std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
+  std::vector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
   std::vector<int64_t> qpos;    // padded positions of the pivot search's queue
-  Scratch(size_t nl, uint32_t pivot_limit) : stamp(nl, 0) {
-    if (pivot_limit == 0) return;
-    if (pivot_limit <= 254) pdist8.assign(nl, 0);
-    else pdist16.assign(nl, 0);
+  // Box mode (bw > 0): entry of padded (x, y, z) = (x - bx0) + bw * ((y - by0) + bh * (z - bz0)).
+  int64_t bw = 0, bh = 0, bd = 0, bx0 = 0, by0 = 0, bz0 = 0;
+  // Dense: one entry per L voxel.
+  Scratch(size_t nl, uint32_t pivot_limit) { allocate(nl, pivot_limit); }
+  // Box of w x h x d voxels (origin set by move_box).
+  Scratch(int64_t w, int64_t h, int64_t d, uint32_t pivot_limit) : bw(w), bh(h), bd(d) {
+    allocate(static_cast<size_t>(w * h * d), pivot_limit);
+  }
+  [[nodiscard]] bool boxed() const { return bw > 0; }
+  void move_box(int64_t x0, int64_t y0, int64_t z0) {
+    // pqueue holds indices of the old placement: clear the pivot distances first.
+    for (uint32_t v : pqueue) {
+      if (pdist8.empty()) pdist16[v] = 0;
+      else pdist8[v] = 0;
+    }
+    pqueue.clear();
+    qpos.clear();
+    bx0 = x0, by0 = y0, bz0 = z0;
+  }
+  [[nodiscard]] uint32_t box_index(int64_t x, int64_t y, int64_t z) const {
+    return static_cast<uint32_t>((x - bx0) + bw * ((y - by0) + bh * (z - bz0)));
+  }
+  // Scratch index of the L voxel with L-id `l` at padded position `pos`.
+  [[nodiscard]] uint32_t index_of(const Domain& D, uint32_t l, int64_t pos) const {
+    if (!boxed()) return l;
+    const int64_t z = pos / D.plane, r = pos % D.plane;
+    return box_index(r % D.BX, r / D.BX, z);
   }
   // The stamp of a new own search.
   uint16_t next_stamp() {
@@ -185,6 +211,14 @@ struct Scratch {
     for (const auto& b : buckets) qb += b.capacity() * sizeof(Entry);
     return stamp.size() * 2 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
            buckets.capacity() * sizeof(buckets[0]) + qb;
+  }
+
+private:
+  void allocate(size_t n, uint32_t pivot_limit) {
+    stamp.assign(n, 0);
+    if (pivot_limit == 0) return;
+    if (pivot_limit <= 254) pdist8.assign(n, 0);
+    else pdist16.assign(n, 0);
   }
 };
 
@@ -225,11 +259,34 @@ void for_each_target(const Prepared& P, int64_t pos, F&& f) {
 }
 
 // Phase 2: object voxels grouped by base point b(p) (counting sort): the voxels of base l are
-// members[start[l] .. start[l+1]), as padded positions in raster order.
+// members[begin(l) .. end(l)), as padded positions in raster order. The bucket bounds are kept
+// compactly: a member count per L voxel (1 byte; 255 = look the count up in `big`) and the first
+// slot of every 64 L voxels (4 bytes), so about 1.06 bytes per L voxel instead of 4; begin(l) adds
+// the counts of up to 63 preceding L voxels.
 struct Buckets {
-  std::vector<uint32_t> start;
+  std::vector<uint8_t> count;                       // per L-id: members, 255 = in `big`
+  std::vector<std::pair<uint32_t, uint32_t>> big;   // (L-id, members) where >= 255, sorted
+  std::vector<uint32_t> block;                      // per 64 L-ids: first member slot; one more at the end
   Members members;
-  [[nodiscard]] bool has_work(uint32_t l) const { return start[l + 1] > start[l]; }
+  [[nodiscard]] bool has_work(uint32_t l) const { return count[l] != 0; }
+  [[nodiscard]] uint32_t members_of(uint32_t l) const {
+    if (count[l] != 255) return count[l];
+    return std::lower_bound(big.begin(), big.end(), std::pair<uint32_t, uint32_t>{l, 0})->second;
+  }
+  [[nodiscard]] uint32_t begin(uint32_t l) const {
+    const uint32_t b0 = l & ~uint32_t{63};
+    uint32_t s = block[l >> 6], nbig = 0;
+    for (uint32_t j = b0; j < l; ++j) {
+      s += count[j];
+      nbig += count[j] == 255;
+    }
+    if (nbig)
+      for (uint32_t j = b0; j < l; ++j)
+        if (count[j] == 255) s += members_of(j) - 255;
+    return s;
+  }
+  [[nodiscard]] uint32_t end(uint32_t l) const { return begin(l) + members_of(l); }
+  [[nodiscard]] uint64_t bytes() const { return count.size() + big.size() * 8 + block.size() * 4 + members.bytes(); }
 };
 Buckets bucket_by_base(const Prepared& P);
 
@@ -266,6 +323,7 @@ struct SearchShared {
   uint32_t t = 0;          // threshold
   bool full = false;       // Mode::Full
   uint32_t pivot_margin = 0;  // 0 = no pivots
+  bool force_box = false;     // tests: box scratch even where dense would be smaller
   // Bases are claimed once: by their own search or by a neighbouring pivot.
   std::vector<std::atomic<uint64_t>> claimed;
   std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
