@@ -347,7 +347,9 @@ TEST(GeodesicPhases, BoxScratchEqualsDenseScratchAndReference) {
       for (int threads : {1, 2}) {
         const SearchRun box = run_search(m, t, threads, true);
         SCOPED_TRACE("seed " + std::to_string(seed) + " t " + std::to_string(t) + " threads " + std::to_string(threads));
-        if (with_ref) EXPECT_TRUE(box.importance == ref.importance);
+        if (with_ref) {
+          EXPECT_TRUE(box.importance == ref.importance);
+        }
         EXPECT_TRUE(box.importance == dense.importance);
         EXPECT_EQ(box.searches, dense.searches);
         EXPECT_EQ(box.pivots, dense.pivots);
