@@ -127,35 +127,37 @@ void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interr
     y = static_cast<int32_t>(r / D.BX);
     x = static_cast<int32_t>(r % D.BX);
   };
-  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L).
+  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L). Counted per chunk
+  // first, then written straight into place (no second copy of the largest ring).
   std::vector<Pos> next, cur;
   {
-    std::vector<std::vector<Pos>> parts(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
-    parallel_chunks(0, static_cast<int64_t>(nwords), static_cast<int64_t>(parts.size()), threads,
-                    [&](int64_t c, int64_t w0, int64_t w1) {
-                      auto& out = parts[static_cast<size_t>(c)];
-                      for (int64_t w = w0; w < w1; ++w) {
-                        uint64_t bits = P.obj.word(static_cast<size_t>(w));
-                        while (bits) {
-                          const int64_t pos = w * 64 + std::countr_zero(bits);
-                          bits &= bits - 1;
-                          for (const Nb& n : nbs)
-                            if (P.layer.test(pos + n.off)) {
-                              out.push_back(static_cast<Pos>(pos));
-                              break;
-                            }
-                        }
-                      }
-                    });
-    size_t total = 0;
-    for (auto& p : parts) total += p.size();
-    next.reserve(total);
-    for (auto& p : parts) {
-      next.insert(next.end(), p.begin(), p.end());
-      std::vector<Pos>().swap(p);
-    }
+    const int64_t nchunks = static_cast<int64_t>(std::max(1, effective_threads(threads))) * 8;
+    std::vector<int64_t> at(static_cast<size_t>(nchunks) + 1, 0);
+    auto scan = [&](bool fill) {
+      parallel_chunks(0, static_cast<int64_t>(nwords), nchunks, threads, [&](int64_t c, int64_t w0, int64_t w1) {
+        int64_t n = 0, o = at[static_cast<size_t>(c)];
+        for (int64_t w = w0; w < w1; ++w) {
+          uint64_t bits = P.obj.word(static_cast<size_t>(w));
+          while (bits) {
+            const int64_t pos = w * 64 + std::countr_zero(bits);
+            bits &= bits - 1;
+            for (const Nb& nb : nbs)
+              if (P.layer.test(pos + nb.off)) {
+                if (fill) next[static_cast<size_t>(o++)] = static_cast<Pos>(pos);
+                else ++n;
+                break;
+              }
+          }
+        }
+        if (!fill) at[static_cast<size_t>(c) + 1] = n;
+      });
+    };
+    scan(false);
+    for (size_t c = 0; c < static_cast<size_t>(nchunks); ++c) at[c + 1] += at[c];
+    next.resize(static_cast<size_t>(at.back()));
+    scan(true);
   }
-  for (Pos pos : next) P.boff[P.obj.rank(static_cast<int64_t>(pos))] = kQueuedOffset;
+  for (Pos pos : next) P.boff[P.obj.rank(static_cast<int64_t>(pos))] = kListedOffset;
   int64_t assigned = 0;
   uint64_t ring_bytes = 0;
   std::vector<BaseOffset> newb;
@@ -224,10 +226,14 @@ void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interr
     }, 1024);
     for (size_t i = 0; i < next.size(); ++i) P.boff[P.obj.rank(static_cast<int64_t>(next[i]))] = newb[i];
     for (const auto& [oid, bp] : newfar) far[oid] = bp;
+    ring_bytes = std::max<uint64_t>(ring_bytes, next.capacity() * sizeof(Pos) + newb.capacity() * sizeof(BaseOffset));
+    std::vector<BaseOffset>().swap(newb);
     assigned += static_cast<int64_t>(next.size());
     cur.swap(next);
-    next.clear();
-    // Next ring: unassigned object neighbours of this ring (deduplicated by the queued mark).
+    std::vector<Pos>().swap(next);
+    // Next ring: unassigned object neighbours of this ring. Marked and counted first, then listed
+    // (the listed mark deduplicates), so the list is allocated once at its size.
+    size_t count = 0;
     for (Pos p : cur)
       for (const Nb& n : nbs) {
         const int64_t q = static_cast<int64_t>(p) + n.off;
@@ -235,10 +241,21 @@ void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interr
         BaseOffset& o = P.boff[P.obj.rank(q)];
         if (o.dx != kFar || o.dy != kUnsetOffset.dy) continue;
         o = kQueuedOffset;
+        ++count;
+      }
+    next.reserve(count);
+    for (Pos p : cur)
+      for (const Nb& n : nbs) {
+        const int64_t q = static_cast<int64_t>(p) + n.off;
+        if (!P.obj.test(q)) continue;
+        BaseOffset& o = P.boff[P.obj.rank(q)];
+        if (o.dx != kFar || o.dy != kQueuedOffset.dy) continue;
+        o = kListedOffset;
         next.push_back(static_cast<Pos>(q));
       }
     std::sort(next.begin(), next.end());
-    ring_bytes = std::max<uint64_t>(ring_bytes, (cur.capacity() + next.capacity()) * sizeof(Pos) + newb.capacity() * sizeof(BaseOffset));
+    ring_bytes = std::max<uint64_t>(ring_bytes, (cur.capacity() + next.capacity()) * sizeof(Pos));
+    std::vector<Pos>().swap(cur);
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
   P.bfar.assign(far.begin(), far.end());
@@ -637,9 +654,8 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   return open;
 }
 
-void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
+void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t apos) {
   const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
-  BaseWork w(sh, S);
   std::vector<uint32_t>& targets = w.targets;
   std::vector<uint32_t>& tdist = w.tdist;
   w.gather(a);
@@ -746,6 +762,7 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
         for (int64_t ix = colour & 1; ix < nbx; ix += 2) blocks.push_back(Block{ix, iy, iz});
     parallel_for(0, static_cast<int64_t>(blocks.size()), nthreads, [&](int64_t b0, int64_t b1) {
       auto S = acquire();
+      BaseWork work(sh, *S);  // its vectors are reused from base to base
       for (int64_t bi = b0; bi < b1; ++bi) {
         const Block& bl = blocks[static_cast<size_t>(bi)];
         const int64_t z0 = D.BZ * bl.iz / nbz, z1 = D.BZ * (bl.iz + 1) / nbz;
@@ -762,7 +779,7 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
               uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
               for (; bits; bits &= bits - 1, ++a) {
                 if (!sh.B.has_work(a) || !sh.claim(a)) continue;
-                process_base(sh, *S, a, w * 64 + std::countr_zero(bits));
+                process_base(sh, *S, work, a, w * 64 + std::countr_zero(bits));
               }
             }
           }

@@ -82,10 +82,11 @@ struct BaseOffset {
   int8_t dx, dy, dz;
 };
 constexpr int8_t kFar = -128;
-// While nearest_points runs: dx == kFar with dy != 0 marks a voxel not assigned yet (unset) or
-// queued for the current ring (its value is not committed, so it is no candidate yet).
+// While nearest_points runs: dx == kFar with dy != 0 marks a voxel not assigned yet (unset), or
+// found for the next ring (queued, then listed; its value is not committed, so it is no candidate).
 constexpr BaseOffset kUnsetOffset{kFar, 1, 0};
 constexpr BaseOffset kQueuedOffset{kFar, 2, 0};
+constexpr BaseOffset kListedOffset{kFar, 3, 0};
 
 struct Prepared {
   Domain dom;
@@ -372,7 +373,8 @@ private:
 // Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
 // to t + margin that settles the far targets of all bases within `margin` of `a` (triangle
 // inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
-void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos);
+// `w` is the worker's (its vectors are reused from base to base).
+void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t apos);
 
 // Phase 3: every base with work, claimed once, on `threads` workers; returns the bytes of the
 // workers' scratch. The importance does not depend on the thread count.
