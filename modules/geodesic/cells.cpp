@@ -80,7 +80,7 @@ PlateCellsResult plate_cells(const VolumeU8& mask, const PlateCellsOptions& opt)
       const uint32_t a = bases[static_cast<size_t>(bi)];
       targets.clear();
       for (uint32_t m = B.begin(a), me = B.end(a); m < me; ++m)
-        for_each_face(P, B.members[m], [&](int, uint32_t c) {
+        for_each_face(P, B.member(m, P.lpos(a)), [&](int, uint32_t c) {
           if (std::find(targets.begin(), targets.end(), c) == targets.end()) targets.push_back(c);
         });
       // Distances: 0 to itself, kNone (no path: >= t) to another component of L, else searched to t.
@@ -100,11 +100,11 @@ PlateCellsResult plate_cells(const VolumeU8& mask, const PlateCellsOptions& opt)
       }
       for (uint32_t m = B.begin(a), me = B.end(a); m < me; ++m) {
         uint8_t bits = 0;
-        for_each_face(P, B.members[m], [&](int bit, uint32_t c) {
+        for_each_face(P, B.member(m, P.lpos(a)), [&](int bit, uint32_t c) {
           const uint32_t d = dist[static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin())];
           if (d == kNone || d >= t) bits = static_cast<uint8_t>(bits | (1u << bit));
         });
-        faces[mask_index(B.members[m])] = bits;
+        faces[mask_index(B.member(m, P.lpos(a)))] = bits;
       }
       if ((++done & 4095) == 0) opt.interrupter.check(0.35 + 0.55 * static_cast<double>(done.load()) / static_cast<double>(nb));
     }

@@ -338,21 +338,37 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
 
 namespace {
 
-// Fills the members in raster order without a cursor array: while bucket l is being filled, its
-// last slot holds the number of members placed so far (0 initially) until that slot gets its own
-// member, which is the last one.
+// Fills the members in raster order without a cursor array: while a bucket of fewer than 255
+// members is being filled, its last slot holds the number placed so far (0 initially) until that
+// slot gets its own member, which is the last one; the few larger buckets keep cursors in a map.
 template <class ForEachBase>
-void members_fill(Buckets& bk, int64_t k, bool wide, ForEachBase&& for_each_base) {
+void members_fill(Buckets& bk, const Domain& D, int64_t k, ForEachBase&& for_each_base) {
   Members& members = bk.members;
-  members.resize(static_cast<size_t>(k), wide);
-  for (size_t l = 0; l < bk.count.size(); ++l)
-    if (bk.count[l]) members.set(bk.end(static_cast<uint32_t>(l)) - 1, 0);
-  for_each_base([&](int64_t pos, uint32_t l) {
-    const uint32_t b = bk.begin(l), n = bk.members_of(l);
-    const uint32_t placed = n == 1 ? 0 : static_cast<uint32_t>(members[b + n - 1]);
-    members.set(b + placed, pos);
-    if (placed + 1 < n) members.set(b + n - 1, placed + 1);
+  members.off.assign(static_cast<size_t>(k), BaseOffset{0, 0, 0});
+  members.far.clear();
+  members.BX = D.BX;
+  members.BY = D.BY;
+  std::unordered_map<uint32_t, uint32_t> cursor;  // buckets of 255 members and more
+  for_each_base([&](int64_t pos, uint32_t l, BaseOffset o) {
+    const uint32_t b = bk.begin(l);
+    uint32_t slot;
+    if (bk.count[l] == 255) {
+      slot = b + cursor[l]++;
+    } else {
+      const uint32_t n = bk.count[l];
+      const uint32_t placed = n == 1 ? 0 : static_cast<uint8_t>(members.off[b + n - 1].dx);
+      slot = b + placed;
+      if (placed + 1 < n) members.off[b + n - 1].dx = static_cast<int8_t>(static_cast<uint8_t>(placed + 1));
+    }
+    // The member's offset from its base is the negated offset from the member to its base.
+    if (o.dx != kFar) {
+      members.off[slot] = BaseOffset{static_cast<int8_t>(-o.dx), static_cast<int8_t>(-o.dy), static_cast<int8_t>(-o.dz)};
+    } else {
+      members.off[slot] = BaseOffset{kFar, 0, 0};
+      members.far.emplace_back(slot, pos);
+    }
   });
+  std::sort(members.far.begin(), members.far.end());
 }
 
 }  // namespace
@@ -369,13 +385,13 @@ Buckets bucket_by_base(const Prepared& P) {
       uint64_t id = P.obj.prefix(w);
       for (; bits; bits &= bits - 1, ++id) {
         const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
-        f(pos, static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos))));
+        f(pos, static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos))), P.boff[id]);
       }
     }
   };
   bk.count.assign(nl, 0);
   std::unordered_map<uint32_t, uint32_t> big;  // counts >= 255
-  for_each_base([&](int64_t, uint32_t l) {
+  for_each_base([&](int64_t, uint32_t l, BaseOffset) {
     if (bk.count[l] < 255) {
       if (++bk.count[l] == 255) big[l] = 255;
     } else {
@@ -393,7 +409,7 @@ Buckets bucket_by_base(const Prepared& P) {
       s += bk.members_of(static_cast<uint32_t>(l));
     }
   }
-  members_fill(bk, P.k, D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()), for_each_base);
+  members_fill(bk, D, P.k, for_each_base);
   return bk;
 }
 
@@ -570,13 +586,15 @@ SearchShared::SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& 
   pivot_margin = full || t + std::max<uint32_t>(2, t / 4) >= 65534 ? 0 : std::max<uint32_t>(2, t / 4);
 }
 
-void BaseWork::gather(uint32_t base_id) {
+void BaseWork::gather(uint32_t base_id, int64_t base_pos) {
   const Prepared& P = sh_.P;
-  const Members& members = sh_.B.members;
   targets.clear();
   tpos.clear();
+  mpos.clear();
   for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m)
-    for_each_target_at(P, members[m], [&](uint32_t c, int64_t cpos) {
+    mpos.push_back(sh_.B.member(m, base_pos));
+  for (int64_t pos : mpos)
+    for_each_target_at(P, pos, [&](uint32_t c, int64_t cpos) {
       if (std::find(targets.begin(), targets.end(), c) == targets.end()) {
         targets.push_back(c);
         tpos.push_back(cpos);
@@ -585,39 +603,37 @@ void BaseWork::gather(uint32_t base_id) {
   tdist.assign(targets.size(), kNone);
 }
 
-void BaseWork::finish(uint32_t base_id) {
+void BaseWork::finish() {
   const Prepared& P = sh_.P;
-  const Members& members = sh_.B.members;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const float inf = std::numeric_limits<float>::infinity();
-  for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m) {
+  for (int64_t pos : mpos) {
     float v = 0.0f;
-    for_each_target(P, members[m], [&](uint32_t c) {
+    for_each_target(P, pos, [&](uint32_t c) {
       const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
       const uint32_t d = tdist[i];
       float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
       if (!full) g = std::min(g, static_cast<float>(t));
       v = std::max(v, g);
     });
-    sh_.importance[sh_.mask_index(members[m])] = v;
+    sh_.importance[sh_.mask_index(pos)] = v;
   }
 }
 
-void BaseWork::mark_needed(uint32_t base_id) {
+void BaseWork::mark_needed() {
   const Prepared& P = sh_.P;
-  const Members& members = sh_.B.members;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const bool any_saturated =
       !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
   needed.assign(targets.size(), any_saturated ? 0 : 1);
   if (!any_saturated) return;
-  for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m) {
+  for (int64_t pos : mpos) {
     size_t idx[6];
     int n = 0;
     bool saturated = false;
-    for_each_target(P, members[m], [&](uint32_t c) {
+    for_each_target(P, pos, [&](uint32_t c) {
       const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
       idx[n++] = i;
       if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
@@ -635,7 +651,7 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   want.clear();
   want_pos_.clear();
   want_index.clear();
-  mark_needed(base_id);
+  mark_needed();
   for (size_t i = 0; i < targets.size(); ++i)
     if (tdist[i] == kNone && needed[i] && (P.lcomp.empty() || P.lcomp[targets[i]] == P.lcomp[base_id])) {
       want.push_back(targets[i]);
@@ -658,10 +674,10 @@ void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t
   const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
   std::vector<uint32_t>& targets = w.targets;
   std::vector<uint32_t>& tdist = w.tdist;
-  w.gather(a);
+  w.gather(a, apos);
   const bool long_search = w.own_search(a, apos);
   if (long_search) ++sh.n_long;
-  w.finish(a);
+  w.finish();
   sh.done_bases++;
   if (!long_search || sh.full || pivot_margin == 0) return;
 
@@ -681,7 +697,7 @@ void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t
   }
   for (const auto& [a2, a2pos] : near) {
     if (!sh.claim(a2)) continue;
-    w.gather(a2);
+    w.gather(a2, a2pos);
     const uint32_t da2 = S.pivot_at(S.index_of(sh.P.dom, a2, a2pos));
     for (size_t i = 0; i < targets.size(); ++i) {
       const uint32_t c = S.index_of(sh.P.dom, targets[i], w.tpos[i]);
@@ -692,7 +708,7 @@ void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t
       }
     }
     if (w.own_search(a2, a2pos)) ++sh.n_long;
-    w.finish(a2);
+    w.finish();
     sh.done_bases++;
   }
 }

@@ -223,22 +223,21 @@ private:
   }
 };
 
-// Object voxels grouped by base point, as padded positions: 32-bit where the padded domain allows.
+// Object voxels grouped by base point, as offsets from their base (3 bytes: the negated b(p) - p);
+// where that does not fit in 8 bits per axis (dx == kFar) the padded position is in `far`, sorted
+// by slot.
 struct Members {
-  bool wide = false;
-  std::vector<uint32_t> narrow;
-  std::vector<int64_t> full;
-  void resize(size_t n, bool w) {
-    wide = w;
-    if (wide) full.resize(n);
-    else narrow.resize(n);
+  std::vector<BaseOffset> off;
+  std::vector<std::pair<uint32_t, int64_t>> far;  // (slot, padded position)
+  int64_t BX = 0, BY = 0;
+  // Padded position of member slot `i` of the bucket of the base at padded position `base_pos`.
+  [[nodiscard]] int64_t at(size_t i, int64_t base_pos) const {
+    const BaseOffset o = off[i];
+    if (o.dx == kFar)
+      return std::lower_bound(far.begin(), far.end(), std::pair<uint32_t, int64_t>{static_cast<uint32_t>(i), std::numeric_limits<int64_t>::min()})->second;
+    return base_pos + o.dx + BX * (o.dy + BY * static_cast<int64_t>(o.dz));
   }
-  void set(size_t i, int64_t pos) {
-    if (wide) full[i] = pos;
-    else narrow[i] = static_cast<uint32_t>(pos);
-  }
-  [[nodiscard]] int64_t operator[](size_t i) const { return wide ? full[i] : static_cast<int64_t>(narrow[i]); }
-  [[nodiscard]] uint64_t bytes() const { return narrow.size() * 4 + full.size() * 8; }
+  [[nodiscard]] uint64_t bytes() const { return off.size() * sizeof(BaseOffset) + far.size() * 16; }
 };
 
 // The considered neighbours of object voxel `pos` and their base points: f(L-id, padded position).
@@ -260,7 +259,7 @@ void for_each_target(const Prepared& P, int64_t pos, F&& f) {
 }
 
 // Phase 2: object voxels grouped by base point b(p) (counting sort): the voxels of base l are
-// members[begin(l) .. end(l)), as padded positions in raster order. The bucket bounds are kept
+// the slots begin(l) .. end(l) of `members`, in raster order (positions: member(slot, base position)). The bucket bounds are kept
 // compactly: a member count per L voxel (1 byte; 255 = look the count up in `big`) and the first
 // slot of every 64 L voxels (4 bytes), so about 1.06 bytes per L voxel instead of 4; begin(l) adds
 // the counts of up to 63 preceding L voxels.
@@ -287,6 +286,7 @@ struct Buckets {
     return s;
   }
   [[nodiscard]] uint32_t end(uint32_t l) const { return begin(l) + members_of(l); }
+  [[nodiscard]] int64_t member(uint32_t slot, int64_t base_pos) const { return members.at(slot, base_pos); }
   [[nodiscard]] uint64_t bytes() const { return count.size() + big.size() * 8 + block.size() * 4 + members.bytes(); }
 };
 Buckets bucket_by_base(const Prepared& P);
@@ -347,19 +347,21 @@ class BaseWork {
 public:
   BaseWork(SearchShared& sh, Scratch& S) : sh_(sh), S_(S) {}
   // targets = the distinct bases of the considered neighbours of the bucket's voxels; tdist = kNone.
-  void gather(uint32_t base_id);
+  // Also lists the bucket's voxels (mpos) for mark_needed and finish.
+  void gather(uint32_t base_id, int64_t base_pos);
   // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
   // its other targets are searched only if another voxel of the bucket needs them: needed[i].
-  void mark_needed(uint32_t base_id);
+  void mark_needed();
   // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
   // component of L (the others have no path: infinite). Returns true if targets were left when the
   // search reached the threshold.
   bool own_search(uint32_t base_id, int64_t base_pos);
   // Importance of the bucket's voxels from tdist.
-  void finish(uint32_t base_id);
+  void finish();
 
   std::vector<uint32_t> targets, tdist;
   std::vector<int64_t> tpos;  // padded positions of the targets
+  std::vector<int64_t> mpos;  // padded positions of the bucket's voxels
   std::vector<uint8_t> needed;
 
 private:

@@ -143,12 +143,15 @@ TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
   ASSERT_EQ(B.count.size(), static_cast<size_t>(P.nl));
   EXPECT_EQ(B.end(static_cast<uint32_t>(P.nl) - 1), static_cast<uint32_t>(P.k));
   std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
-  for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
+  std::vector<int64_t> lpos;  // L-id -> padded position
+  for (int64_t pos = 0; pos < P.dom.bits(); ++pos) {
     if (P.obj.test(pos)) expect[P.base_of(pos)].push_back(pos);  // b is kept only as offsets here
+    if (P.layer.test(pos)) lpos.push_back(pos);
+  }
   for (int64_t l = 0; l < P.nl; ++l) {
     std::vector<int64_t> got;
     for (uint32_t m = B.begin(static_cast<uint32_t>(l)); m < B.end(static_cast<uint32_t>(l)); ++m)
-      got.push_back(B.members[m]);
+      got.push_back(B.member(m, lpos[static_cast<size_t>(l)]));
     EXPECT_EQ(got, expect[static_cast<size_t>(l)]) << l;
     EXPECT_EQ(B.has_work(static_cast<uint32_t>(l)), !got.empty());
   }
@@ -376,7 +379,7 @@ TEST(GeodesicPhases, BucketsWithManyMembers) {
     if (P.obj.test(pos)) expect[P.b[P.obj.rank(pos)]].push_back(pos);
   for (int64_t l = 0; l < P.nl; ++l) {
     std::vector<int64_t> got;
-    for (uint32_t m = B.begin(static_cast<uint32_t>(l)); m < B.end(static_cast<uint32_t>(l)); ++m) got.push_back(B.members[m]);
+    for (uint32_t m = B.begin(static_cast<uint32_t>(l)); m < B.end(static_cast<uint32_t>(l)); ++m) got.push_back(B.member(m, P.lpos(static_cast<uint32_t>(l))));
     ASSERT_EQ(got, expect[static_cast<size_t>(l)]) << l;
   }
   EXPECT_EQ(B.end(static_cast<uint32_t>(P.nl) - 1), static_cast<uint32_t>(P.k));
