@@ -103,11 +103,37 @@ void layer_coordinates(Prepared& P, int threads) {
 
 namespace {
 
-// Rings of object voxels as padded positions: 32-bit where the padded domain allows.
-template <class Pos>
-void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interrupter& intr) {
+// A bitmap over object ids, set from several threads at once.
+struct IdBits {
+  std::vector<uint64_t> w;
+  explicit IdBits(int64_t n) : w(static_cast<size_t>((n + 63) / 64), 0) {}
+  void set(uint64_t i) { std::atomic_ref<uint64_t>(w[i >> 6]).fetch_or(uint64_t{1} << (i & 63), std::memory_order_relaxed); }
+  [[nodiscard]] bool test(uint64_t i) const { return (w[i >> 6] >> (i & 63)) & 1u; }
+  // Bits i0 .. i0 + n - 1 (n <= 64) as the low bits of one word.
+  [[nodiscard]] uint64_t get(uint64_t i0, int n) const {
+    if (n == 0) return 0;
+    const size_t a = static_cast<size_t>(i0 >> 6);
+    const int sh = static_cast<int>(i0 & 63);
+    uint64_t v = w[a] >> sh;
+    if (sh && sh + n > 64) v |= w[a + 1] << (64 - sh);
+    return n == 64 ? v : v & ((uint64_t{1} << n) - 1);
+  }
+  void clear() { std::fill(w.begin(), w.end(), uint64_t{0}); }
+  [[nodiscard]] uint64_t bytes() const { return w.size() * 8; }
+};
+
+}  // namespace
+
+void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter& intr) {
+  // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
+  // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
+  // that is closest in physical distance (ties: the lower position, i.e. the lower L-id). Values
+  // depend only on earlier rings, so the result is independent of thread count. Works on the offsets
+  // b(p) - p directly (a neighbour's candidate is its own offset plus the step), so neither the L
+  // coordinates nor the L-ids of b are needed; the rings are bitmaps over object ids (1 bit per
+  // object voxel each, for this ring and the next), walked along the object bitmap.
   const Domain& D = P.dom;
-  const size_t nwords = static_cast<size_t>(D.bits() / 64);
+  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
   struct Nb {
     int64_t off;
     int32_t dx, dy, dz;
@@ -127,49 +153,55 @@ void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interr
     y = static_cast<int32_t>(r / D.BX);
     x = static_cast<int32_t>(r % D.BX);
   };
-  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L). Counted per chunk
-  // first, then written straight into place (no second copy of the largest ring).
-  std::vector<Pos> next, cur;
-  {
-    const int64_t nchunks = static_cast<int64_t>(std::max(1, effective_threads(threads))) * 8;
-    std::vector<int64_t> at(static_cast<size_t>(nchunks) + 1, 0);
-    auto scan = [&](bool fill) {
-      parallel_chunks(0, static_cast<int64_t>(nwords), nchunks, threads, [&](int64_t c, int64_t w0, int64_t w1) {
-        int64_t n = 0, o = at[static_cast<size_t>(c)];
-        for (int64_t w = w0; w < w1; ++w) {
-          uint64_t bits = P.obj.word(static_cast<size_t>(w));
-          while (bits) {
-            const int64_t pos = w * 64 + std::countr_zero(bits);
-            bits &= bits - 1;
-            for (const Nb& nb : nbs)
-              if (P.layer.test(pos + nb.off)) {
-                if (fill) next[static_cast<size_t>(o++)] = static_cast<Pos>(pos);
-                else ++n;
-                break;
-              }
+  IdBits ring(P.k), next(P.k);
+  // Per worker range: voxels seen and far results (flushed at the end of the range).
+  struct Local {
+    std::vector<std::pair<uint64_t, int64_t>> far;
+    int64_t n = 0;
+  };
+  // Calls f(pos, id, local) for every object voxel of `bits` (an IdBits) on `threads` workers, then
+  // flush(local) once per worker range.
+  auto for_each_in = [&](const IdBits& bits, auto&& f, auto&& flush) {
+    parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+      Local local;
+      for (int64_t w = w0; w < w1; ++w) {
+        uint64_t ob = P.obj.word(static_cast<size_t>(w));
+        if (!ob) continue;
+        uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+        uint64_t rb = bits.get(id, std::popcount(ob));
+        for (; ob; ob &= ob - 1, rb >>= 1, ++id)
+          if (rb & 1) f(w * 64 + std::countr_zero(ob), id, local);
+      }
+      flush(local);
+    }, 2048);
+  };
+  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L).
+  parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t ob = P.obj.word(static_cast<size_t>(w));
+      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+      for (; ob; ob &= ob - 1, ++id) {
+        const int64_t pos = w * 64 + std::countr_zero(ob);
+        for (const Nb& n : nbs)
+          if (P.layer.test(pos + n.off)) {
+            ring.set(id);
+            break;
           }
-        }
-        if (!fill) at[static_cast<size_t>(c) + 1] = n;
-      });
-    };
-    scan(false);
-    for (size_t c = 0; c < static_cast<size_t>(nchunks); ++c) at[c + 1] += at[c];
-    next.resize(static_cast<size_t>(at.back()));
-    scan(true);
-  }
-  for (Pos pos : next) P.boff[P.obj.rank(static_cast<int64_t>(pos))] = kListedOffset;
+      }
+    }
+  }, 2048);
   int64_t assigned = 0;
-  uint64_t ring_bytes = 0;
-  std::vector<BaseOffset> newb;
   std::mutex far_mutex;
   std::vector<std::pair<uint64_t, int64_t>> newfar;
-  while (!next.empty()) {
-    newb.assign(next.size(), kUnsetOffset);
+  std::atomic<int64_t> in_ring{0};
+  for (;;) {
+    // This ring: each voxel's b from its neighbours of earlier rings, written in place (the
+    // neighbours in this ring are skipped by their ring bit, so nobody reads a value being written).
     newfar.clear();
-    parallel_for(0, static_cast<int64_t>(next.size()), threads, [&](int64_t i0, int64_t i1) {
-      std::vector<std::pair<uint64_t, int64_t>> myfar;
-      for (int64_t i = i0; i < i1; ++i) {
-        const int64_t pos = static_cast<int64_t>(next[static_cast<size_t>(i)]);
+    in_ring = 0;
+    {
+      for_each_in(ring, [&](int64_t pos, uint64_t id, Local& local) {
+        ++local.n;
         int32_t px = 0, py = 0, pz = 0;
         bool have_p = false;
         int64_t bpos = std::numeric_limits<int64_t>::max();
@@ -184,9 +216,10 @@ void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interr
             cpos = q;
           } else if (P.obj.test(q)) {
             const uint64_t qi = P.obj.rank(q);
+            if (ring.test(qi)) continue;  // this ring: not committed
             const BaseOffset o = P.boff[qi];
             if (o.dx == kFar) {
-              if (o.dy != 0) continue;  // not assigned yet (a later ring, or this one: not committed)
+              if (o.dy != 0) continue;  // not assigned yet (a later ring)
               cpos = far.at(qi);
               if (!have_p) {
                 coords(pos, px, py, pz);
@@ -213,70 +246,40 @@ void nearest_points_rings(const Vec3& sp, Prepared& P, int threads, const Interr
           }
         }
         if (std::max({std::abs(bx), std::abs(by), std::abs(bz)}) <= 127) {
-          newb[static_cast<size_t>(i)] = BaseOffset{static_cast<int8_t>(bx), static_cast<int8_t>(by), static_cast<int8_t>(bz)};
+          P.boff[id] = BaseOffset{static_cast<int8_t>(bx), static_cast<int8_t>(by), static_cast<int8_t>(bz)};
         } else {
-          newb[static_cast<size_t>(i)] = BaseOffset{kFar, 0, 0};
-          myfar.emplace_back(P.obj.rank(pos), bpos);
+          P.boff[id] = BaseOffset{kFar, 0, 0};
+          local.far.emplace_back(id, bpos);
         }
-      }
-      if (!myfar.empty()) {
-        std::lock_guard lock(far_mutex);
-        newfar.insert(newfar.end(), myfar.begin(), myfar.end());
-      }
-    }, 1024);
-    for (size_t i = 0; i < next.size(); ++i) P.boff[P.obj.rank(static_cast<int64_t>(next[i]))] = newb[i];
+      }, [&](Local& local) {
+        in_ring += local.n;
+        if (!local.far.empty()) {
+          std::lock_guard lock(far_mutex);
+          newfar.insert(newfar.end(), local.far.begin(), local.far.end());
+        }
+      });
+    }
+    if (in_ring.load() == 0) break;
     for (const auto& [oid, bp] : newfar) far[oid] = bp;
-    ring_bytes = std::max<uint64_t>(ring_bytes, next.capacity() * sizeof(Pos) + newb.capacity() * sizeof(BaseOffset));
-    std::vector<BaseOffset>().swap(newb);
-    assigned += static_cast<int64_t>(next.size());
-    cur.swap(next);
-    std::vector<Pos>().swap(next);
-    // Next ring: unassigned object neighbours of this ring. Marked and counted first, then listed
-    // (the listed mark deduplicates), so the list is allocated once at its size.
-    size_t count = 0;
-    for (Pos p : cur)
+    assigned += in_ring.load();
+    // Next ring: the unassigned object neighbours of this ring.
+    next.clear();
+    for_each_in(ring, [&](int64_t pos, uint64_t, Local&) {
       for (const Nb& n : nbs) {
-        const int64_t q = static_cast<int64_t>(p) + n.off;
+        const int64_t q = pos + n.off;
         if (!P.obj.test(q)) continue;
-        BaseOffset& o = P.boff[P.obj.rank(q)];
-        if (o.dx != kFar || o.dy != kUnsetOffset.dy) continue;
-        o = kQueuedOffset;
-        ++count;
+        const uint64_t qi = P.obj.rank(q);
+        const BaseOffset o = P.boff[qi];  // neighbours of this ring are in it, earlier (assigned) or unset
+        if (o.dx == kFar && o.dy == kUnsetOffset.dy && !next.test(qi)) next.set(qi);
       }
-    next.reserve(count);
-    for (Pos p : cur)
-      for (const Nb& n : nbs) {
-        const int64_t q = static_cast<int64_t>(p) + n.off;
-        if (!P.obj.test(q)) continue;
-        BaseOffset& o = P.boff[P.obj.rank(q)];
-        if (o.dx != kFar || o.dy != kQueuedOffset.dy) continue;
-        o = kListedOffset;
-        next.push_back(static_cast<Pos>(q));
-      }
-    std::sort(next.begin(), next.end());
-    ring_bytes = std::max<uint64_t>(ring_bytes, (cur.capacity() + next.capacity()) * sizeof(Pos));
-    std::vector<Pos>().swap(cur);
+    }, [](Local&) {});
+    std::swap(ring, next);
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
   P.bfar.assign(far.begin(), far.end());
   std::sort(P.bfar.begin(), P.bfar.end());
-  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.base_bytes() + ring_bytes +
-                                                  far.size() * 32);
-}
-
-}  // namespace
-
-void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr) {
-  // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
-  // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
-  // that is closest in physical distance (ties: the lower position, i.e. the lower L-id). Values
-  // depend only on earlier rings, so the result is independent of thread count. Works on the offsets
-  // b(p) - p directly (a neighbour's candidate is its own offset plus the step), so neither the L
-  // coordinates nor the L-ids of b are needed.
-  if (P.dom.bits() <= static_cast<int64_t>(std::numeric_limits<uint32_t>::max()))
-    nearest_points_rings<uint32_t>(spacing, P, threads, intr);
-  else
-    nearest_points_rings<int64_t>(spacing, P, threads, intr);
+  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.base_bytes() + ring.bytes() +
+                                                  next.bytes() + far.size() * 32);
 }
 
 void base_ids(Prepared& P, int threads) {
@@ -482,6 +485,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   int64_t visited = 0;
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
   const int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
+  const int64_t lstep[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   uint32_t key = lo;
   const uint32_t last = std::min(limit, std::numeric_limits<uint32_t>::max() - 8);
   while (nrem > 0 && key <= hi && key <= last) {
@@ -518,9 +522,10 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     for (int n = 0; n < 6; ++n) {
       const int64_t q = pos + nb[n];
       if (!P.layer.test(q)) continue;
-      const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
-      const uint32_t u = kBoxed ? S.box_index(x, y, z) : static_cast<uint32_t>(P.layer.rank(q));
+      const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
+                                : static_cast<uint32_t>(P.layer.rank(q));
       if (S.stamp[u] == st) continue;
+      const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
       const uint32_t nf = e.g + 1 + h(x, y, z);
       if (nf <= last)
         push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});

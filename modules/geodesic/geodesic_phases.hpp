@@ -82,11 +82,8 @@ struct BaseOffset {
   int8_t dx, dy, dz;
 };
 constexpr int8_t kFar = -128;
-// While nearest_points runs: dx == kFar with dy != 0 marks a voxel not assigned yet (unset), or
-// found for the next ring (queued, then listed; its value is not committed, so it is no candidate).
+// While nearest_points runs: dx == kFar with dy != 0 marks a voxel not assigned yet.
 constexpr BaseOffset kUnsetOffset{kFar, 1, 0};
-constexpr BaseOffset kQueuedOffset{kFar, 2, 0};
-constexpr BaseOffset kListedOffset{kFar, 3, 0};
 
 struct Prepared {
   Domain dom;
@@ -136,7 +133,7 @@ void layer_coordinates(Prepared& P, int threads);
 // 1c: P.boff and P.bfar (b(p) as offsets), by rings of 26-neighbours inward from L: ring r+1 =
 // unreached object voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings,
 // the nearest point that is closest in physical distance (ties: lower L-id). Sets P.prepare_bytes
-// (bitmaps, offsets and the ring lists: 4 B per ring voxel ×2 + 3 B where the domain has < 2^32 voxels).
+// (bitmaps, offsets and two ring bitmaps of 1 bit per object voxel).
 void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr);
 // 1e: P.b (L-ids of b(p)) from the offsets.
 void base_ids(Prepared& P, int threads);
