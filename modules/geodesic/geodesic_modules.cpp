@@ -48,8 +48,9 @@ count: the grid is cut into blocks (64-voxel x-ranges x y-bands x z-slabs, each 
 voxels thick) run in eight passes by the parity of their (x, y, z) index, so no two workers reach the
 same base.
 
-Memory (beyond the input mask and the two outputs; the larger of two phases): 4 bits per voxel of the
-padded grid (two ranked bitmaps) and 3 bytes per object voxel (b(p) as an offset) throughout; the
+Memory (beyond the input mask and the two outputs; the larger of two phases): 3 bits per voxel of the
+padded grid (two bitmaps with 32-bit ranks per word, 1.5 bits each) and 3 bytes per object voxel
+(b(p) as an offset) throughout; the
 nearest-point transform adds 2 bits per object voxel (this ring and the next); the searches add 3
 bytes per object voxel (bucket members as offsets from their base) and about 1.06 per boundary-layer
 voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 1

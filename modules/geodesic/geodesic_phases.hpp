@@ -27,32 +27,35 @@ namespace skel::geodesic::detail {
 
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-// A bitmap over the padded domain with O(1) rank (number of set bits before a position).
-// 2 bits per voxel. Before build_rank(), `words` holds the bits; after, pairs (bits of word w, set
-// bits before word w) interleaved, so a test and a rank touch one cache line.
+// A bitmap over the padded domain with O(1) rank (number of set bits before a position): the bits
+// (1 per voxel) and, after build_rank(), the set bits before every 64-bit word as 32 bits (object
+// and layer voxels are < 2^32, checked in build_bitmaps): 1.5 bits per voxel. A test touches the
+// bits only; a rank one more cache line.
 struct RankBits {
   std::vector<uint64_t> words;
-  [[nodiscard]] uint64_t word(size_t w) const { return words[2 * w]; }
-  [[nodiscard]] uint64_t prefix(size_t w) const { return words[2 * w + 1]; }
-  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6) * 2] >> (pos & 63)) & 1u; }
+  std::vector<uint32_t> pre;
+  [[nodiscard]] uint64_t word(size_t w) const { return words[w]; }
+  [[nodiscard]] uint64_t prefix(size_t w) const { return pre[w]; }
+  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6)] >> (pos & 63)) & 1u; }
   [[nodiscard]] uint64_t rank(int64_t pos) const {
-    const size_t w = static_cast<size_t>(pos >> 6) * 2;
+    const size_t w = static_cast<size_t>(pos >> 6);
     const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
-    return words[w + 1] + static_cast<uint64_t>(std::popcount(below));
+    return pre[w] + static_cast<uint64_t>(std::popcount(below));
   }
+  // Builds the prefixes; returns the number of set bits (prefixes saturate where it is >= 2^32,
+  // which the caller refuses).
   uint64_t build_rank() {
     const size_t n = words.size();
-    words.resize(2 * n);
-    for (size_t i = n; i-- > 1;) words[2 * i] = words[i];  // spread in place (word 0 stays)
+    pre.resize(n);
     uint64_t s = 0;
     for (size_t i = 0; i < n; ++i) {
-      words[2 * i + 1] = s;
-      s += static_cast<uint64_t>(std::popcount(words[2 * i]));
+      pre[i] = static_cast<uint32_t>(std::min<uint64_t>(s, 0xFFFFFFFFu));
+      s += static_cast<uint64_t>(std::popcount(words[i]));
     }
     return s;
   }
-  [[nodiscard]] size_t word_count() const { return words.size() / 2; }
-  [[nodiscard]] uint64_t bytes() const { return words.size() * 8; }
+  [[nodiscard]] size_t word_count() const { return words.size(); }
+  [[nodiscard]] uint64_t bytes() const { return words.size() * 8 + pre.size() * 4; }
 };
 
 struct Coord {
