@@ -109,6 +109,10 @@ struct IdBits {
   explicit IdBits(int64_t n) : w(static_cast<size_t>((n + 63) / 64), 0) {}
   void set(uint64_t i) { std::atomic_ref<uint64_t>(w[i >> 6]).fetch_or(uint64_t{1} << (i & 63), std::memory_order_relaxed); }
   [[nodiscard]] bool test(uint64_t i) const { return (w[i >> 6] >> (i & 63)) & 1u; }
+  // test() while other threads set bits.
+  [[nodiscard]] bool test_shared(uint64_t i) {
+    return (std::atomic_ref<uint64_t>(w[i >> 6]).load(std::memory_order_relaxed) >> (i & 63)) & 1u;
+  }
   // Bits i0 .. i0 + n - 1 (n <= 64) as the low bits of one word.
   [[nodiscard]] uint64_t get(uint64_t i0, int n) const {
     if (n == 0) return 0;
@@ -270,7 +274,7 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
         if (!P.obj.test(q)) continue;
         const uint64_t qi = P.obj.rank(q);
         const BaseOffset o = P.boff[qi];  // neighbours of this ring are in it, earlier (assigned) or unset
-        if (o.dx == kFar && o.dy == kUnsetOffset.dy && !next.test(qi)) next.set(qi);
+        if (o.dx == kFar && o.dy == kUnsetOffset.dy && !next.test_shared(qi)) next.set(qi);
       }
     }, [](Local&) {});
     std::swap(ring, next);
