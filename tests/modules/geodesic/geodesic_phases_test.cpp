@@ -387,3 +387,19 @@ TEST(GeodesicPhases, BucketsWithManyMembers) {
   o.threshold = 6;
   EXPECT_TRUE(boundary_distance(mask, o).importance == boundary_distance_reference(mask, o).importance);
 }
+
+// Offsets beyond +-127 arise only deep inside objects more than 254 voxels thick all round: in a
+// solid 261³ cube the voxels of the central column below the centre have their nearest background
+// point on the face z = -1 straight below (131 steps from the centre: through the side table while
+// the rings run), and the ones nearer another face are not affected.
+TEST(GeodesicPhases, FarNearestPointsFromTheRings) {
+  const int64_t n = 261, c = 130;
+  VolumeU8 mask(Dims{n, n, n}, 1);
+  Prepared P(mask.dims());
+  prepare(mask, P, 2, {}, false, false);
+  EXPECT_FALSE(P.bfar.empty());
+  for (int64_t z = 0; z <= c; ++z)
+    ASSERT_EQ(P.base_pos(P.dom.pos(c + 2, c + 2, z + 2)), P.dom.pos(c + 2, c + 2, 1)) << z;
+  // Near the face x = 0, the base is straight across that face (an 8-bit offset).
+  EXPECT_EQ(P.base_pos(P.dom.pos(5 + 2, c + 2, c + 2)), P.dom.pos(1, c + 2, c + 2));
+}
