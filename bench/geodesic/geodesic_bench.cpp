@@ -22,6 +22,13 @@ double cpu_seconds() {
   getrusage(RUSAGE_SELF, &u);
   return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
+// FNV-1a over the importance's bytes: equal hashes across builds = bit-identical output.
+uint64_t importance_hash(const VolumeF32& v) {
+  uint64_t h = 1469598103934665603ull;
+  const auto* p = reinterpret_cast<const unsigned char*>(v.data());
+  for (size_t i = 0; i < static_cast<size_t>(v.size()) * sizeof(float); ++i) h = (h ^ p[i]) * 1099511628211ull;
+  return h;
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -73,8 +80,8 @@ int main(int argc, char** argv) {
   std::printf("Threshold mode, %d threads. Yardstick: `distance.euclidean` (exact EDT) on the same mask in the same run. "
               "CPU = user + system seconds of all threads (the machine is shared: wall times depend on the load, CPU times much less); prepare/search = the algorithm's own phase timers (wall); k = object voxels, |L| = boundary-layer voxels; searches = searches run (one A* search per base point with targets left, "
               "plus pivots: breadth-first to t + t/4), of them pivots and long (own searches that ended at t with targets left); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
-  std::printf("| phantom | size | t | object %% | time (s) | CPU (s) | prepare (s) | search (s) | EDT (s) | EDT CPU (s) | time / EDT | CPU / EDT CPU | |L| / k | searches | pivots | long | visited / k | bytes / k |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("| phantom | size | t | object %% | time (s) | CPU (s) | prepare (s) | search (s) | EDT (s) | EDT CPU (s) | time / EDT | CPU / EDT CPU | |L| / k | searches | pivots | long | visited / k | bytes / k | prepare / search B/k | importance hash |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const std::string& shape : shapes) {
     for (int64_t n : sizes) {
       synthetic::NetworkOptions no;
@@ -98,12 +105,14 @@ int main(int argc, char** argv) {
         const double c1 = cpu_seconds();
         const double s = bench::best_of(1, [&] { r = geodesic::boundary_distance(ph.mask, go); });
         const double cpu = cpu_seconds() - c1;
-        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %lld | %lld | %lld | %.0f | %.1f |\n", shape.c_str(),
+        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %lld | %lld | %lld | %.0f | %.1f | %.1f / %.1f | %016llx |\n", shape.c_str(),
                     static_cast<long long>(n), static_cast<long long>(t), 100.0 * static_cast<double>(k) / static_cast<double>(ph.mask.size()),
                     s, cpu, r.stats.seconds_prepare, r.stats.seconds_search, edt, edt_cpu, s / edt, cpu / edt_cpu, static_cast<double>(r.stats.layer_voxels) / static_cast<double>(k),
                     static_cast<long long>(r.stats.searches), static_cast<long long>(r.stats.pivots),
                     static_cast<long long>(r.stats.long_searches),
-                    static_cast<double>(r.stats.visited) / static_cast<double>(k), static_cast<double>(r.stats.bytes) / static_cast<double>(k));
+                    static_cast<double>(r.stats.visited) / static_cast<double>(k), static_cast<double>(r.stats.bytes) / static_cast<double>(k),
+                    static_cast<double>(r.stats.bytes_prepare) / static_cast<double>(k), static_cast<double>(r.stats.bytes_search) / static_cast<double>(k),
+                    static_cast<unsigned long long>(importance_hash(r.importance)));
         std::fflush(stdout);
       }
     }

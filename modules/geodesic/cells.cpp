@@ -79,8 +79,8 @@ PlateCellsResult plate_cells(const VolumeU8& mask, const PlateCellsOptions& opt)
     for (int64_t bi = b0; bi < b1; ++bi) {
       const uint32_t a = bases[static_cast<size_t>(bi)];
       targets.clear();
-      for (uint32_t m = B.start[a]; m < B.start[a + 1]; ++m)
-        for_each_face(P, B.members[m], [&](int, uint32_t c) {
+      for (uint32_t m = B.begin(a), me = B.end(a); m < me; ++m)
+        for_each_face(P, B.member(m, P.lpos(a)), [&](int, uint32_t c) {
           if (std::find(targets.begin(), targets.end(), c) == targets.end()) targets.push_back(c);
         });
       // Distances: 0 to itself, kNone (no path: >= t) to another component of L, else searched to t.
@@ -98,13 +98,13 @@ PlateCellsResult plate_cells(const VolumeU8& mask, const PlateCellsOptions& opt)
         for (size_t j = 0; j < want.size(); ++j)
           dist[static_cast<size_t>(std::find(targets.begin(), targets.end(), want[j]) - targets.begin())] = wd[j];
       }
-      for (uint32_t m = B.start[a]; m < B.start[a + 1]; ++m) {
+      for (uint32_t m = B.begin(a), me = B.end(a); m < me; ++m) {
         uint8_t bits = 0;
-        for_each_face(P, B.members[m], [&](int bit, uint32_t c) {
+        for_each_face(P, B.member(m, P.lpos(a)), [&](int bit, uint32_t c) {
           const uint32_t d = dist[static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin())];
           if (d == kNone || d >= t) bits = static_cast<uint8_t>(bits | (1u << bit));
         });
-        faces[mask_index(B.members[m])] = bits;
+        faces[mask_index(B.member(m, P.lpos(a)))] = bits;
       }
       if ((++done & 4095) == 0) opt.interrupter.check(0.35 + 0.55 * static_cast<double>(done.load()) / static_cast<double>(nb));
     }
@@ -115,7 +115,7 @@ PlateCellsResult plate_cells(const VolumeU8& mask, const PlateCellsOptions& opt)
   st.visited = visited.load();
   const uint64_t scratch_bytes = static_cast<uint64_t>(pool.size()) * (static_cast<uint64_t>(P.nl) + 64);
   st.bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.b.size() * 4 + P.lcomp.size() * 4 +
-                                           P.lcoord.size() * sizeof(Coord) + B.start.size() * 4 + B.members.bytes() +
+                                           P.lcoord.size() * sizeof(Coord) + B.bytes() +
                                            bases.size() * 4 + scratch_bytes);
   opt.interrupter.check(0.9);
 

@@ -9,6 +9,7 @@
 #include <limits>
 #include <mutex>
 #include <type_traits>
+#include <unordered_map>
 #include <vector>
 
 #include "geodesic/geodesic_phases.hpp"
@@ -100,96 +101,204 @@ void layer_coordinates(Prepared& P, int threads) {
   }, 4096);
 }
 
-void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr) {
-  const Domain& D = P.dom;
-  const size_t nwords = static_cast<size_t>(D.bits() / 64);
+namespace {
+
+// A bitmap over object ids, set from several threads at once.
+struct IdBits {
+  std::vector<uint64_t> w;
+  explicit IdBits(int64_t n) : w(static_cast<size_t>((n + 63) / 64), 0) {}
+  void set(uint64_t i) { std::atomic_ref<uint64_t>(w[i >> 6]).fetch_or(uint64_t{1} << (i & 63), std::memory_order_relaxed); }
+  [[nodiscard]] bool test(uint64_t i) const { return (w[i >> 6] >> (i & 63)) & 1u; }
+  // test() while other threads set bits.
+  [[nodiscard]] bool test_shared(uint64_t i) {
+    return (std::atomic_ref<uint64_t>(w[i >> 6]).load(std::memory_order_relaxed) >> (i & 63)) & 1u;
+  }
+  // Bits i0 .. i0 + n - 1 (n <= 64) as the low bits of one word.
+  [[nodiscard]] uint64_t get(uint64_t i0, int n) const {
+    if (n == 0) return 0;
+    const size_t a = static_cast<size_t>(i0 >> 6);
+    const int sh = static_cast<int>(i0 & 63);
+    uint64_t v = w[a] >> sh;
+    if (sh && sh + n > 64) v |= w[a + 1] << (64 - sh);
+    return n == 64 ? v : v & ((uint64_t{1} << n) - 1);
+  }
+  void clear() { std::fill(w.begin(), w.end(), uint64_t{0}); }
+  [[nodiscard]] uint64_t bytes() const { return w.size() * 8; }
+};
+
+}  // namespace
+
+void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter& intr) {
   // Nearest background point: rings of 26-neighbours inward from L. Ring r+1 = unreached object
   // voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings, the nearest point
-  // that is closest in physical distance (ties: lower L-id). Values depend only on earlier rings, so
-  // the result is independent of thread count.
-  const Vec3 sp = spacing;
-  const auto off = offsets26(D);
-  P.b.assign(static_cast<size_t>(P.k), kNone);
-  std::vector<uint8_t> reached(static_cast<size_t>(P.k), 0);  // ring number + 1, saturating at 255
-  std::vector<int64_t> frontier;  // positions of the previous ring (object voxels); ring 0 = L
-  // Ring 1: object voxels adjacent to L = object voxels with any background 26-neighbour.
-  std::vector<int64_t> next;
-  {
-    std::vector<std::vector<int64_t>> parts(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
-    parallel_chunks(0, static_cast<int64_t>(nwords), static_cast<int64_t>(parts.size()), threads,
-                    [&](int64_t c, int64_t w0, int64_t w1) {
-                      auto& out = parts[static_cast<size_t>(c)];
-                      for (int64_t w = w0; w < w1; ++w) {
-                        uint64_t bits = P.obj.word(static_cast<size_t>(w));
-                        while (bits) {
-                          const int64_t pos = w * 64 + std::countr_zero(bits);
-                          bits &= bits - 1;
-                          for (int64_t o : off)
-                            if (P.layer.test(pos + o)) {
-                              out.push_back(pos);
-                              break;
-                            }
-                        }
-                      }
-                    });
-    for (auto& p : parts) next.insert(next.end(), p.begin(), p.end());
-  }
-  auto dist2 = [&](int64_t pos, uint32_t l) {
-    const int64_t z = pos / D.plane, rem = pos % D.plane;
-    const double dx = (static_cast<double>(rem % D.BX) - P.lcoord[l].x) * sp[0];
-    const double dy = (static_cast<double>(rem / D.BX) - P.lcoord[l].y) * sp[1];
-    const double dz = (static_cast<double>(z) - P.lcoord[l].z) * sp[2];
-    return dx * dx + dy * dy + dz * dz;
+  // that is closest in physical distance (ties: the lower position, i.e. the lower L-id). Values
+  // depend only on earlier rings, so the result is independent of thread count. Works on the offsets
+  // b(p) - p directly (a neighbour's candidate is its own offset plus the step), so neither the L
+  // coordinates nor the L-ids of b are needed; the rings are bitmaps over object ids (1 bit per
+  // object voxel each, for this ring and the next), walked along the object bitmap.
+  const Domain& D = P.dom;
+  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
+  struct Nb {
+    int64_t off;
+    int32_t dx, dy, dz;
   };
-  int ring = 1;
+  std::vector<Nb> nbs;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (dx || dy || dz) nbs.push_back(Nb{dx + D.BX * (dy + D.BY * dz), dx, dy, dz});
+  P.boff.assign(static_cast<size_t>(P.k), kUnsetOffset);
+  // Object id -> padded position of b(p) where the offset does not fit in 8 bits (rare: objects
+  // more than 127 voxels thick); read during a ring, written between rings.
+  std::unordered_map<uint64_t, int64_t> far;
+  auto coords = [&](int64_t pos, int32_t& x, int32_t& y, int32_t& z) {
+    z = static_cast<int32_t>(pos / D.plane);
+    const int64_t r = pos % D.plane;
+    y = static_cast<int32_t>(r / D.BX);
+    x = static_cast<int32_t>(r % D.BX);
+  };
+  IdBits ring(P.k), next(P.k);
+  // Per worker range: voxels seen and far results (flushed at the end of the range).
+  struct Local {
+    std::vector<std::pair<uint64_t, int64_t>> far;
+    int64_t n = 0;
+  };
+  // Calls f(pos, id, local) for every object voxel of `bits` (an IdBits) on `threads` workers, then
+  // flush(local) once per worker range.
+  auto for_each_in = [&](const IdBits& bits, auto&& f, auto&& flush) {
+    parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+      Local local;
+      for (int64_t w = w0; w < w1; ++w) {
+        uint64_t ob = P.obj.word(static_cast<size_t>(w));
+        if (!ob) continue;
+        uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+        uint64_t rb = bits.get(id, std::popcount(ob));
+        for (; ob; ob &= ob - 1, rb >>= 1, ++id)
+          if (rb & 1) f(w * 64 + std::countr_zero(ob), id, local);
+      }
+      flush(local);
+    }, 2048);
+  };
+  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L).
+  parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t ob = P.obj.word(static_cast<size_t>(w));
+      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+      for (; ob; ob &= ob - 1, ++id) {
+        const int64_t pos = w * 64 + std::countr_zero(ob);
+        for (const Nb& n : nbs)
+          if (P.layer.test(pos + n.off)) {
+            ring.set(id);
+            break;
+          }
+      }
+    }
+  }, 2048);
   int64_t assigned = 0;
-  std::vector<uint32_t> newb;
-  while (!next.empty()) {
-    for (int64_t pos : next) reached[P.obj.rank(pos)] = static_cast<uint8_t>(std::min(ring, 254));
-    newb.assign(next.size(), kNone);
-    parallel_for(0, static_cast<int64_t>(next.size()), threads, [&](int64_t i0, int64_t i1) {
-      for (int64_t i = i0; i < i1; ++i) {
-        const int64_t pos = next[static_cast<size_t>(i)];
-        uint32_t best = kNone;
+  std::mutex far_mutex;
+  std::vector<std::pair<uint64_t, int64_t>> newfar;
+  std::atomic<int64_t> in_ring{0};
+  for (;;) {
+    // This ring: each voxel's b from its neighbours of earlier rings, written in place (the
+    // neighbours in this ring are skipped by their ring bit, so nobody reads a value being written).
+    newfar.clear();
+    in_ring = 0;
+    {
+      for_each_in(ring, [&](int64_t pos, uint64_t id, Local& local) {
+        ++local.n;
+        int32_t px = 0, py = 0, pz = 0;
+        bool have_p = false;
+        int64_t bpos = std::numeric_limits<int64_t>::max();
+        int32_t bx = 0, by = 0, bz = 0;
         double bd = std::numeric_limits<double>::infinity();
-        for (int64_t o : off) {
-          const int64_t q = pos + o;
-          uint32_t cand = kNone;
+        for (const Nb& n : nbs) {
+          const int64_t q = pos + n.off;
+          int32_t cx, cy, cz;  // offset from p to the candidate
+          int64_t cpos;
           if (P.layer.test(q)) {
-            cand = static_cast<uint32_t>(P.layer.rank(q));
+            cx = n.dx, cy = n.dy, cz = n.dz;
+            cpos = q;
           } else if (P.obj.test(q)) {
             const uint64_t qi = P.obj.rank(q);
-            if (P.b[qi] != kNone) cand = P.b[qi];  // earlier ring (this ring's values are not committed yet)
+            if (ring.test(qi)) continue;  // this ring: not committed
+            const BaseOffset o = P.boff[qi];
+            if (o.dx == kFar) {
+              if (o.dy != 0) continue;  // not assigned yet (a later ring)
+              cpos = far.at(qi);
+              if (!have_p) {
+                coords(pos, px, py, pz);
+                have_p = true;
+              }
+              int32_t fx, fy, fz;
+              coords(cpos, fx, fy, fz);
+              cx = fx - px, cy = fy - py, cz = fz - pz;
+            } else {
+              cx = n.dx + o.dx, cy = n.dy + o.dy, cz = n.dz + o.dz;
+              cpos = q + o.dx + D.BX * (o.dy + D.BY * static_cast<int64_t>(o.dz));
+            }
+          } else {
+            continue;
           }
-          if (cand == kNone) continue;
-          const double d = dist2(pos, cand);
-          if (d < bd || (d == bd && cand < best)) {
+          const double ex = static_cast<double>(cx) * sp[0], ey = static_cast<double>(cy) * sp[1],
+                       ez = static_cast<double>(cz) * sp[2];
+          const double d = ex * ex + ey * ey + ez * ez;
+          // Ties: the lower position (= the lower L-id).
+          if (d < bd || (d == bd && cpos < bpos)) {
             bd = d;
-            best = cand;
+            bpos = cpos;
+            bx = cx, by = cy, bz = cz;
           }
         }
-        newb[static_cast<size_t>(i)] = best;
-      }
-    }, 1024);
-    for (size_t i = 0; i < next.size(); ++i) P.b[P.obj.rank(next[i])] = newb[i];
-    assigned += static_cast<int64_t>(next.size());
-    frontier.swap(next);
+        if (std::max({std::abs(bx), std::abs(by), std::abs(bz)}) <= 127) {
+          P.boff[id] = BaseOffset{static_cast<int8_t>(bx), static_cast<int8_t>(by), static_cast<int8_t>(bz)};
+        } else {
+          P.boff[id] = BaseOffset{kFar, 0, 0};
+          local.far.emplace_back(id, bpos);
+        }
+      }, [&](Local& local) {
+        in_ring += local.n;
+        if (!local.far.empty()) {
+          std::lock_guard lock(far_mutex);
+          newfar.insert(newfar.end(), local.far.begin(), local.far.end());
+        }
+      });
+    }
+    if (in_ring.load() == 0) break;
+    for (const auto& [oid, bp] : newfar) far[oid] = bp;
+    assigned += in_ring.load();
+    // Next ring: the unassigned object neighbours of this ring.
     next.clear();
-    // Next ring: unreached object neighbours of this ring (deduplicated by the reached marks).
-    for (int64_t pos : frontier)
-      for (int64_t o : off) {
-        const int64_t q = pos + o;
+    for_each_in(ring, [&](int64_t pos, uint64_t, Local&) {
+      for (const Nb& n : nbs) {
+        const int64_t q = pos + n.off;
         if (!P.obj.test(q)) continue;
         const uint64_t qi = P.obj.rank(q);
-        if (reached[qi]) continue;
-        reached[qi] = 255;
-        next.push_back(q);
+        const BaseOffset o = P.boff[qi];  // neighbours of this ring are in it, earlier (assigned) or unset
+        if (o.dx == kFar && o.dy == kUnsetOffset.dy && !next.test_shared(qi)) next.set(qi);
       }
-    std::sort(next.begin(), next.end());
-    ++ring;
+    }, [](Local&) {});
+    std::swap(ring, next);
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
-  P.prepare_bytes = P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) + P.b.size() * 4 + reached.size();
+  P.bfar.assign(far.begin(), far.end());
+  std::sort(P.bfar.begin(), P.bfar.end());
+  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.base_bytes() + ring.bytes() +
+                                                  next.bytes() + far.size() * 32);
+}
+
+void base_ids(Prepared& P, int threads) {
+  P.b.assign(static_cast<size_t>(P.k), kNone);
+  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
+  parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+    for (int64_t w = w0; w < w1; ++w) {
+      uint64_t bits = P.obj.word(static_cast<size_t>(w));
+      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
+      for (; bits; bits &= bits - 1, ++id) {
+        const int64_t pos = w * 64 + std::countr_zero(bits);
+        P.b[id] = static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos)));
+      }
+    }
+  }, 4096);
 }
 
 void layer_components(Prepared& P) {
@@ -219,56 +328,62 @@ void layer_components(Prepared& P) {
   for (int64_t i = 0; i < P.nl; ++i) P.lcomp[static_cast<size_t>(i)] = find(static_cast<uint32_t>(i));
 }
 
-void compact_bases(Prepared& P, int threads) {
-  const Domain& D = P.dom;
-  P.boff.resize(static_cast<size_t>(P.k));
-  const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
-  std::vector<std::vector<std::pair<uint32_t, int64_t>>> far(static_cast<size_t>(std::max(1, effective_threads(threads))) * 8);
-  parallel_chunks(0, nwords, static_cast<int64_t>(far.size()), threads, [&](int64_t c, int64_t w0, int64_t w1) {
-    for (int64_t w = w0; w < w1; ++w) {
-      uint64_t bits = P.obj.word(static_cast<size_t>(w));
-      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
-      for (; bits; bits &= bits - 1, ++id) {
-        const int64_t pos = w * 64 + std::countr_zero(bits);
-        const int64_t z = pos / D.plane, rem = pos % D.plane;
-        const Coord& q = P.lcoord[P.b[id]];
-        const int64_t dx = q.x - rem % D.BX, dy = q.y - rem / D.BX, dz = q.z - z;
-        if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) <= 127) {
-          P.boff[id] = BaseOffset{static_cast<int8_t>(dx), static_cast<int8_t>(dy), static_cast<int8_t>(dz)};
-        } else {
-          P.boff[id] = BaseOffset{kFar, 0, 0};
-          far[static_cast<size_t>(c)].emplace_back(static_cast<uint32_t>(id), D.pos(q.x, q.y, q.z));
-        }
-      }
-    }
-  });
-  P.bfar.clear();
-  for (auto& f : far) P.bfar.insert(P.bfar.end(), f.begin(), f.end());  // chunks in order: sorted by id
-}
-
 void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
              bool components) {
   build_bitmaps(mask, P, threads, intr);
-  layer_coordinates(P, threads);
   intr.check(0.08);
   nearest_points(mask.spacing(), P, threads, intr);
-  compact_bases(P, threads);
-  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) +
-                                                  P.b.size() * 4 + P.base_bytes());
-  if (!keep_coords) {
-    std::vector<Coord>().swap(P.lcoord);
-    std::vector<uint32_t>().swap(P.b);
+  if (keep_coords) {
+    layer_coordinates(P, threads);
+    base_ids(P, threads);
+    P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.lcoord.size() * sizeof(Coord) +
+                                                    P.b.size() * 4 + P.base_bytes());
   }
   if (components) layer_components(P);
   intr.check(0.22);
 }
 
+namespace {
+
+// Fills the members in raster order without a cursor array: while a bucket of fewer than 255
+// members is being filled, its last slot holds the number placed so far (0 initially) until that
+// slot gets its own member, which is the last one; the few larger buckets keep cursors in a map.
+template <class ForEachBase>
+void members_fill(Buckets& bk, const Domain& D, int64_t k, ForEachBase&& for_each_base) {
+  Members& members = bk.members;
+  members.off.assign(static_cast<size_t>(k), BaseOffset{0, 0, 0});
+  members.far.clear();
+  members.BX = D.BX;
+  members.BY = D.BY;
+  std::unordered_map<uint32_t, uint32_t> cursor;  // buckets of 255 members and more
+  for_each_base([&](int64_t pos, uint32_t l, BaseOffset o) {
+    const uint32_t b = bk.begin(l);
+    uint32_t slot;
+    if (bk.count[l] == 255) {
+      slot = b + cursor[l]++;
+    } else {
+      const uint32_t n = bk.count[l];
+      const uint32_t placed = n == 1 ? 0 : static_cast<uint8_t>(members.off[b + n - 1].dx);
+      slot = b + placed;
+      if (placed + 1 < n) members.off[b + n - 1].dx = static_cast<int8_t>(static_cast<uint8_t>(placed + 1));
+    }
+    // The member's offset from its base is the negated offset from the member to its base.
+    if (o.dx != kFar) {
+      members.off[slot] = BaseOffset{static_cast<int8_t>(-o.dx), static_cast<int8_t>(-o.dy), static_cast<int8_t>(-o.dz)};
+    } else {
+      members.off[slot] = BaseOffset{kFar, 0, 0};
+      members.far.emplace_back(slot, pos);
+    }
+  });
+  std::sort(members.far.begin(), members.far.end());
+}
+
+}  // namespace
+
 Buckets bucket_by_base(const Prepared& P) {
   Buckets bk;
   const Domain& D = P.dom;
-  std::vector<uint32_t>& start = bk.start;
-  Members& members = bk.members;
-  start.assign(static_cast<size_t>(P.nl) + 1, 0);
+  const size_t nl = static_cast<size_t>(P.nl);
   // The L-id of every object voxel's base, in object order (one walk; reused by the fill below).
   auto for_each_base = [&](auto&& f) {
     const size_t nwords = P.obj.word_count();
@@ -277,25 +392,39 @@ Buckets bucket_by_base(const Prepared& P) {
       uint64_t id = P.obj.prefix(w);
       for (; bits; bits &= bits - 1, ++id) {
         const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
-        f(pos, static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos))));
+        f(pos, static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos))), P.boff[id]);
       }
     }
   };
-  for_each_base([&](int64_t, uint32_t l) { ++start[l + 1]; });
-  for (int64_t i = 0; i < P.nl; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
-  members.resize(static_cast<size_t>(P.k), D.bits() > static_cast<int64_t>(std::numeric_limits<uint32_t>::max()));
+  bk.count.assign(nl, 0);
+  std::unordered_map<uint32_t, uint32_t> big;  // counts >= 255
+  for_each_base([&](int64_t, uint32_t l, BaseOffset) {
+    if (bk.count[l] < 255) {
+      if (++bk.count[l] == 255) big[l] = 255;
+    } else {
+      ++big[l];
+    }
+  });
+  bk.big.assign(big.begin(), big.end());
+  std::sort(bk.big.begin(), bk.big.end());
+  std::unordered_map<uint32_t, uint32_t>().swap(big);
+  bk.block.assign((nl + 63) / 64, 0);
   {
-    // Shifted by one (start[l + 1] = first slot of l), then start[l + 1] counts up to the end of l,
-    // which is the start of l + 1 (no second array of |L| counters).
-    for (int64_t i = P.nl; i > 0; --i) start[static_cast<size_t>(i)] = start[static_cast<size_t>(i) - 1];
-    start[0] = 0;
-    for_each_base([&](int64_t pos, uint32_t l) { members.set(start[l + 1]++, pos); });
+    uint32_t s = 0;
+    for (size_t l = 0; l < nl; ++l) {
+      if ((l & 63) == 0) bk.block[l >> 6] = s;
+      s += bk.members_of(static_cast<uint32_t>(l));
+    }
   }
+  members_fill(bk, D, P.k, for_each_base);
   return bk;
 }
 
-int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
-                const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
+namespace {
+
+template <bool kBoxed>
+int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
+                     const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
   const Domain& D = P.dom;
   wd.assign(want.size(), kNone);
   if (want.empty()) return 0;
@@ -349,7 +478,8 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
   {
     int32_t x, y, z;
     coords(src_pos, x, y, z);
-    const Scratch::Entry e{src, 0, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen};
+    const uint32_t si = kBoxed ? S.box_index(x, y, z) : src;
+    const Scratch::Entry e{si, 0, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen};
     const uint32_t f = h(x, y, z);
     if (f <= limit) {
       lo = hi = f;
@@ -359,6 +489,7 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
   int64_t visited = 0;
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
   const int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
+  const int64_t lstep[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   uint32_t key = lo;
   const uint32_t last = std::min(limit, std::numeric_limits<uint32_t>::max() - 8);
   while (nrem > 0 && key <= hi && key <= last) {
@@ -395,7 +526,8 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
     for (int n = 0; n < 6; ++n) {
       const int64_t q = pos + nb[n];
       if (!P.layer.test(q)) continue;
-      const uint32_t u = static_cast<uint32_t>(P.layer.rank(q));
+      const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
+                                : static_cast<uint32_t>(P.layer.rank(q));
       if (S.stamp[u] == st) continue;
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
       const uint32_t nf = e.g + 1 + h(x, y, z);
@@ -407,29 +539,51 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
   return visited;
 }
 
-int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+template <bool kBoxed>
+int64_t pivot_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+  const Domain& D = P.dom;
+  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
+  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   auto run = [&](auto& pdist) {
     using T = typename std::decay_t<decltype(pdist)>::value_type;
     for (uint32_t v : S.pqueue) pdist[v] = 0;
+    const uint32_t si = S.index_of(D, src, src_pos);
     S.pqueue.clear();
-    S.pqueue.push_back(src);
+    S.pqueue.push_back(si);
     S.qpos.clear();
     S.qpos.push_back(src_pos);
-    pdist[src] = 1;
+    pdist[si] = 1;
     for (size_t head = 0; head < S.pqueue.size(); ++head) {
-      const T dv1 = pdist[S.pqueue[head]];  // distance + 1
+      const uint32_t v = S.pqueue[head];
+      const T dv1 = pdist[v];  // distance + 1
       if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-      for_each_layer_neighbour(P, S.qpos[head], [&](uint32_t u, int64_t q) {
-        if (pdist[u]) return;
+      const int64_t pos = S.qpos[head];
+      for (int n = 0; n < 6; ++n) {
+        const int64_t q = pos + nb[n];
+        if (!P.layer.test(q)) continue;
+        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
+        if (pdist[u]) continue;
         pdist[u] = static_cast<T>(dv1 + 1);
         S.pqueue.push_back(u);
         S.qpos.push_back(q);
-      });
+      }
     }
   };
   if (S.pdist8.empty()) run(S.pdist16);
   else run(S.pdist8);
   return static_cast<int64_t>(S.pqueue.size());
+}
+
+}  // namespace
+
+int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
+                const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
+  return S.boxed() ? own_bfs_impl<true>(P, S, src, src_pos, limit, want, want_pos, wd)
+                   : own_bfs_impl<false>(P, S, src, src_pos, limit, want, want_pos, wd);
+}
+
+int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
+  return S.boxed() ? pivot_bfs_impl<true>(P, S, src, src_pos, limit) : pivot_bfs_impl<false>(P, S, src, src_pos, limit);
 }
 
 SearchShared::SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& m, float* out, uint32_t threshold,
@@ -441,14 +595,15 @@ SearchShared::SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& 
   pivot_margin = full || t + std::max<uint32_t>(2, t / 4) >= 65534 ? 0 : std::max<uint32_t>(2, t / 4);
 }
 
-void BaseWork::gather(uint32_t base_id) {
+void BaseWork::gather(uint32_t base_id, int64_t base_pos) {
   const Prepared& P = sh_.P;
-  const std::vector<uint32_t>& start = sh_.B.start;
-  const Members& members = sh_.B.members;
   targets.clear();
   tpos.clear();
-  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m)
-    for_each_target_at(P, members[m], [&](uint32_t c, int64_t cpos) {
+  mpos.clear();
+  for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m)
+    mpos.push_back(sh_.B.member(m, base_pos));
+  for (int64_t pos : mpos)
+    for_each_target_at(P, pos, [&](uint32_t c, int64_t cpos) {
       if (std::find(targets.begin(), targets.end(), c) == targets.end()) {
         targets.push_back(c);
         tpos.push_back(cpos);
@@ -457,41 +612,37 @@ void BaseWork::gather(uint32_t base_id) {
   tdist.assign(targets.size(), kNone);
 }
 
-void BaseWork::finish(uint32_t base_id) {
+void BaseWork::finish() {
   const Prepared& P = sh_.P;
-  const std::vector<uint32_t>& start = sh_.B.start;
-  const Members& members = sh_.B.members;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const float inf = std::numeric_limits<float>::infinity();
-  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+  for (int64_t pos : mpos) {
     float v = 0.0f;
-    for_each_target(P, members[m], [&](uint32_t c) {
+    for_each_target(P, pos, [&](uint32_t c) {
       const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
       const uint32_t d = tdist[i];
       float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
       if (!full) g = std::min(g, static_cast<float>(t));
       v = std::max(v, g);
     });
-    sh_.importance[sh_.mask_index(members[m])] = v;
+    sh_.importance[sh_.mask_index(pos)] = v;
   }
 }
 
-void BaseWork::mark_needed(uint32_t base_id) {
+void BaseWork::mark_needed() {
   const Prepared& P = sh_.P;
-  const std::vector<uint32_t>& start = sh_.B.start;
-  const Members& members = sh_.B.members;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const bool any_saturated =
       !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
   needed.assign(targets.size(), any_saturated ? 0 : 1);
   if (!any_saturated) return;
-  for (uint32_t m = start[base_id]; m < start[base_id + 1]; ++m) {
+  for (int64_t pos : mpos) {
     size_t idx[6];
     int n = 0;
     bool saturated = false;
-    for_each_target(P, members[m], [&](uint32_t c) {
+    for_each_target(P, pos, [&](uint32_t c) {
       const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
       idx[n++] = i;
       if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
@@ -509,7 +660,7 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   want.clear();
   want_pos_.clear();
   want_index.clear();
-  mark_needed(base_id);
+  mark_needed();
   for (size_t i = 0; i < targets.size(); ++i)
     if (tdist[i] == kNone && needed[i] && (P.lcomp.empty() || P.lcomp[targets[i]] == P.lcomp[base_id])) {
       want.push_back(targets[i]);
@@ -528,16 +679,14 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   return open;
 }
 
-void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
+void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t apos) {
   const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
-  const std::vector<uint32_t>& start = sh.B.start;
-  BaseWork w(sh, S);
   std::vector<uint32_t>& targets = w.targets;
   std::vector<uint32_t>& tdist = w.tdist;
-  w.gather(a);
+  w.gather(a, apos);
   const bool long_search = w.own_search(a, apos);
   if (long_search) ++sh.n_long;
-  w.finish(a);
+  w.finish();
   sh.done_bases++;
   if (!long_search || sh.full || pivot_margin == 0) return;
 
@@ -551,14 +700,16 @@ void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
   for (size_t i = 0; i < S.pqueue.size(); ++i) {
     const uint32_t v = S.pqueue[i];
     if (S.pivot_at(v) > pivot_margin) break;
-    if (v != a && start[v + 1] > start[v]) near.emplace_back(v, S.qpos[i]);
+    if (i == 0) continue;  // a itself
+    const uint32_t l = S.boxed() ? static_cast<uint32_t>(sh.P.layer.rank(S.qpos[i])) : v;
+    if (sh.B.has_work(l)) near.emplace_back(l, S.qpos[i]);
   }
   for (const auto& [a2, a2pos] : near) {
     if (!sh.claim(a2)) continue;
-    w.gather(a2);
-    const uint32_t da2 = S.pivot_at(a2);
+    w.gather(a2, a2pos);
+    const uint32_t da2 = S.pivot_at(S.index_of(sh.P.dom, a2, a2pos));
     for (size_t i = 0; i < targets.size(); ++i) {
-      const uint32_t c = targets[i];
+      const uint32_t c = S.index_of(sh.P.dom, targets[i], w.tpos[i]);
       // g(a, c) > t + margin (unreached) or >= t + g(a, a2): then g(a2, c) >= t.
       if (!S.pivot_visited(c) || S.pivot_at(c) >= t + da2) {
         tdist[i] = t;
@@ -566,17 +717,51 @@ void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos) {
       }
     }
     if (w.own_search(a2, a2pos)) ++sh.n_long;
-    w.finish(a2);
+    w.finish();
     sh.done_bases++;
   }
 }
 
 uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_progress) {
   const Prepared& P = sh.P;
+  const Domain& D = P.dom;
   const int nthreads = effective_threads(threads);
+  const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
+
+  // Work: bases with a non-empty bucket, found by walking the words of L (which gives their
+  // positions too). Each base is claimed exactly once, and every value is exact (searches) or a
+  // proven saturation, so the importance never depends on who claimed a base. The diagnostic counts
+  // (searches, pivots, saturated, visited) do depend on it, so claims are made deterministic: the
+  // padded domain is cut into blocks (x: whole words; y, z: rows and slabs), each at least
+  // 2*margin + 2 voxels thick on every axis, coloured by the parity of (x, y, z) block index, and the
+  // eight colours run one after the other. A block is processed by one worker in L order; a pivot
+  // claims only bases within `margin` 6-steps (so within `margin` on every axis): never in another
+  // block of the same colour, and no base is within reach of two blocks of one colour. So the
+  // claims, and with them every count, are those of a fixed sequential order, whatever the thread
+  // count (the blocks do not depend on it).
+  {
+    int64_t nb = 0;
+    for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
+    sh.n_bases = nb;
+  }
+  const int64_t extent = std::max<int64_t>(2 * static_cast<int64_t>(pivot_margin) + 2, 8);
+  const int64_t rw = D.row_words();
+  const int64_t nbx = std::max<int64_t>(1, rw / ((extent + 63) / 64));
+  const int64_t nby = std::max<int64_t>(1, D.BY / extent);
+  const int64_t nbz = std::max<int64_t>(1, D.BZ / extent);
+  // Scratch box: the largest block plus everything its searches reach (own searches to t from bases
+  // within `margin` of the block, pivots to t + margin from the block's bases, and one neighbour
+  // more), clipped to the domain; dense (one entry per L voxel) where that is smaller, in full mode
+  // (unbounded searches) and where the box index would not fit in 32 bits.
+  const int64_t halo = static_cast<int64_t>(t) + pivot_margin + 1;
+  const int64_t bw = std::min(D.BX, 64 * ((rw + nbx - 1) / nbx) + 2 * halo);
+  const int64_t bh = std::min(D.BY, (D.BY + nby - 1) / nby + 2 * halo);
+  const int64_t bd = std::min(D.BZ, (D.BZ + nbz - 1) / nbz + 2 * halo);
+  const bool boxed = !sh.full && (sh.force_box || bw * bh * bd < P.nl) &&
+                     bw * bh * bd < static_cast<int64_t>(std::numeric_limits<uint32_t>::max());
+
   std::mutex scratch_mutex;
   std::vector<std::unique_ptr<Scratch>> pool;
-  const uint32_t t = sh.t, pivot_margin = sh.pivot_margin;
   auto acquire = [&]() {
     std::lock_guard lock(scratch_mutex);
     if (!pool.empty()) {
@@ -584,52 +769,42 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
       pool.pop_back();
       return s;
     }
-    return std::make_unique<Scratch>(static_cast<size_t>(P.nl), pivot_margin ? t + pivot_margin : 0);
+    const uint32_t plimit = pivot_margin ? t + pivot_margin : 0;
+    return boxed ? std::make_unique<Scratch>(bw, bh, bd, plimit)
+                 : std::make_unique<Scratch>(static_cast<size_t>(P.nl), plimit);
   };
   auto release = [&](std::unique_ptr<Scratch> s) {
     std::lock_guard lock(scratch_mutex);
     pool.push_back(std::move(s));
   };
-
-  // Work: bases with a non-empty bucket, found by walking the words of L (which gives their
-  // positions too). Each base is claimed exactly once, and every value is exact (searches) or a
-  // proven saturation, so the importance never depends on who claimed a base. The diagnostic counts
-  // (searches, pivots, saturated, visited) do depend on it, so claims are made deterministic: the
-  // padded domain is cut into blocks of z-slabs x y-bands, each at least 2*margin + 2 voxels thick,
-  // coloured by the parity of (slab, band), and the four colours run one after the other. A block is
-  // processed by one worker in L order; a pivot claims only bases within `margin` steps (26-steps,
-  // so within `margin` in z and y): never in another block of the same colour, and no base is
-  // within reach of two blocks of one colour. So the claims, and with them every count, are those
-  // of a fixed sequential order, whatever the thread count (the blocks do not depend on it).
-  {
-    int64_t nb = 0;
-    for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
-    sh.n_bases = nb;
-  }
-  const Domain& D = P.dom;
-  const int64_t extent = 2 * static_cast<int64_t>(pivot_margin) + 2;
-  const int64_t nbz = std::max<int64_t>(1, D.BZ / std::max<int64_t>(extent, 8));
-  const int64_t nby = std::max<int64_t>(1, D.BY / std::max<int64_t>(extent, 8));
-  const int64_t rw = D.row_words();
-  for (int colour = 0; colour < 4; ++colour) {
-    std::vector<std::pair<int64_t, int64_t>> blocks;
-    for (int64_t iz = colour / 2; iz < nbz; iz += 2)
-      for (int64_t iy = colour % 2; iy < nby; iy += 2) blocks.emplace_back(iz, iy);
+  for (int colour = 0; colour < 8; ++colour) {
+    struct Block {
+      int64_t ix, iy, iz;
+    };
+    std::vector<Block> blocks;
+    for (int64_t iz = (colour >> 2) & 1; iz < nbz; iz += 2)
+      for (int64_t iy = (colour >> 1) & 1; iy < nby; iy += 2)
+        for (int64_t ix = colour & 1; ix < nbx; ix += 2) blocks.push_back(Block{ix, iy, iz});
     parallel_for(0, static_cast<int64_t>(blocks.size()), nthreads, [&](int64_t b0, int64_t b1) {
       auto S = acquire();
+      BaseWork work(sh, *S);  // its vectors are reused from base to base
       for (int64_t bi = b0; bi < b1; ++bi) {
-        const auto [iz, iy] = blocks[static_cast<size_t>(bi)];
-        const int64_t z0 = D.BZ * iz / nbz, z1 = D.BZ * (iz + 1) / nbz;
-        const int64_t y0 = D.BY * iy / nby, y1 = D.BY * (iy + 1) / nby;
+        const Block& bl = blocks[static_cast<size_t>(bi)];
+        const int64_t z0 = D.BZ * bl.iz / nbz, z1 = D.BZ * (bl.iz + 1) / nbz;
+        const int64_t y0 = D.BY * bl.iy / nby, y1 = D.BY * (bl.iy + 1) / nby;
+        const int64_t w0 = rw * bl.ix / nbx, w1 = rw * (bl.ix + 1) / nbx;
+        if (S->boxed())
+          S->move_box(std::clamp<int64_t>(w0 * 64 - halo, 0, D.BX - bw), std::clamp<int64_t>(y0 - halo, 0, D.BY - bh),
+                      std::clamp<int64_t>(z0 - halo, 0, D.BZ - bd));
         for (int64_t z = z0; z < z1; ++z) {
           for (int64_t y = y0; y < y1; ++y) {
             const int64_t row = (z * D.BY + y) * rw;
-            for (int64_t w = row; w < row + rw; ++w) {
+            for (int64_t w = row + w0; w < row + w1; ++w) {
               uint64_t bits = P.layer.word(static_cast<size_t>(w));
               uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
               for (; bits; bits &= bits - 1, ++a) {
                 if (!sh.B.has_work(a) || !sh.claim(a)) continue;
-                process_base(sh, *S, a, w * 64 + std::countr_zero(bits));
+                process_base(sh, *S, work, a, w * 64 + std::countr_zero(bits));
               }
             }
           }
@@ -707,8 +882,10 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // Peak of the two phases: the nearest-point transform (with L coordinates and the ring marks) and
   // the searches (with components, buckets, claims and the workers' scratch).
   const uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.base_bytes() + P.lcomp.size() * 4 +
-                                B.start.size() * 4 + B.members.bytes() + sh.claimed.size() * 8 + scratch_bytes;
+                                B.bytes() + sh.claimed.size() * 8 + scratch_bytes;
   res.stats.bytes = std::max(P.prepare_bytes, search_bytes);
+  res.stats.bytes_prepare = P.prepare_bytes;
+  res.stats.bytes_search = search_bytes;
   opt.interrupter.check(1.0);
   return res;
 }

@@ -40,6 +40,8 @@ struct Statistics {
   int64_t saturated_by_pivot = 0; // targets proved >= t by a neighbouring base's search
   int64_t visited = 0;            // layer voxels closed (A*) or dequeued (pivot BFS) over all searches
   uint64_t bytes = 0;             // peak working memory of the algorithm (without input/output)
+  uint64_t bytes_prepare = 0;     // of which: peak of the preparation (bitmaps, b(p), rings)
+  uint64_t bytes_search = 0;      // and peak of the searches (bitmaps, b(p), buckets, claims, scratch)
   double seconds_prepare = 0;     // wall time of the bitmaps, b(p), L's components and the buckets
   double seconds_search = 0;      // wall time of the searches (and the importance)
 };

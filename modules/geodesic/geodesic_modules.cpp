@@ -44,15 +44,20 @@ inequality, the far targets of every base point within t/4 of it (a pivot), whic
 searches on plates; voxels with a target so proved to saturate need no further search. In full mode,
 targets in another 6-component of L are known to be infinite without searching. Results, and the
 search counts (searches, pivots, saturated targets, visited voxels), are identical for any thread
-count: the grid is cut into blocks (z-slabs x y-bands at least 2·t/4 + 2 voxels thick) run in four
-passes by the parity of (slab, band), so no two workers reach the same base.
+count: the grid is cut into blocks (64-voxel x-ranges x y-bands x z-slabs, each at least 2·t/4 + 2
+voxels thick) run in eight passes by the parity of their (x, y, z) index, so no two workers reach the
+same base.
 
-Memory (beyond the input mask and the two outputs; the larger of two phases): 4 bits per voxel of the
-padded grid (two ranked bitmaps), plus for the nearest-point transform 4 + 1 + 3 bytes per object voxel
-and 6 per boundary-layer voxel, for the searches 3 (b(p) as an offset) + 4 (bucket position) bytes per
-object voxel and 4 (bucket start; + 4 for L's components in full mode) per boundary-layer voxel, plus
-per worker thread 2 (stamp) + 1 (t + t/4 <= 254, else 2: pivot distances) bytes per boundary-layer
-voxel and the queues.
+Memory (beyond the input mask and the two outputs; the larger of two phases): 3 bits per voxel of the
+padded grid (two bitmaps with 32-bit ranks per word, 1.5 bits each) and 3 bytes per object voxel
+(b(p) as an offset) throughout; the
+nearest-point transform adds 2 bits per object voxel (this ring and the next); the searches add 3
+bytes per object voxel (bucket members as offsets from their base) and about 1.06 per boundary-layer
+voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 1
+(pivot distance; 2 where t + t/4 > 254) bytes per entry of its scratch: one entry per voxel of a box
+around its block (the block plus t + t/4 + 1 on every side, about 2.5 M voxels for t = 40), or one
+per boundary-layer voxel where that is fewer (small volumes, full mode), and the queues. In all
+about 10.5 bytes per object voxel for the 512³ plates phantom, 15.5 for the sparser mixed one.
 
 Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
 with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the

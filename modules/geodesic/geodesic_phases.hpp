@@ -27,32 +27,35 @@ namespace skel::geodesic::detail {
 
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 
-// A bitmap over the padded domain with O(1) rank (number of set bits before a position).
-// 2 bits per voxel. Before build_rank(), `words` holds the bits; after, pairs (bits of word w, set
-// bits before word w) interleaved, so a test and a rank touch one cache line.
+// A bitmap over the padded domain with O(1) rank (number of set bits before a position): the bits
+// (1 per voxel) and, after build_rank(), the set bits before every 64-bit word as 32 bits (object
+// and layer voxels are < 2^32, checked in build_bitmaps): 1.5 bits per voxel. A test touches the
+// bits only; a rank one more cache line.
 struct RankBits {
   std::vector<uint64_t> words;
-  [[nodiscard]] uint64_t word(size_t w) const { return words[2 * w]; }
-  [[nodiscard]] uint64_t prefix(size_t w) const { return words[2 * w + 1]; }
-  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6) * 2] >> (pos & 63)) & 1u; }
+  std::vector<uint32_t> pre;
+  [[nodiscard]] uint64_t word(size_t w) const { return words[w]; }
+  [[nodiscard]] uint64_t prefix(size_t w) const { return pre[w]; }
+  [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6)] >> (pos & 63)) & 1u; }
   [[nodiscard]] uint64_t rank(int64_t pos) const {
-    const size_t w = static_cast<size_t>(pos >> 6) * 2;
+    const size_t w = static_cast<size_t>(pos >> 6);
     const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
-    return words[w + 1] + static_cast<uint64_t>(std::popcount(below));
+    return pre[w] + static_cast<uint64_t>(std::popcount(below));
   }
+  // Builds the prefixes; returns the number of set bits (prefixes saturate where it is >= 2^32,
+  // which the caller refuses).
   uint64_t build_rank() {
     const size_t n = words.size();
-    words.resize(2 * n);
-    for (size_t i = n; i-- > 1;) words[2 * i] = words[i];  // spread in place (word 0 stays)
+    pre.resize(n);
     uint64_t s = 0;
     for (size_t i = 0; i < n; ++i) {
-      words[2 * i + 1] = s;
-      s += static_cast<uint64_t>(std::popcount(words[2 * i]));
+      pre[i] = static_cast<uint32_t>(std::min<uint64_t>(s, 0xFFFFFFFFu));
+      s += static_cast<uint64_t>(std::popcount(words[i]));
     }
     return s;
   }
-  [[nodiscard]] size_t word_count() const { return words.size() / 2; }
-  [[nodiscard]] uint64_t bytes() const { return words.size() * 8; }
+  [[nodiscard]] size_t word_count() const { return words.size(); }
+  [[nodiscard]] uint64_t bytes() const { return words.size() * 8 + pre.size() * 4; }
 };
 
 struct Coord {
@@ -82,15 +85,17 @@ struct BaseOffset {
   int8_t dx, dy, dz;
 };
 constexpr int8_t kFar = -128;
+// While nearest_points runs: dx == kFar with dy != 0 marks a voxel not assigned yet.
+constexpr BaseOffset kUnsetOffset{kFar, 1, 0};
 
 struct Prepared {
   Domain dom;
   RankBits obj, layer;
-  std::vector<Coord> lcoord;  // L-id -> padded coordinates (freed after the nearest-point transform
-                              // unless kept for the reference; searches carry positions instead)
-  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point (freed after
-                              // compact_bases unless kept for the reference and tests)
-  std::vector<BaseOffset> boff;  // object id -> offset to b(p) (compact_bases)
+  std::vector<Coord> lcoord;  // L-id -> padded coordinates (only for the reference, cells and tests:
+                              // searches carry positions instead)
+  std::vector<uint32_t> b;    // object id -> L-id of its nearest background point (only for the
+                              // reference, cells and tests: base_ids)
+  std::vector<BaseOffset> boff;  // object id -> offset to b(p) (nearest_points)
   std::vector<std::pair<uint32_t, int64_t>> bfar;  // object id -> position of b(p), where kFar
   std::vector<uint32_t> lcomp;  // L-id -> 6-connected component of L
   int64_t k = 0, nl = 0;
@@ -119,35 +124,39 @@ struct Prepared {
 // The 26 neighbour offsets in the padded domain.
 std::vector<int64_t> offsets26(const Domain& d);
 
-// Phase 1: builds the bitmaps, L coordinates, the nearest-point transform, its compact form and
-// (if `components`) L's components (the steps below). L coordinates and the L-ids of b are freed
-// afterwards unless `keep_coords`. Without components (P.lcomp empty) every target is searched.
+// Phase 1: builds the bitmaps, the nearest-point transform (as offsets) and (if `components`) L's
+// components (the steps below); with `keep_coords` also the L coordinates and the L-ids of b (for
+// the reference, cells and tests). Without components (P.lcomp empty) every target is searched.
 void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr, bool keep_coords,
              bool components = true);
 // 1a: P.obj and P.layer (L = dilate26(O) minus O over the padded domain) with their ranks, P.k, P.nl.
 void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr);
 // 1b: P.lcoord (padded coordinates of every L voxel).
 void layer_coordinates(Prepared& P, int threads);
-// 1c: P.b, by rings of 26-neighbours inward from L: ring r+1 = unreached object voxels 26-adjacent to
-// ring r; each takes, among its neighbours of earlier rings, the nearest point that is closest in
-// physical distance (ties: lower L-id). Needs P.lcoord; sets P.prepare_bytes.
+// 1c: P.boff and P.bfar (b(p) as offsets), by rings of 26-neighbours inward from L: ring r+1 =
+// unreached object voxels 26-adjacent to ring r; each takes, among its neighbours of earlier rings,
+// the nearest point that is closest in physical distance (ties: lower L-id). Sets P.prepare_bytes
+// (bitmaps, offsets and two ring bitmaps of 1 bit per object voxel).
 void nearest_points(const Vec3& spacing, Prepared& P, int threads, const Interrupter& intr);
+// 1e: P.b (L-ids of b(p)) from the offsets.
+void base_ids(Prepared& P, int threads);
 // 1d: P.lcomp, the 6-connected component of every L voxel (its smallest L-id).
 void layer_components(Prepared& P);
-// 1e: P.boff and P.bfar from P.b and P.lcoord.
-void compact_bases(Prepared& P, int threads);
 
-// Scratch of one worker.
+// Scratch of one worker, indexed either by L-id (dense: |L| entries) or by position in a box of
+// the padded domain that holds everything the searches of one block of bases can touch (box: the
+// block plus t + margin + 1 on every side; search_bases moves it from block to block), whichever is
+// smaller. Only the index changes between the two; the searches are the same.
 // Own searches (A*, own_bfs) mark the voxels they closed by range encoding (thesis §2.3.2): a
-// 16-bit stamp per L voxel, and each search takes the next stamp value, so a voxel is closed in the
-// current search iff its stamp equals the search's value; nothing is cleared after a search, the
-// array only once every 65535 searches (when the stamp wraps). The open voxels wait in a bucket
-// queue by their key g + h (h = 6-step lower bound to the nearest remaining target).
+// 16-bit stamp per entry, and each search takes the next stamp value, so a voxel is closed in the
+// current search iff its stamp equals the search's value; nothing is cleared after a search (nor when
+// the box moves), the array only once every 65535 searches (when the stamp wraps). The open voxels
+// wait in a bucket queue by their key g + h (h = 6-step lower bound to the nearest remaining target).
 // Pivot searches keep 8- or 16-bit distances (d + 1, 0 = unvisited; none without pivots) because
 // targets of neighbouring bases are looked up afterwards; they are reset through their list.
 struct Scratch {
   struct Entry {  // 16 bytes; the padded position is x + BX * (y + BY * z)
-    uint32_t id, g;
+    uint32_t id, g;  // id: scratch index (L-id or box index)
     uint16_t x, y, z, gen;  // gen: targets reached when queued (the key is stale once more are)
   };
   std::vector<uint16_t> stamp;   // own search: closed iff == cur
@@ -156,12 +165,35 @@ struct Scratch {
   std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
   std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
   std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
-  std::vector<uint32_t> pqueue; // pivot search: visited voxels in distance order (kept until the next pivot)
+  std::vector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
   std::vector<int64_t> qpos;    // padded positions of the pivot search's queue
-  Scratch(size_t nl, uint32_t pivot_limit) : stamp(nl, 0) {
-    if (pivot_limit == 0) return;
-    if (pivot_limit <= 254) pdist8.assign(nl, 0);
-    else pdist16.assign(nl, 0);
+  // Box mode (bw > 0): entry of padded (x, y, z) = (x - bx0) + bw * ((y - by0) + bh * (z - bz0)).
+  int64_t bw = 0, bh = 0, bd = 0, bx0 = 0, by0 = 0, bz0 = 0;
+  // Dense: one entry per L voxel.
+  Scratch(size_t nl, uint32_t pivot_limit) { allocate(nl, pivot_limit); }
+  // Box of w x h x d voxels (origin set by move_box).
+  Scratch(int64_t w, int64_t h, int64_t d, uint32_t pivot_limit) : bw(w), bh(h), bd(d) {
+    allocate(static_cast<size_t>(w * h * d), pivot_limit);
+  }
+  [[nodiscard]] bool boxed() const { return bw > 0; }
+  void move_box(int64_t x0, int64_t y0, int64_t z0) {
+    // pqueue holds indices of the old placement: clear the pivot distances first.
+    for (uint32_t v : pqueue) {
+      if (pdist8.empty()) pdist16[v] = 0;
+      else pdist8[v] = 0;
+    }
+    pqueue.clear();
+    qpos.clear();
+    bx0 = x0, by0 = y0, bz0 = z0;
+  }
+  [[nodiscard]] uint32_t box_index(int64_t x, int64_t y, int64_t z) const {
+    return static_cast<uint32_t>((x - bx0) + bw * ((y - by0) + bh * (z - bz0)));
+  }
+  // Scratch index of the L voxel with L-id `l` at padded position `pos`.
+  [[nodiscard]] uint32_t index_of(const Domain& D, uint32_t l, int64_t pos) const {
+    if (!boxed()) return l;
+    const int64_t z = pos / D.plane, r = pos % D.plane;
+    return box_index(r % D.BX, r / D.BX, z);
   }
   // The stamp of a new own search.
   uint16_t next_stamp() {
@@ -181,24 +213,31 @@ struct Scratch {
     return stamp.size() * 2 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
            buckets.capacity() * sizeof(buckets[0]) + qb;
   }
+
+private:
+  void allocate(size_t n, uint32_t pivot_limit) {
+    stamp.assign(n, 0);
+    if (pivot_limit == 0) return;
+    if (pivot_limit <= 254) pdist8.assign(n, 0);
+    else pdist16.assign(n, 0);
+  }
 };
 
-// Object voxels grouped by base point, as padded positions: 32-bit where the padded domain allows.
+// Object voxels grouped by base point, as offsets from their base (3 bytes: the negated b(p) - p);
+// where that does not fit in 8 bits per axis (dx == kFar) the padded position is in `far`, sorted
+// by slot.
 struct Members {
-  bool wide = false;
-  std::vector<uint32_t> narrow;
-  std::vector<int64_t> full;
-  void resize(size_t n, bool w) {
-    wide = w;
-    if (wide) full.resize(n);
-    else narrow.resize(n);
+  std::vector<BaseOffset> off;
+  std::vector<std::pair<uint32_t, int64_t>> far;  // (slot, padded position)
+  int64_t BX = 0, BY = 0;
+  // Padded position of member slot `i` of the bucket of the base at padded position `base_pos`.
+  [[nodiscard]] int64_t at(size_t i, int64_t base_pos) const {
+    const BaseOffset o = off[i];
+    if (o.dx == kFar)
+      return std::lower_bound(far.begin(), far.end(), std::pair<uint32_t, int64_t>{static_cast<uint32_t>(i), std::numeric_limits<int64_t>::min()})->second;
+    return base_pos + o.dx + BX * (o.dy + BY * static_cast<int64_t>(o.dz));
   }
-  void set(size_t i, int64_t pos) {
-    if (wide) full[i] = pos;
-    else narrow[i] = static_cast<uint32_t>(pos);
-  }
-  [[nodiscard]] int64_t operator[](size_t i) const { return wide ? full[i] : static_cast<int64_t>(narrow[i]); }
-  [[nodiscard]] uint64_t bytes() const { return narrow.size() * 4 + full.size() * 8; }
+  [[nodiscard]] uint64_t bytes() const { return off.size() * sizeof(BaseOffset) + far.size() * 16; }
 };
 
 // The considered neighbours of object voxel `pos` and their base points: f(L-id, padded position).
@@ -220,11 +259,35 @@ void for_each_target(const Prepared& P, int64_t pos, F&& f) {
 }
 
 // Phase 2: object voxels grouped by base point b(p) (counting sort): the voxels of base l are
-// members[start[l] .. start[l+1]), as padded positions in raster order.
+// the slots begin(l) .. end(l) of `members`, in raster order (positions: member(slot, base position)). The bucket bounds are kept
+// compactly: a member count per L voxel (1 byte; 255 = look the count up in `big`) and the first
+// slot of every 64 L voxels (4 bytes), so about 1.06 bytes per L voxel instead of 4; begin(l) adds
+// the counts of up to 63 preceding L voxels.
 struct Buckets {
-  std::vector<uint32_t> start;
+  std::vector<uint8_t> count;                       // per L-id: members, 255 = in `big`
+  std::vector<std::pair<uint32_t, uint32_t>> big;   // (L-id, members) where >= 255, sorted
+  std::vector<uint32_t> block;                      // per 64 L-ids: first member slot; one more at the end
   Members members;
-  [[nodiscard]] bool has_work(uint32_t l) const { return start[l + 1] > start[l]; }
+  [[nodiscard]] bool has_work(uint32_t l) const { return count[l] != 0; }
+  [[nodiscard]] uint32_t members_of(uint32_t l) const {
+    if (count[l] != 255) return count[l];
+    return std::lower_bound(big.begin(), big.end(), std::pair<uint32_t, uint32_t>{l, 0})->second;
+  }
+  [[nodiscard]] uint32_t begin(uint32_t l) const {
+    const uint32_t b0 = l & ~uint32_t{63};
+    uint32_t s = block[l >> 6], nbig = 0;
+    for (uint32_t j = b0; j < l; ++j) {
+      s += count[j];
+      nbig += count[j] == 255;
+    }
+    if (nbig)
+      for (uint32_t j = b0; j < l; ++j)
+        if (count[j] == 255) s += members_of(j) - 255;
+    return s;
+  }
+  [[nodiscard]] uint32_t end(uint32_t l) const { return begin(l) + members_of(l); }
+  [[nodiscard]] int64_t member(uint32_t slot, int64_t base_pos) const { return members.at(slot, base_pos); }
+  [[nodiscard]] uint64_t bytes() const { return count.size() + big.size() * 8 + block.size() * 4 + members.bytes(); }
 };
 Buckets bucket_by_base(const Prepared& P);
 
@@ -261,6 +324,7 @@ struct SearchShared {
   uint32_t t = 0;          // threshold
   bool full = false;       // Mode::Full
   uint32_t pivot_margin = 0;  // 0 = no pivots
+  bool force_box = false;     // tests: box scratch even where dense would be smaller
   // Bases are claimed once: by their own search or by a neighbouring pivot.
   std::vector<std::atomic<uint64_t>> claimed;
   std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
@@ -283,19 +347,21 @@ class BaseWork {
 public:
   BaseWork(SearchShared& sh, Scratch& S) : sh_(sh), S_(S) {}
   // targets = the distinct bases of the considered neighbours of the bucket's voxels; tdist = kNone.
-  void gather(uint32_t base_id);
+  // Also lists the bucket's voxels (mpos) for mark_needed and finish.
+  void gather(uint32_t base_id, int64_t base_pos);
   // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
   // its other targets are searched only if another voxel of the bucket needs them: needed[i].
-  void mark_needed(uint32_t base_id);
+  void mark_needed();
   // Own search from `base_id` for the targets not settled yet (tdist == kNone) that lie in the same
   // component of L (the others have no path: infinite). Returns true if targets were left when the
   // search reached the threshold.
   bool own_search(uint32_t base_id, int64_t base_pos);
   // Importance of the bucket's voxels from tdist.
-  void finish(uint32_t base_id);
+  void finish();
 
   std::vector<uint32_t> targets, tdist;
   std::vector<int64_t> tpos;  // padded positions of the targets
+  std::vector<int64_t> mpos;  // padded positions of the bucket's voxels
   std::vector<uint8_t> needed;
 
 private:
@@ -309,7 +375,8 @@ private:
 // Processes base `a`: its own search, and, when that search runs to the threshold, a pivot search
 // to t + margin that settles the far targets of all bases within `margin` of `a` (triangle
 // inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
-void process_base(SearchShared& sh, Scratch& S, uint32_t a, int64_t apos);
+// `w` is the worker's (its vectors are reused from base to base).
+void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t apos);
 
 // Phase 3: every base with work, claimed once, on `threads` workers; returns the bytes of the
 // workers' scratch. The importance does not depend on the thread count.

@@ -140,15 +140,18 @@ TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
   Prepared P(mask.dims());
   prepare(mask, P, 2, {}, false);
   const Buckets B = bucket_by_base(P);
-  ASSERT_EQ(B.start.size(), static_cast<size_t>(P.nl) + 1);
-  EXPECT_EQ(B.start.back(), static_cast<uint32_t>(P.k));
+  ASSERT_EQ(B.count.size(), static_cast<size_t>(P.nl));
+  EXPECT_EQ(B.end(static_cast<uint32_t>(P.nl) - 1), static_cast<uint32_t>(P.k));
   std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
-  for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
+  std::vector<int64_t> lpos;  // L-id -> padded position
+  for (int64_t pos = 0; pos < P.dom.bits(); ++pos) {
     if (P.obj.test(pos)) expect[P.base_of(pos)].push_back(pos);  // b is kept only as offsets here
+    if (P.layer.test(pos)) lpos.push_back(pos);
+  }
   for (int64_t l = 0; l < P.nl; ++l) {
     std::vector<int64_t> got;
-    for (uint32_t m = B.start[static_cast<size_t>(l)]; m < B.start[static_cast<size_t>(l) + 1]; ++m)
-      got.push_back(B.members[m]);
+    for (uint32_t m = B.begin(static_cast<uint32_t>(l)); m < B.end(static_cast<uint32_t>(l)); ++m)
+      got.push_back(B.member(m, lpos[static_cast<size_t>(l)]));
     EXPECT_EQ(got, expect[static_cast<size_t>(l)]) << l;
     EXPECT_EQ(B.has_work(static_cast<uint32_t>(l)), !got.empty());
   }
@@ -286,4 +289,117 @@ TEST(GeodesicPhases, SearchOverAllBasesAndThreshold) {
     threshold_surface(imp, skel, t, 2);
     for (int64_t i = 0; i < skel.size(); ++i) EXPECT_EQ(skel[i], i == s.mask.index(1, 1, 1) && t <= 4 ? 1 : 0);
   }
+}
+
+namespace {
+
+// Random blob-like objects: uniform noise, then a 6-neighbourhood majority pass.
+VolumeU8 blobs(Dims d, uint64_t seed, double fill) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  VolumeU8 v(d, 0), s(d, 0);
+  for (auto& x : v) x = u(rng) < fill ? 1 : 0;
+  for (int64_t z = 0; z < d[2]; ++z)
+    for (int64_t y = 0; y < d[1]; ++y)
+      for (int64_t x = 0; x < d[0]; ++x) {
+        const int c = v(x, y, z) + v.at_or(x - 1, y, z, 0) + v.at_or(x + 1, y, z, 0) + v.at_or(x, y - 1, z, 0) +
+                      v.at_or(x, y + 1, z, 0) + v.at_or(x, y, z - 1, 0) + v.at_or(x, y, z + 1, 0);
+        s(x, y, z) = c >= 4 ? 1 : 0;
+      }
+  return s;
+}
+
+struct SearchRun {
+  VolumeF32 importance;
+  int64_t searches, pivots, saturated, visited;
+};
+
+SearchRun run_search(const VolumeU8& mask, uint32_t t, int threads, bool force_box) {
+  Prepared P(mask.dims());
+  prepare(mask, P, threads, {}, false, false);
+  const Buckets B = bucket_by_base(P);
+  SearchRun r{VolumeF32(mask.grid(), 0.0f), 0, 0, 0, 0};
+  SearchShared sh(P, B, mask, r.importance.data(), t, false);
+  sh.force_box = force_box;
+  search_bases(sh, threads, {});
+  r.searches = sh.n_search.load();
+  r.pivots = sh.n_pivots.load();
+  r.saturated = sh.n_saturated.load();
+  r.visited = sh.n_visited.load();
+  return r;
+}
+
+}  // namespace
+
+// The block-local scratch (a box that moves from block to block, indexed by position) gives the
+// same importance as the dense scratch (indexed by L-id) and as the definition, and the same
+// counts, for 1 and 2 threads. 66 voxels in x make two 64-voxel x-blocks, so the box moves along
+// every axis and is clipped at the domain's faces.
+TEST(GeodesicPhases, BoxScratchEqualsDenseScratchAndReference) {
+  for (uint64_t seed : {5u, 6u}) {
+    const VolumeU8 m = blobs(Dims{66, 14, 12 + static_cast<int64_t>(seed)}, seed, 0.5);
+    for (uint32_t t : {4u, 9u}) {
+      // The definition (slow: a BFS over L per voxel) once; dense equals it on all of
+      // Geodesic.EqualsReferenceOnRandomObjects.
+      Options o;
+      o.threshold = t;
+      const bool with_ref = seed == 5 && t == 9;
+      const Result ref = with_ref ? boundary_distance_reference(m, o) : Result{};
+      const SearchRun dense = run_search(m, t, 1, false);
+      EXPECT_GT(dense.pivots, 0);
+      for (int threads : {1, 2}) {
+        const SearchRun box = run_search(m, t, threads, true);
+        SCOPED_TRACE("seed " + std::to_string(seed) + " t " + std::to_string(t) + " threads " + std::to_string(threads));
+        if (with_ref) {
+          EXPECT_TRUE(box.importance == ref.importance);
+        }
+        EXPECT_TRUE(box.importance == dense.importance);
+        EXPECT_EQ(box.searches, dense.searches);
+        EXPECT_EQ(box.pivots, dense.pivots);
+        EXPECT_EQ(box.saturated, dense.saturated);
+        EXPECT_EQ(box.visited, dense.visited);
+      }
+    }
+  }
+}
+
+// Buckets of 255 members and more (their count is kept aside): a solid cube with one background
+// voxel in its centre, which is the nearest background point of the ~900 voxels around it.
+TEST(GeodesicPhases, BucketsWithManyMembers) {
+  VolumeU8 mask(Dims{25, 25, 25}, 1);
+  mask(12, 12, 12) = 0;
+  Prepared P(mask.dims());
+  prepare(mask, P, 2, {}, true);
+  const Buckets B = bucket_by_base(P);
+  ASSERT_FALSE(B.big.empty());
+  const uint32_t cavity = static_cast<uint32_t>(P.layer.rank(P.dom.pos(14, 14, 14)));
+  EXPECT_GE(B.members_of(cavity), 255u);
+  std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
+  for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
+    if (P.obj.test(pos)) expect[P.b[P.obj.rank(pos)]].push_back(pos);
+  for (int64_t l = 0; l < P.nl; ++l) {
+    std::vector<int64_t> got;
+    for (uint32_t m = B.begin(static_cast<uint32_t>(l)); m < B.end(static_cast<uint32_t>(l)); ++m) got.push_back(B.member(m, P.lpos(static_cast<uint32_t>(l))));
+    ASSERT_EQ(got, expect[static_cast<size_t>(l)]) << l;
+  }
+  EXPECT_EQ(B.end(static_cast<uint32_t>(P.nl) - 1), static_cast<uint32_t>(P.k));
+  Options o;
+  o.threshold = 6;
+  EXPECT_TRUE(boundary_distance(mask, o).importance == boundary_distance_reference(mask, o).importance);
+}
+
+// Offsets beyond +-127 arise only deep inside objects more than 254 voxels thick all round: in a
+// solid 261³ cube the voxels of the central column below the centre have their nearest background
+// point on the face z = -1 straight below (131 steps from the centre: through the side table while
+// the rings run), and the ones nearer another face are not affected.
+TEST(GeodesicPhases, FarNearestPointsFromTheRings) {
+  const int64_t n = 261, c = 130;
+  VolumeU8 mask(Dims{n, n, n}, 1);
+  Prepared P(mask.dims());
+  prepare(mask, P, 2, {}, false, false);
+  EXPECT_FALSE(P.bfar.empty());
+  for (int64_t z = 0; z <= c; ++z)
+    ASSERT_EQ(P.base_pos(P.dom.pos(c + 2, c + 2, z + 2)), P.dom.pos(c + 2, c + 2, 1)) << z;
+  // Near the face x = 0, the base is straight across that face (an 8-bit offset).
+  EXPECT_EQ(P.base_pos(P.dom.pos(5 + 2, c + 2, c + 2)), P.dom.pos(1, c + 2, c + 2));
 }
