@@ -270,6 +270,9 @@ void start_worker(const std::string& helper, const fs::path& file) {
   // (`skelflow-hdf5-probe FILE` shows it).
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  // Nothing else of this process: descriptors opened without close-on-exec (std::ofstream's, a
+  // caller's pipe) would stay open as long as the worker lives.
+  posix_spawn_file_actions_addclosefrom_np(&actions, 3);
   posix_spawnattr_t attr;
   posix_spawnattr_init(&attr);
   sigset_t none, all;

@@ -2,7 +2,9 @@
 // error for each way a file can be wrong.
 #include <gtest/gtest.h>
 #include <hdf5.h>
+#include <poll.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cerrno>
 
@@ -571,6 +573,26 @@ TEST(Hdf5Probe, OneWorkerServesManyFilesAndSurvivesACrash) {
   EXPECT_EQ(io::detail::hdf5_probe_worker_pid(), -1);
   EXPECT_TRUE(zombie_or_gone(third));
   expect_no_child_left();
+}
+
+// The worker holds no descriptor of the caller: a pipe opened without close-on-exec (as std::ofstream
+// opens files) is not kept open by it, so a reader of that pipe sees its end. Failed before
+// posix_spawn closed the descriptors from 3 on in the worker.
+TEST(Hdf5Probe, TheWorkerKeepsNoDescriptorOfTheCaller) {
+  ASSERT_NE(io::detail::hdf5_probe_helper(), "") << "skelflow-hdf5-probe not found";
+  io::detail::stop_hdf5_probe_worker();
+  int p[2];
+  ASSERT_EQ(pipe(p), 0);
+  const fs::path file = scratch() / "fds.h5";
+  io::write_volume(file, random_volume<uint8_t>({3, 3, 3}, 1));
+  EXPECT_EQ(io::read_volume_info(file).dims, (Dims{3, 3, 3}));
+  ASSERT_GT(io::detail::hdf5_probe_worker_pid(), 0);
+  close(p[1]);
+  pollfd q{p[0], POLLIN, 0};
+  ASSERT_EQ(poll(&q, 1, 0), 1);
+  EXPECT_TRUE(q.revents & POLLHUP) << "a process still holds the pipe's write end";
+  close(p[0]);
+  io::detail::stop_hdf5_probe_worker();
 }
 
 // A worker started by a thread that ends dies with it (PR_SET_PDEATHSIG names the thread, not the
