@@ -245,7 +245,40 @@ std::vector<std::string> worker_environment() {
   return env;
 }
 
-void start_worker(const std::string& helper, const fs::path& file) {
+bool send_all(int fd, const void* data, size_t n) {
+  const auto* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::send(fd, p, n, MSG_NOSIGNAL);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return false;
+    p += r;
+    n -= static_cast<size_t>(r);
+  }
+  return true;
+}
+
+enum class Receive { done, ended, late };
+
+// Reads exactly `n` bytes before `deadline`: done, ended (EOF or error: the worker is gone) or late.
+Receive receive(int fd, void* data, size_t n, std::chrono::steady_clock::time_point deadline) {
+  auto* p = static_cast<char*>(data);
+  while (n > 0) {
+    pollfd q{fd, POLLIN, 0};
+    const int ms = ms_until(deadline);
+    const int r = poll(&q, 1, ms);
+    if (r < 0 && errno == EINTR) continue;
+    if (r == 0) return Receive::late;
+    if (r < 0) return Receive::ended;
+    const ssize_t got = ::recv(fd, p, n, 0);
+    if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+    if (got <= 0) return Receive::ended;
+    p += got;
+    n -= static_cast<size_t>(got);
+  }
+  return Receive::done;
+}
+
+void start_worker(const std::string& helper, const fs::path& file, double timeout) {
   const auto fail = [&](const std::string& what, int err) {
     throw Error("cannot check the HDF5 file " + file.string() + " in a separate process: " + what + ": " + std::strerror(err) +
                 " (SKEL_HDF5_PROBE=0 reads trusted files without this check)");
@@ -303,40 +336,25 @@ void start_worker(const std::string& helper, const fs::path& file) {
   }
   g_worker = Worker{pid, sv[0], getpid(), helper};
   ++g_workers_started;
+  // Wait until it is ready: a helper that cannot start (a missing shared library such as libasan8,
+  // a wrong program) is an error about the helper, not a verdict on the user's file.
+  uint32_t ready = 0;
+  const Receive got = receive(g_worker.fd, &ready, sizeof ready, deadline_after(std::max(timeout, 10.0)));
+  if (got == Receive::done && ready == probe::kWorkerReady) return;
+  kill(-pid, SIGKILL);
+  close(g_worker.fd);
+  int status = 0;
+  reap(pid, &status);
+  g_worker = Worker{};
+  const std::string how = got == Receive::late     ? "did not start within " + format_seconds(std::max(timeout, 10.0)) + " s"
+                          : WIFEXITED(status)      ? "exited with status " + std::to_string(WEXITSTATUS(status))
+                          : WIFSIGNALED(status)    ? "was killed by " + signal_name(WTERMSIG(status))
+                                                   : "did not answer as expected";
+  throw Error("cannot check the HDF5 file " + file.string() + ": the probe helper " + helper + " " + how +
+              " (run it with a file to see why; SKEL_HDF5_PROBE_HELPER names another, SKEL_HDF5_PROBE=0 reads trusted files "
+              "without this check)");
 }
 
-bool send_all(int fd, const void* data, size_t n) {
-  const auto* p = static_cast<const char*>(data);
-  while (n > 0) {
-    const ssize_t r = ::send(fd, p, n, MSG_NOSIGNAL);
-    if (r < 0 && errno == EINTR) continue;
-    if (r <= 0) return false;
-    p += r;
-    n -= static_cast<size_t>(r);
-  }
-  return true;
-}
-
-enum class Receive { done, ended, late };
-
-// Reads exactly `n` bytes before `deadline`: done, ended (EOF or error: the worker is gone) or late.
-Receive receive(int fd, void* data, size_t n, std::chrono::steady_clock::time_point deadline) {
-  auto* p = static_cast<char*>(data);
-  while (n > 0) {
-    pollfd q{fd, POLLIN, 0};
-    const int ms = ms_until(deadline);
-    const int r = poll(&q, 1, ms);
-    if (r < 0 && errno == EINTR) continue;
-    if (r == 0) return Receive::late;
-    if (r < 0) return Receive::ended;
-    const ssize_t got = ::recv(fd, p, n, 0);
-    if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-    if (got <= 0) return Receive::ended;
-    p += got;
-    n -= static_cast<size_t>(got);
-  }
-  return Receive::done;
-}
 
 // One request to the worker (caller holds g_worker_mutex); returns the refusal ("" when the file may
 // be read) and the names it covered.
@@ -357,7 +375,7 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
         stop_worker(false);
       }
     }
-    if (g_worker.pid <= 0) start_worker(helper, file);
+    if (g_worker.pid <= 0) start_worker(helper, file, timeout);
     {
       std::lock_guard lock(g_cache_mutex);
       ++g_started;

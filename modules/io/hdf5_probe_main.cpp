@@ -154,6 +154,9 @@ int serve(pid_t parent) {
   const rlimit as{base + kMemory, base + kMemory};
   setrlimit(RLIMIT_AS, &as);
   const pid_t server = getpid();
+  // Ready: the client waits for this before its first request (a helper that cannot start, e.g. a
+  // missing shared library, is then an error about the helper, not a verdict on a file).
+  if (!write_all(STDIN_FILENO, &kWorkerReady, sizeof kWorkerReady)) return 0;
   for (;;) {
     *current = 0;
     const pid_t walker = fork();

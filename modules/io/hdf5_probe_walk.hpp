@@ -4,6 +4,7 @@
 // skelflow-hdf5-probe (with AddressSanitizer where the compiler has it) and into skel_io (the
 // forked fallback when the helper is not found). Runs only in a process that may die of it.
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 namespace skel::io::probe {
@@ -13,6 +14,8 @@ constexpr int kWalkOk = 0;
 constexpr int kWalkOutOfMemory = 3;
 // The helper's answer when the process walking a file died (hdf5_probe_main.cpp).
 constexpr int kWalkDied = 9;
+// What the helper's worker sends once it is ready for requests.
+constexpr uint32_t kWorkerReady = 0x534b4850;
 // Bytes of dataset names reported at most (names beyond are probed again when asked for).
 constexpr size_t kMaxNameBytes = size_t{1} << 20;
 

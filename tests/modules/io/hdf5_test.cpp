@@ -692,6 +692,22 @@ TEST(Hdf5Probe, EnvironmentTurnsItOffAndSetsTheTimeout) {
               std::string::npos)
         << err.what();
   }
+  // A helper that does not start (here a program that exits at once, as one whose shared library is
+  // missing does) is an error about the helper, not a verdict on the file (before the start-up
+  // handshake the file was called damaged: "failed (exit status 1)").
+  ASSERT_EQ(setenv("SKEL_HDF5_PROBE_HELPER", "/bin/false", 1), 0);
+  try {
+    (void)io::read_volume_info(file);
+    ADD_FAILURE() << "read with a helper that does not start";
+  } catch (const InputError& err) {
+    ADD_FAILURE() << "an input error: " << err.what();
+  } catch (const Error& err) {
+    EXPECT_NE(std::string(err.what()).find("the probe helper /bin/false exited with status 1"), std::string::npos) << err.what();
+  }
   unsetenv("SKEL_HDF5_PROBE_HELPER");
   EXPECT_EQ(io::read_volume_info(file).dims, (Dims{3, 3, 3}));
+  io::detail::stop_hdf5_probe_worker();
+  errno = 0;
+  EXPECT_EQ(waitpid(-1, nullptr, WNOHANG), -1);
+  EXPECT_EQ(errno, ECHILD);
 }
