@@ -260,9 +260,12 @@ bool send_all(int fd, const void* data, size_t n) {
 enum class Receive { done, ended, late };
 
 // Reads exactly `n` bytes before `deadline`: done, ended (EOF or error: the worker is gone) or late.
+// The deadline first: what is there only after it came too late (poll's timeout is in whole
+// milliseconds, longer than a limit below one).
 Receive receive(int fd, void* data, size_t n, std::chrono::steady_clock::time_point deadline) {
   auto* p = static_cast<char*>(data);
   while (n > 0) {
+    if (std::chrono::steady_clock::now() >= deadline) return Receive::late;
     pollfd q{fd, POLLIN, 0};
     const int ms = ms_until(deadline);
     const int r = poll(&q, 1, ms);
