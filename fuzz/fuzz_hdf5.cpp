@@ -1,8 +1,11 @@
 // The HDF5 header path: the input is written to a scratch .h5 file, then read_volume_info and (when
 // the declared volume is small) read_volume open it as `/volume`, as io.read_volume does. Both go
-// through the structure probe (io/hdf5_probe.hpp): libhdf5's metadata walk runs first in a forked,
-// limited child, and a file that crashes it is refused. The probe's verdict cache is cleared for
-// every input: the scratch file is rewritten in place, often with the same size in the same clock tick.
+// through the structure probe (io/hdf5_probe.hpp), as a user's file does: libhdf5's metadata walk
+// runs first in the helper skelflow-hdf5-probe (a persistent, limited ASan worker process), and a
+// file that crashes it or makes a memory error there is refused (an InputError, no finding). The
+// probe's verdict cache is cleared for every input: the scratch file is rewritten in place, often
+// with the same size in the same clock tick.
+#include <cstdio>
 #include <cstdlib>
 
 #include "fuzz_common.hpp"
@@ -13,6 +16,11 @@
 // A probe that hangs must be refused within libFuzzer's 10 s per input (-timeout=10, scripts/fuzz.sh).
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   setenv("SKEL_HDF5_PROBE_TIMEOUT", "5", 0);
+  // The users' path: the helper program, not the forked fallback.
+  if (skel::io::detail::hdf5_probe_helper().empty()) {
+    std::fprintf(stderr, "fuzz_hdf5: skelflow-hdf5-probe not found (build it: ninja skelflow-hdf5-probe)\n");
+    std::abort();
+  }
   return 0;
 }
 

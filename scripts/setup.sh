@@ -7,6 +7,8 @@
 #     test          install + build everything + run the whole test suite (ctest); CI (.ci/run) then
 #                   runs scripts/ci_sanitize.sh: the suite again under ASan + UBSan in build-asan/
 # clang and libclang-rt-14-dev (libFuzzer) are for the fuzz targets: scripts/fuzz.sh, fuzz/README.md.
+# libasan8 (gcc's AddressSanitizer runtime; build-essential pulls it in) is also needed at run time by
+# skelflow-hdf5-probe, the HDF5 structure probe's helper (modules/io/hdf5_probe.hpp).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir="$here/build"
@@ -25,7 +27,7 @@ while [ $# -gt 0 ]; do
 done
 
 packages=(
-  build-essential cmake ninja-build pkg-config git ccache
+  build-essential cmake ninja-build pkg-config git ccache libasan8
   qtbase5-dev libqt5opengl5-dev libvtk9-dev libvtk9-qt-dev libx11-dev
   libhdf5-dev zlib1g-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
   libeigen3-dev libtbb-dev libnanoflann-dev libexpat1-dev libtiff-dev

@@ -1,16 +1,20 @@
-// The HDF5 structure probe (hdf5_probe.hpp): the readers' metadata walk in a forked, limited child.
+// The HDF5 structure probe (hdf5_probe.hpp): the readers' metadata walk (hdf5_probe_walk.hpp) in a
+// persistent helper process (skelflow-hdf5-probe), or in a forked child when the helper is not found.
 #include "io/hdf5_probe.hpp"
 
+#include <dlfcn.h>
 #include <fcntl.h>
-#include <hdf5.h>
 #include <poll.h>
 #include <signal.h>
+#include <spawn.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -35,7 +39,10 @@
 #include <sanitizer/common_interface_defs.h>
 #endif
 
+#include "io/hdf5_probe_walk.hpp"
 #include "skel/error.hpp"
+
+extern char** environ;
 
 namespace fs = std::filesystem;
 
@@ -43,24 +50,24 @@ namespace skel::io {
 
 namespace {
 
-// Address space the child may map beyond what the process had mapped when it forked. The readers'
-// metadata walk needs a few MiB; 1 GiB stays below libFuzzer's -malloc_limit_mb=1024, so that a
-// larger metadata allocation fails in the child instead of being reported by the fuzzer.
+// Address space the walk may map beyond what its process had mapped (the helper's start-up mapping,
+// or this process's for the forked child). The readers' metadata walk needs a few MiB; 1 GiB stays
+// below libFuzzer's -malloc_limit_mb=1024, so that a larger metadata allocation fails in the probe
+// instead of being reported by the fuzzer.
 constexpr uint64_t kChildMemory = uint64_t{1} << 30;
 constexpr double kDefaultTimeout = 60;
-// Exit codes of the child.
-constexpr int kChildOk = 0;
-constexpr int kChildOutOfMemory = 3;
-// Bytes of dataset names the child reports at most (names beyond are probed again when asked for).
-constexpr size_t kMaxNameBytes = size_t{1} << 20;
+// Exit status of the helper when AddressSanitizer stopped it (its exitcode, hdf5_probe_main.cpp).
+constexpr int kSanitizerExit = 66;
+constexpr const char* kHelperName = "skelflow-hdf5-probe";
 
-// The attributes the readers read (hdf5_volume.cpp: read_geometry, read_string_attribute).
-constexpr const char* kVec3Attributes[] = {"spacing", "origin", "element_size_um"};
-constexpr const char* kStringAttributes[] = {"unit", "encoding"};
+enum class Mode { off, helper, fork };
 
-bool probe_enabled() {
+Mode probe_mode() {
   const char* v = std::getenv("SKEL_HDF5_PROBE");
-  return !(v && std::string(v) == "0");
+  if (!v || !*v || std::string(v) == "1") return Mode::helper;
+  if (std::string(v) == "0") return Mode::off;
+  if (std::string(v) == "fork") return Mode::fork;
+  throw Error(std::string("SKEL_HDF5_PROBE must be 0 (off), 1 (the helper program, the default) or fork, got '") + v + "'");
 }
 
 double probe_timeout() {
@@ -70,247 +77,8 @@ double probe_timeout() {
   const double s = std::strtod(v, &end);
   if (end == v || *end != '\0' || !std::isfinite(s) || s <= 0)
     throw Error(std::string("SKEL_HDF5_PROBE_TIMEOUT must be a number of seconds > 0, got '") + v + "'");
-  return s;
+  return std::min(s, 1e7);  // ~4 months: "no limit" without overflowing the clock arithmetic
 }
-
-// ------------------------------------------------------------------ the child (libhdf5 only)
-
-bool g_out_of_memory = false;
-
-herr_t note_allocation_failure(unsigned, const H5E_error2_t* e, void*) {
-  if (e && (e->min_num == H5E_NOSPACE || e->min_num == H5E_CANTALLOC)) g_out_of_memory = true;
-  return 0;
-}
-
-// HDF5's automatic error handler in the child: prints nothing, notes failed allocations.
-herr_t on_hdf5_error(hid_t stack, void*) {
-  H5Ewalk2(stack, H5E_WALK_DOWNWARD, note_allocation_failure, nullptr);
-  return 0;
-}
-
-void close_if(hid_t id, herr_t (*close)(hid_t)) {
-  if (id >= 0) close(id);
-}
-
-// Every path prefix of `name` looked up as open_dataset does ("/a", "/a/b", ...).
-void look_up(hid_t file, const std::string& name) {
-  std::string partial;
-  size_t pos = 1;
-  while (pos <= name.size()) {
-    const size_t slash = name.find('/', pos);
-    const size_t end = slash == std::string::npos ? name.size() : slash;
-    partial = name.substr(0, end);
-    if (end > pos && H5Lexists(file, partial.c_str(), H5P_DEFAULT) <= 0) return;
-    pos = end + 1;
-  }
-}
-
-void read_vec3(hid_t obj, const char* name) {
-  if (H5Aexists(obj, name) <= 0) return;
-  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
-  const hid_t s = a >= 0 ? H5Aget_space(a) : -1;
-  if (s >= 0 && H5Sget_simple_extent_npoints(s) == 3) {
-    double v[3];
-    H5Aread(a, H5T_NATIVE_DOUBLE, v);
-  }
-  close_if(s, H5Sclose);
-  close_if(a, H5Aclose);
-}
-
-void read_string(hid_t obj, const char* name) {
-  if (H5Aexists(obj, name) <= 0) return;
-  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
-  const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
-  if (t >= 0 && H5Tget_class(t) == H5T_STRING) {
-    const hid_t mem = H5Tcopy(H5T_C_S1);
-    H5Tset_cset(mem, H5Tget_cset(t));
-    if (H5Tis_variable_str(t) > 0) {
-      H5Tset_size(mem, H5T_VARIABLE);
-      char* value = nullptr;
-      if (H5Aread(a, mem, &value) >= 0) H5free_memory(value);
-    } else {
-      const size_t n = H5Tget_size(t);
-      std::string buf(n + 1, '\0');
-      H5Tset_size(mem, n + 1);
-      H5Aread(a, mem, buf.data());
-    }
-    close_if(mem, H5Tclose);
-  }
-  close_if(t, H5Tclose);
-  close_if(a, H5Aclose);
-}
-
-herr_t touch_attribute(hid_t obj, const char* name, const H5A_info_t*, void*) {
-  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
-  if (a < 0) return 0;
-  const hid_t s = H5Aget_space(a), t = H5Aget_type(a);
-  if (s >= 0) H5Sget_simple_extent_npoints(s);
-  if (t >= 0) {
-    H5Tget_class(t);
-    H5Tget_size(t);
-  }
-  close_if(t, H5Tclose);
-  close_if(s, H5Sclose);
-  H5Aclose(a);
-  return 0;
-}
-
-// What open_volume, check_declared_size and read_volume_info ask of a dataset, and its chunk index.
-void walk_dataset(hid_t file, const std::string& name) {
-  const hid_t dapl = H5Pcreate(H5P_DATASET_ACCESS);
-  H5Pset_chunk_cache(dapl, 12421, 256u << 20, 1.0);
-  const hid_t d = H5Dopen2(file, name.c_str(), dapl);
-  H5Pclose(dapl);
-  if (d < 0) return;
-  const hid_t space = H5Dget_space(d);
-  if (space >= 0 && H5Sget_simple_extent_ndims(space) == 3) {
-    hsize_t dims[3];
-    H5Sget_simple_extent_dims(space, dims, nullptr);
-  }
-  const hid_t type = H5Dget_type(d);
-  if (type >= 0) {
-    H5Tget_class(type);
-    H5Tget_size(type);
-    H5Tget_sign(type);
-  }
-  const hid_t plist = H5Dget_create_plist(d);
-  if (plist >= 0) {
-    if (H5Pget_layout(plist) == H5D_CHUNKED) {
-      hsize_t c[3];
-      H5Pget_chunk(plist, 3, c);
-      hsize_t n = 0;
-      if (space >= 0 && H5Dget_num_chunks(d, space, &n) >= 0 && n > 0) {  // walks the whole chunk index
-        hsize_t offset[H5S_MAX_RANK];
-        unsigned mask = 0;
-        haddr_t addr = 0;
-        hsize_t size = 0;
-        H5Dget_chunk_info(d, space, 0, offset, &mask, &addr, &size);
-        H5Dget_chunk_info(d, space, n - 1, offset, &mask, &addr, &size);
-      }
-    }
-    const int nf = H5Pget_nfilters(plist);
-    for (int i = 0; i < nf; ++i) {
-      unsigned flags = 0, config = 0;
-      size_t nelem = 0;
-      char fname[64] = {0};
-      const H5Z_filter_t f = H5Pget_filter2(plist, static_cast<unsigned>(i), &flags, &nelem, nullptr, sizeof fname, fname, &config);
-      if (f >= 0) H5Zfilter_avail(f);
-    }
-    H5Pget_external_count(plist);
-  }
-  H5Dget_storage_size(d);
-  hsize_t file_size = 0;
-  H5Fget_filesize(file, &file_size);
-  close_if(plist, H5Pclose);
-  close_if(type, H5Tclose);
-  close_if(space, H5Sclose);
-  H5Dclose(d);
-}
-
-// An object by name: its attributes (all of them opened, the readers' ones read as the readers
-// read them) and, for a dataset, walk_dataset.
-void walk_object(hid_t file, const std::string& name) {
-  look_up(file, name);
-  const hid_t obj = H5Oopen(file, name.c_str(), H5P_DEFAULT);
-  if (obj < 0) return;
-  hsize_t at = 0;
-  H5Aiterate2(obj, H5_INDEX_NAME, H5_ITER_NATIVE, &at, touch_attribute, nullptr);
-  for (const char* a : kVec3Attributes) read_vec3(obj, a);
-  for (const char* a : kStringAttributes) read_string(obj, a);
-  const H5I_type_t kind = H5Iget_type(obj);
-  H5Oclose(obj);
-  if (kind == H5I_DATASET) walk_dataset(file, name);
-}
-
-struct Visited {
-  std::vector<std::string> objects, datasets;
-};
-
-herr_t collect(hid_t, const char* name, const H5O_info_t* info, void* data) {
-  auto* v = static_cast<Visited*>(data);
-  const std::string path = std::string(name) == "." ? std::string("/") : std::string("/") + name;
-  v->objects.push_back(path);
-  if (info->type == H5O_TYPE_DATASET) v->datasets.push_back(path);
-  return 0;
-}
-
-void write_all(int fd, const std::string& s) {
-  size_t done = 0;
-  while (done < s.size()) {
-    const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return;
-    done += static_cast<size_t>(n);
-  }
-}
-
-// The readers' walk over the whole file, then the lookup of `dataset`; reports the names of the
-// datasets it walked on `out` (NUL-separated).
-int walk_file(const char* path, const std::string& dataset, int out) {
-  if (H5Fis_hdf5(path) <= 0) return kChildOk;  // the reader refuses it in-process, as before
-  const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
-  const hid_t file = H5Fopen(path, H5F_ACC_RDONLY, fapl);
-  H5Pclose(fapl);
-  if (file < 0) return g_out_of_memory ? kChildOutOfMemory : kChildOk;
-  Visited v;
-  H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_NATIVE, collect, &v, H5O_INFO_BASIC);
-  if (v.objects.empty()) v.objects.push_back("/");
-  for (const auto& o : v.objects) walk_object(file, o);
-  if (!dataset.empty() && dataset[0] == '/') {
-    look_up(file, dataset);
-    walk_object(file, dataset);
-    // The group whose element_size_um read_geometry reads.
-    const std::string group = dataset.substr(0, dataset.rfind('/'));
-    walk_object(file, group.empty() ? "/" : group);
-  }
-  H5Fclose(file);
-  if (g_out_of_memory) return kChildOutOfMemory;
-  std::string names;
-  for (const auto& d : v.datasets) {
-    if (names.size() + d.size() + 1 > kMaxNameBytes) break;
-    names += d;
-    names += '\0';
-  }
-  write_all(out, names);
-  return kChildOk;
-}
-
-[[noreturn]] void child_main(const char* path, const std::string& dataset, int out, pid_t parent, uint64_t address_limit,
-                             double timeout) {
-  // Die with the parent; the parent's handlers (libFuzzer's, sanitizers', the CLI's) do not apply here.
-  prctl(PR_SET_PDEATHSIG, SIGKILL);
-  if (getppid() != parent) _exit(kChildOk);
-  for (int s : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP, SIGSYS, SIGALRM, SIGXCPU, SIGTERM, SIGINT, SIGHUP, SIGQUIT, SIGPIPE})
-    signal(s, SIG_DFL);
-  sigset_t all;
-  sigemptyset(&all);
-  sigprocmask(SIG_SETMASK, &all, nullptr);
-#ifdef SKEL_PROBE_ASAN
-  __sanitizer_set_death_callback(nullptr);  // libFuzzer's would save the input as its own finding
-#endif
-  // Silent: the verdict is the exit status (a sanitizer's report of libhdf5's bug would otherwise
-  // reach the user's terminal; SKEL_HDF5_PROBE=0 reproduces it in-process).
-  const int null = open("/dev/null", O_WRONLY | O_CLOEXEC);
-  if (null >= 0) {
-    dup2(null, STDOUT_FILENO);
-    dup2(null, STDERR_FILENO);
-  }
-  const rlimit no_core{0, 0};
-  setrlimit(RLIMIT_CORE, &no_core);
-  const rlimit as{address_limit, address_limit};
-  setrlimit(RLIMIT_AS, &as);
-  alarm(static_cast<unsigned>(std::ceil(timeout)) + 2);  // a second stop, should the parent be gone
-  H5Eset_auto2(H5E_DEFAULT, on_hdf5_error, nullptr);
-  int code = kChildOk;
-  try {
-    code = walk_file(path, dataset, out);
-  } catch (...) {  // std::bad_alloc of the names under the address-space limit
-    code = kChildOutOfMemory;
-  }
-  _exit(code);
-}
-
-// ------------------------------------------------------------------ the parent
 
 // Bytes of address space this process has mapped (/proc/self/statm, first field, in pages).
 uint64_t mapped_bytes() {
@@ -359,9 +127,352 @@ std::string format_seconds(double s) {
   return o.str();
 }
 
-// Runs one probe process; returns the refusal ("" when the file may be read) and the names it covered.
-std::string run_probe(const fs::path& file, const std::string& dataset, std::set<std::string>& names) {
-  const double timeout = probe_timeout();
+std::string damaged(const fs::path& file, const std::string& what) {
+  return file.string() + " is damaged: the HDF5 library " + what + " reading its structure in a separate process; not opened";
+}
+
+std::string timed_out(const fs::path& file, double timeout) {
+  return damaged(file, "did not finish within " + format_seconds(timeout) + " s") + " (SKEL_HDF5_PROBE_TIMEOUT sets the limit)";
+}
+
+// The verdict on a probe process that ended before it answered (status from waitpid).
+std::string ended(const fs::path& file, int status) {
+  if (WIFSIGNALED(status)) return damaged(file, "crashed (" + signal_name(WTERMSIG(status)) + ")");
+  if (WIFEXITED(status) && WEXITSTATUS(status) == probe::kWalkOutOfMemory)
+    return damaged(file, "needed more than " + std::to_string(kChildMemory >> 20) + " MiB of memory");
+  if (WIFEXITED(status) && WEXITSTATUS(status) == kSanitizerExit) return damaged(file, "made a memory error (AddressSanitizer)");
+  return damaged(file, "failed (exit status " + std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")");
+}
+
+std::chrono::steady_clock::time_point deadline_after(double timeout) {
+  return std::chrono::steady_clock::now() +
+         std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(timeout));
+}
+
+// Milliseconds to `deadline`, rounded up, at least 0.
+int ms_until(std::chrono::steady_clock::time_point deadline) {
+  const auto left = std::chrono::duration_cast<std::chrono::microseconds>(deadline - std::chrono::steady_clock::now()).count();
+  if (left <= 0) return 0;
+  return static_cast<int>(std::min<long long>((left + 999) / 1000, 1 << 30));
+}
+
+void reap(pid_t pid, int* status = nullptr) {
+  int s = 0;
+  while (waitpid(pid, &s, 0) < 0 && errno == EINTR) {
+  }
+  if (status) *status = s;
+}
+
+void add_names(const std::string& out, std::set<std::string>& names) {
+  for (size_t b = 0; b < out.size();) {
+    const size_t e = out.find('\0', b);
+    if (e == std::string::npos) break;
+    names.insert(out.substr(b, e - b));
+    b = e + 1;
+  }
+}
+
+// ------------------------------------------------------------------ the helper program, as a worker
+
+// The helper program: SKEL_HDF5_PROBE_HELPER, else skelflow-hdf5-probe beside this program (or
+// beside the shared object this code is in, or in its ../bin), else the one of the build tree; ""
+// when there is none.
+std::string find_helper() {
+  if (const char* v = std::getenv("SKEL_HDF5_PROBE_HELPER"); v && *v) {
+    if (::access(v, X_OK) != 0)
+      throw Error(std::string("SKEL_HDF5_PROBE_HELPER=") + v + " is not an executable program: " + std::strerror(errno));
+    return v;
+  }
+  std::vector<fs::path> dirs;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) dirs.push_back(self.parent_path());
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&probe_hdf5_file), &info) != 0 && info.dli_fname && info.dli_fname[0] == '/') {
+    const fs::path object = fs::path(info.dli_fname).parent_path();
+    dirs.push_back(object);
+    dirs.push_back(object.parent_path() / "bin");
+  }
+  for (const auto& d : dirs) {
+    const fs::path p = d / kHelperName;
+    if (::access(p.c_str(), X_OK) == 0) return p.string();
+  }
+#ifdef SKEL_HDF5_PROBE_BUILD_PATH
+  if (::access(SKEL_HDF5_PROBE_BUILD_PATH, X_OK) == 0) return SKEL_HDF5_PROBE_BUILD_PATH;
+#endif
+  return "";
+}
+
+struct Worker {
+  pid_t pid = -1;
+  int fd = -1;       // this process's end of the socket
+  pid_t owner = -1;  // the process that started it (a forked copy of this process must not use it)
+  std::string helper;
+};
+
+std::mutex g_worker_mutex;
+Worker g_worker;
+int64_t g_workers_started = 0;
+uint32_t g_request_id = 0;
+
+// Ends the worker (caller holds g_worker_mutex): closing the socket makes it exit; it is reaped.
+void stop_worker(bool kill_it) {
+  if (g_worker.owner != getpid()) {  // inherited through fork: not this process's child
+    if (g_worker.fd >= 0) close(g_worker.fd);
+    g_worker = Worker{};
+    return;
+  }
+  if (g_worker.fd >= 0) close(g_worker.fd);
+  if (g_worker.pid > 0) {
+    if (kill_it) kill(-g_worker.pid, SIGKILL);  // its process group: the server and its walker
+    reap(g_worker.pid);
+  }
+  g_worker = Worker{};
+}
+
+// The worker's environment: this process's, without the sanitizer settings meant for it (the helper
+// sets its own, hdf5_probe_main.cpp), and no symbolizing of the reports nobody reads (that started
+// llvm-symbolizer for every file with a memory error: 40 % of the fuzz target's time).
+std::vector<std::string> worker_environment() {
+  std::vector<std::string> env;
+  for (char** e = environ; e && *e; ++e) {
+    const std::string v = *e;
+    if (v.rfind("ASAN_OPTIONS=", 0) == 0 || v.rfind("LSAN_OPTIONS=", 0) == 0 || v.rfind("UBSAN_OPTIONS=", 0) == 0) continue;
+    env.push_back(v);
+  }
+  env.push_back("ASAN_OPTIONS=symbolize=0");
+  env.push_back("UBSAN_OPTIONS=symbolize=0:print_stacktrace=0:halt_on_error=1");
+  return env;
+}
+
+bool send_all(int fd, const void* data, size_t n) {
+  const auto* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t r = ::send(fd, p, n, MSG_NOSIGNAL);
+    if (r < 0 && errno == EINTR) continue;
+    if (r <= 0) return false;
+    p += r;
+    n -= static_cast<size_t>(r);
+  }
+  return true;
+}
+
+enum class Receive { done, ended, late };
+
+// Reads exactly `n` bytes before `deadline`: done, ended (EOF or error: the worker is gone) or late.
+// The deadline first: what is there only after it came too late (poll's timeout is in whole
+// milliseconds, longer than a limit below one).
+Receive receive(int fd, void* data, size_t n, std::chrono::steady_clock::time_point deadline) {
+  auto* p = static_cast<char*>(data);
+  while (n > 0) {
+    if (std::chrono::steady_clock::now() >= deadline) return Receive::late;
+    pollfd q{fd, POLLIN, 0};
+    const int ms = ms_until(deadline);
+    const int r = poll(&q, 1, ms);
+    if (r < 0 && errno == EINTR) continue;
+    if (r == 0) return Receive::late;
+    if (r < 0) return Receive::ended;
+    const ssize_t got = ::recv(fd, p, n, 0);
+    if (got < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+    if (got <= 0) return Receive::ended;
+    p += got;
+    n -= static_cast<size_t>(got);
+  }
+  return Receive::done;
+}
+
+void start_worker(const std::string& helper, const fs::path& file, double timeout) {
+  const auto fail = [&](const std::string& what, int err) {
+    throw Error("cannot check the HDF5 file " + file.string() + " in a separate process: " + what + ": " + std::strerror(err) +
+                " (SKEL_HDF5_PROBE=0 reads trusted files without this check)");
+  };
+  int sv[2];
+  if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0) fail("socketpair", errno);
+  // The worker's end becomes its stdin; it must not be 0-2 already (dup2 onto itself would keep
+  // close-on-exec).
+  int child_end = sv[1];
+  if (child_end <= 2) {
+    child_end = fcntl(sv[1], F_DUPFD_CLOEXEC, 3);
+    close(sv[1]);
+    if (child_end < 0) {
+      close(sv[0]);
+      fail("fcntl", errno);
+    }
+  }
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_adddup2(&actions, child_end, STDIN_FILENO);
+  // Silent: a sanitizer's report of libhdf5's bug would otherwise reach the user's terminal
+  // (`skelflow-hdf5-probe FILE` shows it).
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  // Nothing else of this process: descriptors opened without close-on-exec (std::ofstream's, a
+  // caller's pipe) would stay open as long as the worker lives.
+  posix_spawn_file_actions_addclosefrom_np(&actions, 3);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t none, all;
+  sigemptyset(&none);
+  sigfillset(&all);
+  sigdelset(&all, SIGKILL);
+  sigdelset(&all, SIGSTOP);
+  posix_spawnattr_setsigmask(&attr, &none);
+  posix_spawnattr_setsigdefault(&attr, &all);  // not this process's ignored signals or handlers
+  // Its own process group: a Ctrl-C at the terminal cancels the run (which stops asking), not the walk.
+  posix_spawnattr_setpgroup(&attr, 0);
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETPGROUP);
+  const std::string parent = std::to_string(getpid());
+  std::vector<std::string> env = worker_environment();
+  std::vector<char*> envp;
+  for (auto& e : env) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  std::string arg0 = helper, arg1 = "--worker", arg2 = parent;
+  char* argv[] = {arg0.data(), arg1.data(), arg2.data(), nullptr};
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, helper.c_str(), &actions, &attr, argv, envp.data());
+  posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attr);
+  close(child_end);
+  if (rc != 0) {
+    close(sv[0]);
+    fail("cannot start " + helper, rc);
+  }
+  g_worker = Worker{pid, sv[0], getpid(), helper};
+  ++g_workers_started;
+  // Wait until it is ready: a helper that cannot start (a missing shared library such as libasan8,
+  // a wrong program) is an error about the helper, not a verdict on the user's file.
+  uint32_t ready = 0;
+  const Receive got = receive(g_worker.fd, &ready, sizeof ready, deadline_after(std::max(timeout, 10.0)));
+  if (got == Receive::done && ready == probe::kWorkerReady) return;
+  kill(-pid, SIGKILL);
+  close(g_worker.fd);
+  int status = 0;
+  reap(pid, &status);
+  g_worker = Worker{};
+  const std::string how = got == Receive::late     ? "did not start within " + format_seconds(std::max(timeout, 10.0)) + " s"
+                          : WIFEXITED(status)      ? "exited with status " + std::to_string(WEXITSTATUS(status))
+                          : WIFSIGNALED(status)    ? "was killed by " + signal_name(WTERMSIG(status))
+                                                   : "did not answer as expected";
+  throw Error("cannot check the HDF5 file " + file.string() + ": the probe helper " + helper + " " + how +
+              " (run it with a file to see why; SKEL_HDF5_PROBE_HELPER names another, SKEL_HDF5_PROBE=0 reads trusted files "
+              "without this check)");
+}
+
+
+// One request to the worker (caller holds g_worker_mutex); returns the refusal ("" when the file may
+// be read) and the names it covered.
+std::string ask_worker(const std::string& helper, const fs::path& file, const std::string& dataset, double timeout,
+                       std::set<std::string>& names) {
+  const std::string path = file.string();
+  if (path.size() > (size_t{1} << 20) || dataset.size() > (size_t{1} << 20))
+    throw InputError(path + ": the file or dataset name is too long to be checked");
+  for (int attempt = 0;; ++attempt) {
+    if (g_worker.owner != getpid() || g_worker.helper != helper) stop_worker(false);
+    if (g_worker.pid > 0) {
+      // A worker that ended between requests (it failed, or the thread that started it ended:
+      // PR_SET_PDEATHSIG) is reaped and replaced.
+      int status = 0;
+      const pid_t w = waitpid(g_worker.pid, &status, WNOHANG);
+      if (w == g_worker.pid || (w < 0 && errno == ECHILD)) {
+        g_worker.pid = -1;
+        stop_worker(false);
+      }
+    }
+    if (g_worker.pid <= 0) start_worker(helper, file, timeout);
+    {
+      std::lock_guard lock(g_cache_mutex);
+      ++g_started;
+    }
+    const auto deadline = deadline_after(timeout);
+    const uint32_t id = ++g_request_id == 0 ? ++g_request_id : g_request_id;
+    const uint32_t head[4] = {static_cast<uint32_t>(path.size()), static_cast<uint32_t>(dataset.size()),
+                              static_cast<uint32_t>(std::ceil(timeout)) + 2, id};
+    const bool sent = send_all(g_worker.fd, head, sizeof head) && send_all(g_worker.fd, path.data(), path.size()) &&
+                      send_all(g_worker.fd, dataset.data(), dataset.size());
+    uint32_t reply[3] = {0, 0, 0};
+    std::string out;
+    Receive got = sent ? Receive::done : Receive::ended;
+    // Answers to an earlier request (none is expected: requests are answered in order) are skipped.
+    while (got == Receive::done) {
+      got = receive(g_worker.fd, reply, sizeof reply, deadline);
+      if (got != Receive::done) break;
+      if (reply[2] > probe::kMaxNameBytes) {  // not the protocol: a worker gone wrong
+        kill(-g_worker.pid, SIGKILL);
+        got = Receive::ended;
+        break;
+      }
+      out.assign(reply[2], '\0');
+      got = receive(g_worker.fd, out.data(), out.size(), deadline);
+      if (got == Receive::done && reply[0] == id) break;
+    }
+    if (got == Receive::late) {
+      stop_worker(true);
+      return timed_out(file, timeout);
+    }
+    if (got == Receive::ended) {
+      const pid_t pid = g_worker.pid;
+      close(g_worker.fd);
+      int status = 0;
+      reap(pid, &status);
+      g_worker = Worker{};
+      // Killed by a SIGKILL this process did not send before it answered: most likely
+      // PR_SET_PDEATHSIG (the thread that started it ended just now). Once more with a new worker.
+      if (attempt == 0 && ((WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) || !sent)) continue;
+      return ended(file, status);
+    }
+    if (reply[1] == probe::kWalkDied) {  // the walker died on this file; the worker goes on
+      int status = 0;
+      if (out.size() == sizeof status) std::memcpy(&status, out.data(), sizeof status);
+      return ended(file, status);
+    }
+    if (reply[1] == probe::kWalkOutOfMemory) return damaged(file, "needed more than " + std::to_string(kChildMemory >> 20) + " MiB of memory");
+    add_names(out, names);
+    return "";
+  }
+}
+
+// ------------------------------------------------------------------ the forked child (no helper)
+
+[[noreturn]] void child_main(const char* path, const std::string& dataset, int out, pid_t parent, uint64_t address_limit,
+                             double timeout) {
+  // Die with the parent; the parent's handlers (libFuzzer's, sanitizers', the CLI's) do not apply here.
+  prctl(PR_SET_PDEATHSIG, SIGKILL);
+  if (getppid() != parent) _exit(probe::kWalkOk);
+  for (int s : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGTRAP, SIGSYS, SIGALRM, SIGXCPU, SIGTERM, SIGINT, SIGHUP, SIGQUIT, SIGPIPE})
+    signal(s, SIG_DFL);
+  sigset_t all;
+  sigemptyset(&all);
+  sigprocmask(SIG_SETMASK, &all, nullptr);
+#ifdef SKEL_PROBE_ASAN
+  __sanitizer_set_death_callback(nullptr);  // libFuzzer's would save the input as its own finding
+#endif
+  const int null = open("/dev/null", O_WRONLY | O_CLOEXEC);
+  if (null >= 0) {
+    dup2(null, STDOUT_FILENO);
+    dup2(null, STDERR_FILENO);
+  }
+  const rlimit no_core{0, 0};
+  setrlimit(RLIMIT_CORE, &no_core);
+  const rlimit as{address_limit, address_limit};
+  setrlimit(RLIMIT_AS, &as);
+  alarm(static_cast<unsigned>(std::ceil(timeout)) + 2);  // a second stop, should the parent be gone
+  probe::quiet_hdf5_errors();
+  std::string names;
+  const int code = probe::walk_file(path, dataset, names);
+  if (code == probe::kWalkOk) {
+    size_t done = 0;
+    while (done < names.size()) {
+      const ssize_t n = ::write(out, names.data() + done, names.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;
+      done += static_cast<size_t>(n);
+    }
+  }
+  _exit(code);
+}
+
+// One forked probe process; returns the refusal ("" when the file may be read) and the names it covered.
+std::string fork_probe(const fs::path& file, const std::string& dataset, double timeout, std::set<std::string>& names) {
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0)
     throw Error("cannot check the HDF5 file " + file.string() + " in a separate process: pipe: " + std::strerror(errno) +
@@ -369,7 +480,7 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
   const uint64_t limit = mapped_bytes() + kChildMemory;
   const pid_t parent = getpid();
   const std::string path = file.string();
-  const auto start = std::chrono::steady_clock::now();  // the time counts from the fork
+  const auto deadline = deadline_after(timeout);  // the time counts from the fork
   const pid_t pid = fork();
   if (pid < 0) {
     const int err = errno;
@@ -390,16 +501,15 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
   fcntl(fds[0], F_SETFL, O_NONBLOCK);
   // Reads what the child reports and waits for it, at most `timeout` seconds. The pipe is not relied
   // on for the end: a process forked meanwhile by another thread may hold its write end.
-  const auto deadline = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(timeout));
   std::string out;
   int status = 0;
-  bool timed_out = false;
+  bool late = false;
   auto drain = [&] {
     char buf[65536];
     for (;;) {
       const ssize_t n = read(fds[0], buf, sizeof buf);
       if (n > 0) {
-        if (out.size() < kMaxNameBytes) out.append(buf, static_cast<size_t>(n));
+        if (out.size() < probe::kMaxNameBytes) out.append(buf, static_cast<size_t>(n));
         continue;
       }
       if (n < 0 && errno == EINTR) continue;
@@ -408,12 +518,10 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
   };
   for (;;) {
     // The deadline first: a child the parent sees only after the deadline did not finish in time.
-    const auto now = std::chrono::steady_clock::now();
-    if (now >= deadline) {
+    if (std::chrono::steady_clock::now() >= deadline) {
       kill(pid, SIGKILL);
-      while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-      }
-      timed_out = true;
+      reap(pid, &status);
+      late = true;
       break;
     }
     const pid_t w = waitpid(pid, &status, WNOHANG);
@@ -422,35 +530,24 @@ std::string run_probe(const fs::path& file, const std::string& dataset, std::set
       status = -1;
       break;
     }
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count();
     pollfd p{fds[0], POLLIN, 0};
     // Short polls: the child's exit is seen by waitpid within 20 ms even when the pipe stays open.
-    if (poll(&p, 1, static_cast<int>(std::min<long long>(left + 1, 20))) > 0) drain();
+    if (poll(&p, 1, std::min(ms_until(deadline) + 1, 20)) > 0) drain();
   }
   drain();
   close(fds[0]);
-  const std::string what = file.string() + " is damaged: the HDF5 library ";
-  const std::string tail = " reading its structure in a separate process; not opened";
-  if (timed_out) return what + "did not finish within " + format_seconds(timeout) + " s" + tail + " (SKEL_HDF5_PROBE_TIMEOUT sets the limit)";
+  if (late) return timed_out(file, timeout);
   if (status == -1) return "";  // the child was reaped elsewhere (a SIGCHLD handler): no verdict, read as before
-  if (WIFSIGNALED(status)) return what + "crashed (" + signal_name(WTERMSIG(status)) + ")" + tail;
-  if (WIFEXITED(status) && WEXITSTATUS(status) == kChildOutOfMemory)
-    return what + "needed more than " + std::to_string(kChildMemory >> 20) + " MiB of memory" + tail;
-  if (WIFEXITED(status) && WEXITSTATUS(status) != kChildOk)
-    return what + "failed (exit status " + std::to_string(WEXITSTATUS(status)) + ", e.g. a sanitizer report)" + tail;
-  for (size_t b = 0; b < out.size();) {
-    const size_t e = out.find('\0', b);
-    if (e == std::string::npos) break;
-    names.insert(out.substr(b, e - b));
-    b = e + 1;
-  }
+  if (!(WIFEXITED(status) && WEXITSTATUS(status) == probe::kWalkOk)) return ended(file, status);
+  add_names(out, names);
   return "";
 }
 
 }  // namespace
 
 void probe_hdf5_file(const fs::path& file, const std::string& dataset) {
-  if (!probe_enabled()) return;
+  const Mode mode = probe_mode();
+  if (mode == Mode::off) return;
   struct stat st {};
   if (::stat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return;  // the reader says what is wrong
   Stamp stamp{st.st_dev, st.st_ino, st.st_size, int64_t{st.st_mtim.tv_sec} * 1000000000 + st.st_mtim.tv_nsec,
@@ -468,8 +565,14 @@ void probe_hdf5_file(const fs::path& file, const std::string& dataset) {
       known = true;  // the file was walked; the lookup of this name was not
     }
   }
+  const double timeout = probe_timeout();
   std::set<std::string> names;
-  const std::string refusal = run_probe(file, dataset, names);
+  std::string refusal;
+  {
+    std::lock_guard lock(g_worker_mutex);
+    const std::string helper = mode == Mode::helper ? find_helper() : std::string();
+    refusal = helper.empty() ? fork_probe(file, dataset, timeout, names) : ask_worker(helper, file, dataset, timeout, names);
+  }
   {
     std::lock_guard lock(g_cache_mutex);
     Verdict& v = g_cache[key];
@@ -485,6 +588,19 @@ namespace detail {
 int64_t hdf5_probes_started() {
   std::lock_guard lock(g_cache_mutex);
   return g_started;
+}
+int64_t hdf5_probe_workers_started() {
+  std::lock_guard lock(g_worker_mutex);
+  return g_workers_started;
+}
+int hdf5_probe_worker_pid() {
+  std::lock_guard lock(g_worker_mutex);
+  return g_worker.owner == getpid() ? g_worker.pid : -1;
+}
+std::string hdf5_probe_helper() { return probe_mode() == Mode::helper ? find_helper() : std::string(); }
+void stop_hdf5_probe_worker() {
+  std::lock_guard lock(g_worker_mutex);
+  stop_worker(false);
 }
 void forget_hdf5_probes() {
   std::lock_guard lock(g_cache_mutex);

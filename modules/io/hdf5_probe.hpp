@@ -3,20 +3,28 @@
 // gigabytes on some corrupt or hostile .h5 files while it decodes their metadata (object headers,
 // attribute messages, local heaps, B-trees), before Skelflow sees any of it (fuzz target `hdf5`,
 // docs/reliability.md). Before a user's HDF5 file is opened for reading, the metadata walk the
-// readers make (open, group visit, path lookups, every object's attributes including `spacing`,
-// `origin`, `unit`, `element_size_um` and `encoding`, dataset open, type, space, layout, chunking,
-// filters, stored size, the chunk index) runs first in a forked child process that calls only
-// libhdf5, with an address-space limit (1 GiB above what the process has mapped), no core dump and
-// a wall timeout. If the child dies by a signal, fails, runs out of its memory or time, the file is
-// refused with an InputError naming it; otherwise the caller reads it in-process. The verdict is
-// cached per file (path, device, inode, size, modification and change time), so a file is probed
-// once per process while it does not change.
+// readers make (hdf5_probe_walk.hpp: open, group visit, path lookups, every object's attributes
+// including `spacing`, `origin`, `unit`, `element_size_um` and `encoding`, dataset open, type, space,
+// layout, chunking, filters, stored size, the chunk index) runs first in the helper program
+// skelflow-hdf5-probe, built with AddressSanitizer where the compiler has it (so a heap overflow
+// inside libhdf5 stops it even when it would not crash), with an address-space limit (1 GiB above
+// its start-up mapping), no core dump and a wall timeout. The helper is a persistent worker: started
+// once (posix_spawn, not a fork of this process's page tables), it answers one request per file on
+// a socket. It walks in a child it forks from its own initialised state; after a crash or a
+// sanitizer report there the file is refused and the worker forks a new child; after a timeout the
+// worker is killed and the next request starts a new one. It ends when this process closes the
+// socket or dies (EOF, PR_SET_PDEATHSIG).
+// If the helper fails, runs out of its memory or time, the file is refused with an InputError naming
+// it; otherwise the caller reads it in-process. The verdict is cached per file (path, device, inode,
+// size, modification and change time), so a file is probed once per process while it does not change.
 //
-// Environment: SKEL_HDF5_PROBE=0 turns the probe off (trusted data, no fork per file);
-// SKEL_HDF5_PROBE_TIMEOUT=S sets the timeout in seconds (default 60).
-// Limits: a libhdf5 bug that corrupts memory without crashing the child (a heap overflow that hits
-// nothing vital) is not seen without AddressSanitizer, and the file is then read in-process as
-// before. Files Skelflow writes and reads itself (out-of-core scratch stores) are not probed.
+// Environment: SKEL_HDF5_PROBE=0 turns the probe off (trusted data); SKEL_HDF5_PROBE=fork runs the
+// walk in a forked child of this process instead of the helper (also what happens when no helper is
+// found); SKEL_HDF5_PROBE_TIMEOUT=S sets the timeout in seconds (default 60); SKEL_HDF5_PROBE_HELPER
+// names the helper program (default: skelflow-hdf5-probe beside this program, else the build tree's).
+// Limits: a memory error of libhdf5 that does not crash the walk is not seen in the forked child of a
+// build without AddressSanitizer (the helper has it unless SKEL_HDF5_PROBE_ASAN=OFF or the compiler
+// lacks it). Files Skelflow writes and reads itself (out-of-core scratch stores) are not probed.
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -25,13 +33,21 @@ namespace skel::io {
 
 // Probes `file` (and the lookup of `dataset`, when not empty) as described above unless the cached
 // verdict covers it. Throws InputError when the file is refused, Error when the probe process cannot
-// be started. The caller holds the process-wide HDF5 mutex (no other thread is inside libhdf5 when
-// the process forks).
+// be started. Thread-safe (one request at a time). The caller holds the process-wide HDF5 mutex (no
+// other thread is inside libhdf5 when the forked fallback forks).
 void probe_hdf5_file(const std::filesystem::path& file, const std::string& dataset);
 
 namespace detail {
-// Number of probe processes this process has started (tests: a file is probed once).
+// Number of walks this process has asked for (tests: a file is probed once).
 int64_t hdf5_probes_started();
+// Number of helper worker processes this process has started (tests: one for many files).
+int64_t hdf5_probe_workers_started();
+// The running worker's process id, -1 when none runs.
+int hdf5_probe_worker_pid();
+// The helper program the probe uses now; "" when it forks (SKEL_HDF5_PROBE=fork, none found) or is off.
+std::string hdf5_probe_helper();
+// Ends the worker and reaps it (tests: no process left behind; the next probe starts a new one).
+void stop_hdf5_probe_worker();
 // Forgets every cached verdict (the fuzz harness rewrites one scratch file with new bytes that may
 // have the same size within the same clock tick).
 void forget_hdf5_probes();

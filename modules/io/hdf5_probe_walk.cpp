@@ -1,0 +1,222 @@
+// The metadata walk of the HDF5 structure probe (hdf5_probe_walk.hpp).
+#include "io/hdf5_probe_walk.hpp"
+
+#include <hdf5.h>
+
+#include <new>
+#include <string>
+#include <vector>
+
+namespace skel::io::probe {
+
+namespace {
+
+// The attributes the readers read (hdf5_volume.cpp: read_geometry, read_string_attribute).
+constexpr const char* kVec3Attributes[] = {"spacing", "origin", "element_size_um"};
+constexpr const char* kStringAttributes[] = {"unit", "encoding"};
+
+bool g_out_of_memory = false;
+
+herr_t note_allocation_failure(unsigned, const H5E_error2_t* e, void*) {
+  if (e && (e->min_num == H5E_NOSPACE || e->min_num == H5E_CANTALLOC)) g_out_of_memory = true;
+  return 0;
+}
+
+// HDF5's automatic error handler in the child: prints nothing, notes failed allocations.
+herr_t on_hdf5_error(hid_t stack, void*) {
+  H5Ewalk2(stack, H5E_WALK_DOWNWARD, note_allocation_failure, nullptr);
+  return 0;
+}
+
+void close_if(hid_t id, herr_t (*close)(hid_t)) {
+  if (id >= 0) close(id);
+}
+
+// Every path prefix of `name` looked up as open_dataset does ("/a", "/a/b", ...).
+void look_up(hid_t file, const std::string& name) {
+  std::string partial;
+  size_t pos = 1;
+  while (pos <= name.size()) {
+    const size_t slash = name.find('/', pos);
+    const size_t end = slash == std::string::npos ? name.size() : slash;
+    partial = name.substr(0, end);
+    if (end > pos && H5Lexists(file, partial.c_str(), H5P_DEFAULT) <= 0) return;
+    pos = end + 1;
+  }
+}
+
+void read_vec3(hid_t obj, const char* name) {
+  if (H5Aexists(obj, name) <= 0) return;
+  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  const hid_t s = a >= 0 ? H5Aget_space(a) : -1;
+  if (s >= 0 && H5Sget_simple_extent_npoints(s) == 3) {
+    double v[3];
+    H5Aread(a, H5T_NATIVE_DOUBLE, v);
+  }
+  close_if(s, H5Sclose);
+  close_if(a, H5Aclose);
+}
+
+void read_string(hid_t obj, const char* name) {
+  if (H5Aexists(obj, name) <= 0) return;
+  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
+  if (t >= 0 && H5Tget_class(t) == H5T_STRING) {
+    const hid_t mem = H5Tcopy(H5T_C_S1);
+    H5Tset_cset(mem, H5Tget_cset(t));
+    if (H5Tis_variable_str(t) > 0) {
+      H5Tset_size(mem, H5T_VARIABLE);
+      char* value = nullptr;
+      if (H5Aread(a, mem, &value) >= 0) H5free_memory(value);
+    } else {
+      const size_t n = H5Tget_size(t);
+      std::string buf(n + 1, '\0');
+      H5Tset_size(mem, n + 1);
+      H5Aread(a, mem, buf.data());
+    }
+    close_if(mem, H5Tclose);
+  }
+  close_if(t, H5Tclose);
+  close_if(a, H5Aclose);
+}
+
+herr_t touch_attribute(hid_t obj, const char* name, const H5A_info_t*, void*) {
+  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  if (a < 0) return 0;
+  const hid_t s = H5Aget_space(a), t = H5Aget_type(a);
+  if (s >= 0) H5Sget_simple_extent_npoints(s);
+  if (t >= 0) {
+    H5Tget_class(t);
+    H5Tget_size(t);
+  }
+  close_if(t, H5Tclose);
+  close_if(s, H5Sclose);
+  H5Aclose(a);
+  return 0;
+}
+
+// What open_volume, check_declared_size and read_volume_info ask of a dataset, and its chunk index.
+void walk_dataset(hid_t file, const std::string& name) {
+  const hid_t dapl = H5Pcreate(H5P_DATASET_ACCESS);
+  H5Pset_chunk_cache(dapl, 12421, 256u << 20, 1.0);
+  const hid_t d = H5Dopen2(file, name.c_str(), dapl);
+  H5Pclose(dapl);
+  if (d < 0) return;
+  const hid_t space = H5Dget_space(d);
+  if (space >= 0 && H5Sget_simple_extent_ndims(space) == 3) {
+    hsize_t dims[3];
+    H5Sget_simple_extent_dims(space, dims, nullptr);
+  }
+  const hid_t type = H5Dget_type(d);
+  if (type >= 0) {
+    H5Tget_class(type);
+    H5Tget_size(type);
+    H5Tget_sign(type);
+  }
+  const hid_t plist = H5Dget_create_plist(d);
+  if (plist >= 0) {
+    if (H5Pget_layout(plist) == H5D_CHUNKED) {
+      hsize_t c[3];
+      H5Pget_chunk(plist, 3, c);
+      hsize_t n = 0;
+      if (space >= 0 && H5Dget_num_chunks(d, space, &n) >= 0 && n > 0) {  // walks the whole chunk index
+        hsize_t offset[H5S_MAX_RANK];
+        unsigned mask = 0;
+        haddr_t addr = 0;
+        hsize_t size = 0;
+        H5Dget_chunk_info(d, space, 0, offset, &mask, &addr, &size);
+        H5Dget_chunk_info(d, space, n - 1, offset, &mask, &addr, &size);
+      }
+    }
+    const int nf = H5Pget_nfilters(plist);
+    for (int i = 0; i < nf; ++i) {
+      unsigned flags = 0, config = 0;
+      size_t nelem = 0;
+      char fname[64] = {0};
+      const H5Z_filter_t f = H5Pget_filter2(plist, static_cast<unsigned>(i), &flags, &nelem, nullptr, sizeof fname, fname, &config);
+      if (f >= 0) H5Zfilter_avail(f);
+    }
+    H5Pget_external_count(plist);
+  }
+  H5Dget_storage_size(d);
+  hsize_t file_size = 0;
+  H5Fget_filesize(file, &file_size);
+  close_if(plist, H5Pclose);
+  close_if(type, H5Tclose);
+  close_if(space, H5Sclose);
+  H5Dclose(d);
+}
+
+// An object by name: its attributes (all of them opened, the readers' ones read as the readers
+// read them) and, for a dataset, walk_dataset.
+void walk_object(hid_t file, const std::string& name) {
+  look_up(file, name);
+  const hid_t obj = H5Oopen(file, name.c_str(), H5P_DEFAULT);
+  if (obj < 0) return;
+  hsize_t at = 0;
+  H5Aiterate2(obj, H5_INDEX_NAME, H5_ITER_NATIVE, &at, touch_attribute, nullptr);
+  for (const char* a : kVec3Attributes) read_vec3(obj, a);
+  for (const char* a : kStringAttributes) read_string(obj, a);
+  const H5I_type_t kind = H5Iget_type(obj);
+  H5Oclose(obj);
+  if (kind == H5I_DATASET) walk_dataset(file, name);
+}
+
+struct Visited {
+  std::vector<std::string> objects, datasets;
+};
+
+herr_t collect(hid_t, const char* name, const H5O_info_t* info, void* data) {
+  auto* v = static_cast<Visited*>(data);
+  const std::string path = std::string(name) == "." ? std::string("/") : std::string("/") + name;
+  v->objects.push_back(path);
+  if (info->type == H5O_TYPE_DATASET) v->datasets.push_back(path);
+  return 0;
+}
+
+// The readers' walk over the whole file, then the lookup of `dataset`.
+int walk(const char* path, const std::string& dataset, std::string& names) {
+  if (H5Fis_hdf5(path) <= 0) return kWalkOk;  // the reader refuses it in-process, as before
+  const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  const hid_t file = H5Fopen(path, H5F_ACC_RDONLY, fapl);
+  H5Pclose(fapl);
+  if (file < 0) return g_out_of_memory ? kWalkOutOfMemory : kWalkOk;
+  Visited v;
+  H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_NATIVE, collect, &v, H5O_INFO_BASIC);
+  if (v.objects.empty()) v.objects.push_back("/");
+  for (const auto& o : v.objects) walk_object(file, o);
+  if (!dataset.empty() && dataset[0] == '/') {
+    look_up(file, dataset);
+    walk_object(file, dataset);
+    // The group whose element_size_um read_geometry reads.
+    const std::string group = dataset.substr(0, dataset.rfind('/'));
+    walk_object(file, group.empty() ? "/" : group);
+  }
+  H5Fclose(file);
+  if (g_out_of_memory) return kWalkOutOfMemory;
+  names.clear();
+  for (const auto& d : v.datasets) {
+    if (names.size() + d.size() + 1 > kMaxNameBytes) break;
+    names += d;
+    names += '\0';
+  }
+  return kWalkOk;
+}
+
+
+}  // namespace
+
+void quiet_hdf5_errors() { H5Eset_auto2(H5E_DEFAULT, on_hdf5_error, nullptr); }
+
+int walk_file(const char* path, const std::string& dataset, std::string& names) {
+  g_out_of_memory = false;
+  names.clear();
+  try {
+    return walk(path, dataset, names);
+  } catch (const std::bad_alloc&) {  // the names under the address-space limit
+    names.clear();
+    return kWalkOutOfMemory;
+  }
+}
+
+}  // namespace skel::io::probe
