@@ -458,6 +458,31 @@ TEST(Hdf5Probe, LibHdf5CrashReproducersAreRefusedNamingTheFile) {
   }
 }
 
+// Mutated deflated 3x3x3 volumes (libFuzzer, session 8) whose voxels crash libhdf5 1.10.8 inside
+// H5Dread (heap overflows and SEGVs in H5VM_memcpyvv under H5D__select_read): the structure walk alone
+// passed them, so they were read in-process. The walk now reads small datasets' voxels (and the first
+// and last chunk of large ones) in the helper too; each is refused before this process reads it.
+TEST(Hdf5Probe, LibHdf5VoxelReadCrashesAreRefusedNamingTheFile) {
+  const fs::path dir = fs::path(SKEL_SOURCE_DIR) / "fuzz" / "corpus" / "hdf5";
+  ASSERT_NE(io::detail::hdf5_probe_helper(), "") << "skelflow-hdf5-probe not found";
+#if !defined(SKEL_HDF5_PROBE_WITH_ASAN)
+  GTEST_SKIP() << "skelflow-hdf5-probe built without AddressSanitizer (SKEL_HDF5_PROBE_ASAN=OFF or no compiler support)";
+#endif
+  for (int i = 1; i <= 9; ++i) {
+    const fs::path path = dir / ("libhdf5_deflate_chunk_read_" + std::to_string(i) + ".h5");
+    SCOPED_TRACE(path.string());
+    ASSERT_TRUE(fs::exists(path));
+    try {
+      (void)io::read_volume(path, "/volume");
+      ADD_FAILURE() << "read";
+    } catch (const InputError& err) {
+      const std::string what = err.what();
+      EXPECT_EQ(what.rfind(path.string() + " is damaged: the HDF5 library ", 0), 0u) << what;
+      EXPECT_NE(what.find("reading its structure in a separate process; not opened"), std::string::npos) << what;
+    }
+  }
+}
+
 // SKEL_HDF5_PROBE=fork: the walk in a forked child of this process (also what happens when no helper
 // is found). It refuses what crashes or exhausts the child; in a build without AddressSanitizer the
 // five silent H5Aexists memory errors are not seen there (the reason for the helper).
