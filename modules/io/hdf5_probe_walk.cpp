@@ -104,10 +104,9 @@ void walk_dataset(hid_t file, const std::string& name) {
   H5Pclose(dapl);
   if (d < 0) return;
   const hid_t space = H5Dget_space(d);
-  if (space >= 0 && H5Sget_simple_extent_ndims(space) == 3) {
-    hsize_t dims[3];
-    H5Sget_simple_extent_dims(space, dims, nullptr);
-  }
+  hsize_t dims[3] = {0, 0, 0};
+  const bool three_d = space >= 0 && H5Sget_simple_extent_ndims(space) == 3;
+  if (three_d) H5Sget_simple_extent_dims(space, dims, nullptr);
   const hid_t type = H5Dget_type(d);
   if (type >= 0) {
     H5Tget_class(type);
@@ -144,20 +143,18 @@ void walk_dataset(hid_t file, const std::string& name) {
   // H5D__select_read on mutated deflated files, libFuzzer session 8). The walk therefore reads, as the
   // readers will, the whole dataset when it declares at most 64 MiB (native type), else the first
   // and the last chunk (or row) only: a damaged chunk in the middle of a large file is not seen here.
-  if (space >= 0 && type >= 0 && H5Sget_simple_extent_ndims(space) == 3) {
-    hsize_t dims[3];
-    H5Sget_simple_extent_dims(space, dims, nullptr);
+  const double held = static_cast<double>(H5Dget_storage_size(d));
+  hsize_t file_bytes = 0;
+  const bool sized = H5Fget_filesize(file, &file_bytes) >= 0;
+  if (three_d && type >= 0) {
     const hid_t native = H5Tget_native_type(type, H5T_DIR_ASCEND);
     const size_t bytes = native >= 0 ? H5Tget_size(native) : 0;
     const double total = static_cast<double>(dims[0]) * static_cast<double>(dims[1]) * static_cast<double>(dims[2]);
     // Files the readers refuse before H5Dread (stored size beyond the file, more voxels declared
     // than the stored data can hold: io/hdf5_volume.cpp) are not read here either, so they keep
     // the readers' clearer message.
-    const double held = static_cast<double>(H5Dget_storage_size(d));
-    hsize_t file_bytes = 0;
-    const bool sized = H5Fget_filesize(file, &file_bytes) >= 0;
     const int filters = plist >= 0 ? H5Pget_nfilters(plist) : 0;
-    const double stored = type >= 0 ? total * static_cast<double>(H5Tget_size(type)) : 0.0;
+    const double stored = total * static_cast<double>(H5Tget_size(type));
     const bool refused_before_reading = (sized && held > static_cast<double>(file_bytes)) ||
                                         stored > held * (filters > 0 ? 1100.0 : 1.0);
     if (bytes > 0 && total > 0 && !refused_before_reading) {
@@ -188,9 +185,6 @@ void walk_dataset(hid_t file, const std::string& name) {
     }
     close_if(native, H5Tclose);
   }
-  H5Dget_storage_size(d);
-  hsize_t file_size = 0;
-  H5Fget_filesize(file, &file_size);
   close_if(plist, H5Pclose);
   close_if(type, H5Tclose);
   close_if(space, H5Sclose);
