@@ -100,6 +100,7 @@ struct Verdict {
   Stamp stamp;
   std::string refusal;          // empty: the file may be read
   std::set<std::string> names;  // dataset names the probes covered
+  std::map<std::string, probe::ObjectAttributes> attributes;  // the readers' attributes, per object walked
 };
 
 std::mutex g_cache_mutex;
@@ -170,6 +171,14 @@ void add_names(const std::string& out, std::set<std::string>& names) {
     names.insert(out.substr(b, e - b));
     b = e + 1;
   }
+}
+
+// A walk's answer into `result`; "" when it decodes, else the refusal (a walk that sent bytes out of
+// the protocol did not finish as it should have).
+std::string take_answer(const fs::path& file, const std::string& payload, probe::WalkResult& result) {
+  if (probe::decode(payload, result)) return "";
+  result = probe::WalkResult{};
+  return damaged(file, "gave a malformed answer");
 }
 
 // ------------------------------------------------------------------ the helper program, as a worker
@@ -362,7 +371,7 @@ void start_worker(const std::string& helper, const fs::path& file, double timeou
 // One request to the worker (caller holds g_worker_mutex); returns the refusal ("" when the file may
 // be read) and the names it covered.
 std::string ask_worker(const std::string& helper, const fs::path& file, const std::string& dataset, double timeout,
-                       std::set<std::string>& names) {
+                       probe::WalkResult& result) {
   const std::string path = file.string();
   if (path.size() > (size_t{1} << 20) || dataset.size() > (size_t{1} << 20))
     throw InputError(path + ": the file or dataset name is too long to be checked");
@@ -396,7 +405,7 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
     while (got == Receive::done) {
       got = receive(g_worker.fd, reply, sizeof reply, deadline);
       if (got != Receive::done) break;
-      if (reply[2] > probe::kMaxNameBytes) {  // not the protocol: a worker gone wrong
+      if (reply[2] > probe::kMaxPayloadBytes) {  // not the protocol: a worker gone wrong
         kill(-g_worker.pid, SIGKILL);
         got = Receive::ended;
         break;
@@ -426,8 +435,7 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
       return ended(file, status);
     }
     if (reply[1] == probe::kWalkOutOfMemory) return damaged(file, "needed more than " + std::to_string(kChildMemory >> 20) + " MiB of memory");
-    add_names(out, names);
-    return "";
+    return take_answer(file, out, result);
   }
 }
 
@@ -457,12 +465,12 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
   setrlimit(RLIMIT_AS, &as);
   alarm(static_cast<unsigned>(std::ceil(timeout)) + 2);  // a second stop, should the parent be gone
   probe::quiet_hdf5_errors();
-  std::string names;
-  const int code = probe::walk_file(path, dataset, names);
+  std::string payload;
+  const int code = probe::walk_file(path, dataset, payload);
   if (code == probe::kWalkOk) {
     size_t done = 0;
-    while (done < names.size()) {
-      const ssize_t n = ::write(out, names.data() + done, names.size() - done);
+    while (done < payload.size()) {
+      const ssize_t n = ::write(out, payload.data() + done, payload.size() - done);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) break;
       done += static_cast<size_t>(n);
@@ -472,7 +480,7 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
 }
 
 // One forked probe process; returns the refusal ("" when the file may be read) and the names it covered.
-std::string fork_probe(const fs::path& file, const std::string& dataset, double timeout, std::set<std::string>& names) {
+std::string fork_probe(const fs::path& file, const std::string& dataset, double timeout, probe::WalkResult& result) {
   int fds[2];
   if (pipe2(fds, O_CLOEXEC) != 0)
     throw Error("cannot check the HDF5 file " + file.string() + " in a separate process: pipe: " + std::strerror(errno) +
@@ -509,7 +517,7 @@ std::string fork_probe(const fs::path& file, const std::string& dataset, double 
     for (;;) {
       const ssize_t n = read(fds[0], buf, sizeof buf);
       if (n > 0) {
-        if (out.size() < probe::kMaxNameBytes) out.append(buf, static_cast<size_t>(n));
+        if (out.size() <= probe::kMaxPayloadBytes) out.append(buf, static_cast<size_t>(n));
         continue;
       }
       if (n < 0 && errno == EINTR) continue;
@@ -539,8 +547,19 @@ std::string fork_probe(const fs::path& file, const std::string& dataset, double 
   if (late) return timed_out(file, timeout);
   if (status == -1) return "";  // the child was reaped elsewhere (a SIGCHLD handler): no verdict, read as before
   if (!(WIFEXITED(status) && WEXITSTATUS(status) == probe::kWalkOk)) return ended(file, status);
-  add_names(out, names);
-  return "";
+  return take_answer(file, out, result);
+}
+
+// The cache's key for `file` and its stamp now; false when it is not a regular file.
+bool cache_key(const fs::path& file, std::string& key, Stamp& stamp) {
+  struct stat st {};
+  if (::stat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
+  stamp = Stamp{st.st_dev, st.st_ino, st.st_size, int64_t{st.st_mtim.tv_sec} * 1000000000 + st.st_mtim.tv_nsec,
+                int64_t{st.st_ctim.tv_sec} * 1000000000 + st.st_ctim.tv_nsec};
+  std::error_code ec;
+  fs::path abs = fs::absolute(file, ec);
+  key = (ec ? file : abs.lexically_normal()).string();
+  return true;
 }
 
 }  // namespace
@@ -548,40 +567,56 @@ std::string fork_probe(const fs::path& file, const std::string& dataset, double 
 void probe_hdf5_file(const fs::path& file, const std::string& dataset) {
   const Mode mode = probe_mode();
   if (mode == Mode::off) return;
-  struct stat st {};
-  if (::stat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return;  // the reader says what is wrong
-  Stamp stamp{st.st_dev, st.st_ino, st.st_size, int64_t{st.st_mtim.tv_sec} * 1000000000 + st.st_mtim.tv_nsec,
-              int64_t{st.st_ctim.tv_sec} * 1000000000 + st.st_ctim.tv_nsec};
-  std::error_code ec;
-  fs::path abs = fs::absolute(file, ec);
-  const std::string key = (ec ? file : abs.lexically_normal()).string();
+  std::string key;
+  Stamp stamp;
+  if (!cache_key(file, key, stamp)) return;  // the reader says what is wrong
   bool known = false;
   {
     std::lock_guard lock(g_cache_mutex);
     auto it = g_cache.find(key);
     if (it != g_cache.end() && it->second.stamp == stamp) {
       if (!it->second.refusal.empty()) throw InputError(it->second.refusal);
-      if (dataset.empty() || it->second.names.count(dataset)) return;
-      known = true;  // the file was walked; the lookup of this name was not
+      if (dataset.empty() || (it->second.names.count(dataset) && it->second.attributes.count(dataset))) return;
+      known = true;  // the file was walked; the lookup of this name (or its attributes) was not
     }
   }
   const double timeout = probe_timeout();
-  std::set<std::string> names;
+  probe::WalkResult result;
   std::string refusal;
   {
     std::lock_guard lock(g_worker_mutex);
     const std::string helper = mode == Mode::helper ? find_helper() : std::string();
-    refusal = helper.empty() ? fork_probe(file, dataset, timeout, names) : ask_worker(helper, file, dataset, timeout, names);
+    refusal = helper.empty() ? fork_probe(file, dataset, timeout, result) : ask_worker(helper, file, dataset, timeout, result);
   }
   {
     std::lock_guard lock(g_cache_mutex);
     Verdict& v = g_cache[key];
-    if (!known || !(v.stamp == stamp)) v = Verdict{stamp, {}, {}};
+    if (!known || !(v.stamp == stamp)) v = Verdict{stamp, {}, {}, {}};
     v.refusal = refusal;
-    v.names.insert(names.begin(), names.end());
-    if (!dataset.empty() && refusal.empty()) v.names.insert(dataset);
+    add_names(result.names, v.names);
+    for (auto& [object, attributes] : result.attributes) v.attributes[object] = std::move(attributes);
+    if (!dataset.empty() && refusal.empty()) {
+      v.names.insert(dataset);
+      // Walked and not opened (not an object of the file): none of the readers' attributes.
+      v.attributes.try_emplace(dataset);
+    }
   }
   if (!refusal.empty()) throw InputError(refusal);
+}
+
+bool probed_attribute(const fs::path& file, const std::string& object, size_t index, probe::Attribute& out) {
+  if (index >= probe::kAttributeCount) throw Error("probed_attribute: no attribute " + std::to_string(index));
+  if (probe_mode() == Mode::off) return false;
+  probe_hdf5_file(file, object);  // nothing when the cache covers the object
+  std::string key;
+  Stamp stamp;
+  if (!cache_key(file, key, stamp)) return false;
+  std::lock_guard lock(g_cache_mutex);
+  const auto it = g_cache.find(key);
+  if (it == g_cache.end() || !(it->second.stamp == stamp)) return false;  // changed meanwhile: read in-process
+  const auto found = it->second.attributes.find(object);
+  out = found == it->second.attributes.end() ? probe::Attribute{} : found->second[index];
+  return true;
 }
 
 namespace detail {

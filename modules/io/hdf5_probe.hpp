@@ -29,6 +29,8 @@
 #include <filesystem>
 #include <string>
 
+#include "io/hdf5_probe_walk.hpp"
+
 namespace skel::io {
 
 // Probes `file` (and the lookup of `dataset`, when not empty) as described above unless the cached
@@ -36,6 +38,16 @@ namespace skel::io {
 // be started. Thread-safe (one request at a time). The caller holds the process-wide HDF5 mutex (no
 // other thread is inside libhdf5 when the forked fallback forks).
 void probe_hdf5_file(const std::filesystem::path& file, const std::string& dataset);
+
+// The attribute probe::kAttributeNames[index] of the object `object` (a dataset or group path) of
+// `file` as the probe's walk read it, probing the file first unless the cache covers the object: the
+// readers take these values instead of decoding attribute messages in their own process (libhdf5
+// 1.10.8 reads out of bounds in H5Aexists on some damaged object headers, depending on the heap's
+// history: docs/reliability.md). An object the walk could not open has every attribute absent.
+// Returns false when the probe is off (SKEL_HDF5_PROBE=0) or the file is not a regular file or changed
+// between the probe and this call: the caller then reads the attribute in-process. Throws as
+// probe_hdf5_file. The caller holds the process-wide HDF5 mutex.
+bool probed_attribute(const std::filesystem::path& file, const std::string& object, size_t index, probe::Attribute& out);
 
 namespace detail {
 // Number of walks this process has asked for (tests: a file is probed once).

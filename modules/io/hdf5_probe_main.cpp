@@ -11,7 +11,8 @@
 // Worker protocol (native byte order, one request at a time, on the socket that is stdin):
 //   request  u32 path bytes, u32 dataset bytes, u32 seconds for alarm(), u32 request id (> 0), path, dataset
 //   reply    u32 request id, u32 outcome (kWalkOk, kWalkOutOfMemory, kWalkDied), u32 payload bytes,
-//            payload: the dataset names walked (NUL-separated), or for kWalkDied the walker's wait status
+//            payload: the encoded WalkResult (the dataset names walked and the readers' attributes,
+//            hdf5_probe_walk.hpp), or for kWalkDied the walker's wait status
 // The worker is a small server that forks a walker from its initialised state; the walker answers
 // requests until it dies or retires. A crash, a sanitizer report (exit status 66) or alarm() ends
 // the walker during a request: the server answers that request with kWalkDied and forks the next
@@ -116,7 +117,7 @@ constexpr int kRetired = 5;
 // reply). `current` (shared with the server) holds the id of the request being walked, 0 between
 // requests, so that the server knows whether a death ended a request.
 int walk_requests(uint64_t base, volatile uint32_t* current) {
-  std::string path, dataset, names;
+  std::string path, dataset, payload;
   for (;;) {
     uint32_t head[4];
     if (!read_all(STDIN_FILENO, head, sizeof head)) return 0;
@@ -126,13 +127,13 @@ int walk_requests(uint64_t base, volatile uint32_t* current) {
     if (!read_all(STDIN_FILENO, path.data(), path.size()) || !read_all(STDIN_FILENO, dataset.data(), dataset.size())) return 0;
     *current = head[3];
     alarm(head[2]);  // a second stop, should the client be gone
-    const int outcome = walk_file(path.c_str(), dataset, names);
+    const int outcome = walk_file(path.c_str(), dataset, payload);
     alarm(0);
     const bool clean = close_leftovers();
     const bool retire = outcome != kWalkOk || !clean || mapped_bytes() > base + kRetireGrowth;
-    const uint32_t reply[3] = {head[3], static_cast<uint32_t>(outcome), static_cast<uint32_t>(names.size())};
+    const uint32_t reply[3] = {head[3], static_cast<uint32_t>(outcome), static_cast<uint32_t>(payload.size())};
     // stdin is a socket: the reply goes back on it.
-    if (!write_all(STDIN_FILENO, reply, sizeof reply) || !write_all(STDIN_FILENO, names.data(), names.size())) return 0;
+    if (!write_all(STDIN_FILENO, reply, sizeof reply) || !write_all(STDIN_FILENO, payload.data(), payload.size())) return 0;
     *current = 0;
     if (retire) return kRetired;
   }
@@ -203,16 +204,33 @@ int main(int argc, char** argv) {
   const uint64_t base = mapped_bytes();
   const rlimit as{base + kMemory, base + kMemory};
   setrlimit(RLIMIT_AS, &as);
-  std::string names;
-  const int outcome = walk_file(argv[1], argc == 3 ? argv[2] : "", names);
+  std::string payload;
+  const int outcome = walk_file(argv[1], argc == 3 ? argv[2] : "", payload);
   if (outcome == kWalkOutOfMemory) {
     std::fprintf(stderr, "%s: the HDF5 library needed more than 1 GiB of memory\n", argv[1]);
     return outcome;
   }
-  for (size_t b = 0; b < names.size();) {
-    const size_t e = names.find('\0', b);
-    std::printf("%s\n", names.substr(b, e - b).c_str());
+  WalkResult result;
+  decode(payload, result);
+  for (size_t b = 0; b < result.names.size();) {
+    const size_t e = result.names.find('\0', b);
+    std::printf("%s\n", result.names.substr(b, e - b).c_str());
     b = e + 1;
   }
+  // The readers' attributes as the walk read them.
+  for (const auto& [object, attributes] : result.attributes)
+    for (size_t i = 0; i < kAttributeCount; ++i) {
+      const Attribute& a = attributes[i];
+      if (a.kind == Attribute::Kind::absent) continue;
+      std::printf("%s @%s: ", object.c_str(), kAttributeNames[i]);
+      switch (a.kind) {
+        case Attribute::Kind::numbers: std::printf("%.17g %.17g %.17g\n", a.numbers[0], a.numbers[1], a.numbers[2]); break;
+        case Attribute::Kind::text: std::printf("\"%s\"\n", a.text.c_str()); break;
+        case Attribute::Kind::wrong_count: std::printf("%lld values (3 expected)\n", static_cast<long long>(a.count)); break;
+        case Attribute::Kind::not_string: std::printf("not a string\n"); break;
+        case Attribute::Kind::too_long: std::printf("a string longer than %zu bytes\n", kMaxStringBytes); break;
+        default: std::printf("cannot be read\n"); break;
+      }
+    }
   return 0;
 }

@@ -4,17 +4,15 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <cstring>
 #include <new>
+#include <type_traits>
 #include <string>
 #include <vector>
 
 namespace skel::io::probe {
 
 namespace {
-
-// The attributes the readers read (hdf5_volume.cpp: read_geometry, read_string_attribute).
-constexpr const char* kVec3Attributes[] = {"spacing", "origin", "element_size_um"};
-constexpr const char* kStringAttributes[] = {"unit", "encoding"};
 
 bool g_out_of_memory = false;
 
@@ -46,39 +44,67 @@ void look_up(hid_t file, const std::string& name) {
   }
 }
 
-void read_vec3(hid_t obj, const char* name) {
-  if (H5Aexists(obj, name) <= 0) return;
+Attribute read_vec3(hid_t obj, const char* name) {
+  Attribute r;
+  if (H5Aexists(obj, name) <= 0) return r;
+  r.kind = Attribute::Kind::unreadable;
   const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
   const hid_t s = a >= 0 ? H5Aget_space(a) : -1;
-  if (s >= 0 && H5Sget_simple_extent_npoints(s) == 3) {
+  const hssize_t n = s >= 0 ? H5Sget_simple_extent_npoints(s) : -1;
+  if (n == 3) {
     double v[3];
-    H5Aread(a, H5T_NATIVE_DOUBLE, v);
+    if (H5Aread(a, H5T_NATIVE_DOUBLE, v) >= 0) {
+      r.kind = Attribute::Kind::numbers;
+      r.numbers = {v[0], v[1], v[2]};
+    }
+  } else if (n >= 0) {
+    r.kind = Attribute::Kind::wrong_count;
+    r.count = n;
   }
   close_if(s, H5Sclose);
   close_if(a, H5Aclose);
+  return r;
 }
 
-void read_string(hid_t obj, const char* name) {
-  if (H5Aexists(obj, name) <= 0) return;
+Attribute read_string(hid_t obj, const char* name) {
+  Attribute r;
+  if (H5Aexists(obj, name) <= 0) return r;
+  r.kind = Attribute::Kind::unreadable;
   const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
   const hid_t t = a >= 0 ? H5Aget_type(a) : -1;
-  if (t >= 0 && H5Tget_class(t) == H5T_STRING) {
+  const H5T_class_t cls = t >= 0 ? H5Tget_class(t) : H5T_NO_CLASS;
+  if (cls == H5T_STRING) {
     const hid_t mem = H5Tcopy(H5T_C_S1);
-    H5Tset_cset(mem, H5Tget_cset(t));
+    H5Tset_cset(mem, H5Tget_cset(t));  // HDF5 converts no character sets: read as stored (ASCII or UTF-8)
     if (H5Tis_variable_str(t) > 0) {
       H5Tset_size(mem, H5T_VARIABLE);
       char* value = nullptr;
-      if (H5Aread(a, mem, &value) >= 0) H5free_memory(value);
+      if (H5Aread(a, mem, &value) >= 0) {
+        const size_t n = value ? strnlen(value, kMaxStringBytes + 1) : 0;
+        r.kind = n > kMaxStringBytes ? Attribute::Kind::too_long : Attribute::Kind::text;
+        if (n <= kMaxStringBytes && value) r.text.assign(value, n);
+        H5free_memory(value);
+      }
     } else {
       const size_t n = H5Tget_size(t);
-      std::string buf(n + 1, '\0');
-      H5Tset_size(mem, n + 1);
-      H5Aread(a, mem, buf.data());
+      if (n > kMaxStringBytes) {
+        r.kind = Attribute::Kind::too_long;
+      } else {
+        std::string buf(n + 1, '\0');
+        H5Tset_size(mem, n + 1);
+        if (H5Aread(a, mem, buf.data()) >= 0) {
+          r.kind = Attribute::Kind::text;
+          r.text = buf.c_str();
+        }
+      }
     }
     close_if(mem, H5Tclose);
+  } else if (cls != H5T_NO_CLASS) {
+    r.kind = Attribute::Kind::not_string;
   }
   close_if(t, H5Tclose);
   close_if(a, H5Aclose);
+  return r;
 }
 
 herr_t touch_attribute(hid_t obj, const char* name, const H5A_info_t*, void*) {
@@ -192,15 +218,17 @@ void walk_dataset(hid_t file, const std::string& name) {
 }
 
 // An object by name: its attributes (all of them opened, the readers' ones read as the readers
-// read them) and, for a dataset, walk_dataset.
-void walk_object(hid_t file, const std::string& name) {
+// read them, their values noted in `result`) and, for a dataset, walk_dataset.
+void walk_object(hid_t file, const std::string& name, WalkResult& result) {
   look_up(file, name);
   const hid_t obj = H5Oopen(file, name.c_str(), H5P_DEFAULT);
   if (obj < 0) return;
   hsize_t at = 0;
   H5Aiterate2(obj, H5_INDEX_NAME, H5_ITER_NATIVE, &at, touch_attribute, nullptr);
-  for (const char* a : kVec3Attributes) read_vec3(obj, a);
-  for (const char* a : kStringAttributes) read_string(obj, a);
+  ObjectAttributes attributes;
+  for (size_t i = 0; i < kAttributeCount; ++i)
+    attributes[i] = is_string_attribute(i) ? read_string(obj, kAttributeNames[i]) : read_vec3(obj, kAttributeNames[i]);
+  result.attributes[name] = std::move(attributes);
   const H5I_type_t kind = H5Iget_type(obj);
   H5Oclose(obj);
   if (kind == H5I_DATASET) walk_dataset(file, name);
@@ -219,32 +247,67 @@ herr_t collect(hid_t, const char* name, const H5O_info_t* info, void* data) {
 }
 
 // The readers' walk over the whole file, then the lookup of `dataset`.
-int walk(const char* path, const std::string& dataset, std::string& names) {
-  if (H5Fis_hdf5(path) <= 0) return kWalkOk;  // the reader refuses it in-process, as before
+int walk(const char* path, const std::string& dataset, std::string& payload) {
+  WalkResult result;
+  std::string group;
+  if (!dataset.empty() && dataset[0] == '/') {
+    const size_t slash = dataset.rfind('/');
+    group = dataset.substr(0, slash == 0 ? 1 : slash);  // "/a" -> "/", "/a/b" -> "/a"
+  }
+  if (H5Fis_hdf5(path) <= 0) {  // the reader refuses it in-process, as before
+    payload = encode(result, dataset, group);
+    return kWalkOk;
+  }
   const hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
   const hid_t file = H5Fopen(path, H5F_ACC_RDONLY, fapl);
   H5Pclose(fapl);
-  if (file < 0) return g_out_of_memory ? kWalkOutOfMemory : kWalkOk;
+  if (file < 0) {
+    payload = encode(result, dataset, group);
+    return g_out_of_memory ? kWalkOutOfMemory : kWalkOk;
+  }
   Visited v;
   H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_NATIVE, collect, &v, H5O_INFO_BASIC);
   if (v.objects.empty()) v.objects.push_back("/");
-  for (const auto& o : v.objects) walk_object(file, o);
+  for (const auto& o : v.objects) walk_object(file, o, result);
   if (!dataset.empty() && dataset[0] == '/') {
     look_up(file, dataset);
-    walk_object(file, dataset);
-    // The group whose element_size_um read_geometry reads.
-    const std::string group = dataset.substr(0, dataset.rfind('/'));
-    walk_object(file, group.empty() ? "/" : group);
+    walk_object(file, dataset, result);
+    walk_object(file, group, result);  // the group whose element_size_um read_geometry reads
   }
   H5Fclose(file);
   if (g_out_of_memory) return kWalkOutOfMemory;
-  names.clear();
   for (const auto& d : v.datasets) {
-    if (names.size() + d.size() + 1 > kMaxNameBytes) break;
-    names += d;
-    names += '\0';
+    if (result.names.size() + d.size() + 1 > kMaxNameBytes) break;
+    result.names += d;
+    result.names += '\0';
   }
+  payload = encode(result, dataset, group);
   return kWalkOk;
+}
+
+void put_u32(std::string& out, uint32_t v) { out.append(reinterpret_cast<const char*>(&v), sizeof v); }
+
+bool get(const std::string& in, size_t& at, void* data, size_t n) {
+  if (n > in.size() - at) return false;
+  std::memcpy(data, in.data() + at, n);
+  at += n;
+  return true;
+}
+
+// One object's record: u32 name bytes, name, then per attribute u8 kind and its value (numbers: 3
+// doubles; text: u32 bytes and the bytes; wrong_count: i64 count).
+void put_record(std::string& out, const std::string& name, const ObjectAttributes& attributes) {
+  put_u32(out, static_cast<uint32_t>(name.size()));
+  out += name;
+  for (const Attribute& a : attributes) {
+    out += static_cast<char>(a.kind);
+    if (a.kind == Attribute::Kind::numbers) out.append(reinterpret_cast<const char*>(a.numbers.data()), sizeof(double) * 3);
+    if (a.kind == Attribute::Kind::text) {
+      put_u32(out, static_cast<uint32_t>(a.text.size()));
+      out += a.text;
+    }
+    if (a.kind == Attribute::Kind::wrong_count) out.append(reinterpret_cast<const char*>(&a.count), sizeof a.count);
+  }
 }
 
 
@@ -252,13 +315,75 @@ int walk(const char* path, const std::string& dataset, std::string& names) {
 
 void quiet_hdf5_errors() { H5Eset_auto2(H5E_DEFAULT, on_hdf5_error, nullptr); }
 
-int walk_file(const char* path, const std::string& dataset, std::string& names) {
+static_assert(std::is_same_v<hid_t, int64_t>, "read_attribute takes an hid_t as int64_t");
+
+Attribute read_attribute(int64_t obj, size_t index) {
+  if (index >= kAttributeCount) return Attribute{};
+  return is_string_attribute(index) ? read_string(obj, kAttributeNames[index]) : read_vec3(obj, kAttributeNames[index]);
+}
+
+// The answer: u32 names bytes, names, u32 records bytes, records (`first` and `second` first).
+std::string encode(const WalkResult& r, const std::string& first, const std::string& second) {
+  std::string records;
+  const auto add = [&](const std::string& name) {
+    const auto it = r.attributes.find(name);
+    if (it == r.attributes.end()) return;
+    std::string one;
+    put_record(one, it->first, it->second);
+    if (records.size() + one.size() <= kMaxRecordBytes) records += one;
+  };
+  add(first);
+  if (second != first) add(second);
+  for (const auto& [name, attributes] : r.attributes)
+    if (name != first && name != second) add(name);
+  std::string out;
+  put_u32(out, static_cast<uint32_t>(r.names.size()));
+  out += r.names;
+  put_u32(out, static_cast<uint32_t>(records.size()));
+  out += records;
+  return out;
+}
+
+bool decode(const std::string& in, WalkResult& r) {
+  r = WalkResult{};
+  size_t at = 0;
+  uint32_t n = 0;
+  if (!get(in, at, &n, sizeof n) || n > kMaxNameBytes || n > in.size() - at) return false;
+  r.names.assign(in, at, n);
+  at += n;
+  uint32_t records = 0;
+  if (!get(in, at, &records, sizeof records) || records != in.size() - at) return false;
+  while (at < in.size()) {
+    uint32_t bytes = 0;
+    if (!get(in, at, &bytes, sizeof bytes) || bytes > in.size() - at) return false;
+    const std::string name(in, at, bytes);
+    at += bytes;
+    ObjectAttributes attributes;
+    for (Attribute& a : attributes) {
+      uint8_t kind = 0;
+      if (!get(in, at, &kind, 1) || kind > static_cast<uint8_t>(Attribute::Kind::too_long)) return false;
+      a.kind = static_cast<Attribute::Kind>(kind);
+      if (a.kind == Attribute::Kind::numbers && !get(in, at, a.numbers.data(), sizeof(double) * 3)) return false;
+      if (a.kind == Attribute::Kind::wrong_count && !get(in, at, &a.count, sizeof a.count)) return false;
+      if (a.kind == Attribute::Kind::text) {
+        uint32_t len = 0;
+        if (!get(in, at, &len, sizeof len) || len > kMaxStringBytes || len > in.size() - at) return false;
+        a.text.assign(in, at, len);
+        at += len;
+      }
+    }
+    r.attributes[name] = std::move(attributes);
+  }
+  return true;
+}
+
+int walk_file(const char* path, const std::string& dataset, std::string& payload) {
   g_out_of_memory = false;
-  names.clear();
+  payload.clear();
   try {
-    return walk(path, dataset, names);
+    return walk(path, dataset, payload);
   } catch (const std::bad_alloc&) {  // the names under the address-space limit
-    names.clear();
+    payload.clear();
     return kWalkOutOfMemory;
   }
 }

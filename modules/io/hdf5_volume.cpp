@@ -190,45 +190,45 @@ Opened open_volume(const fs::path& file, const std::string& dataset, bool write 
   return o;
 }
 
-bool read_vec3_attr(hid_t obj, const char* name, Vec3& out, const fs::path& file) {
-  if (H5Aexists(obj, name) <= 0) {
-    H5Eclear2(H5E_DEFAULT);
-    return false;
+// The attribute probe::kAttributeNames[index] of `object` (open as `obj`): the structure probe's
+// reading when it is on (hdf5_probe.hpp: libhdf5 1.10.8 can read out of bounds while it decodes a
+// damaged attribute message, so that decoding happens in the probe's process, not here), else
+// libhdf5's in this process. Caller holds the mutex.
+probe::Attribute attribute(hid_t obj, const std::string& object, size_t index, const fs::path& file) {
+  probe::Attribute a;
+  if (!probed_attribute(file, object, index, a)) a = probe::read_attribute(obj, index);
+  H5Eclear2(H5E_DEFAULT);
+  const std::string name = probe::kAttributeNames[index];
+  using Kind = probe::Attribute::Kind;
+  switch (a.kind) {
+    case Kind::wrong_count: throw InputError(file.string() + ": attribute '" + name + "' must hold 3 numbers (x, y, z)");
+    case Kind::not_string: throw InputError(file.string() + ": attribute '" + name + "' must be a string");
+    case Kind::unreadable: throw InputError(file.string() + ": cannot read attribute '" + name + "' of '" + object + "'");
+    case Kind::too_long:
+      throw InputError(file.string() + ": attribute '" + name + "' of '" + object + "' is longer than " +
+                       std::to_string(probe::kMaxStringBytes) + " bytes");
+    default: break;
   }
-  Handle a(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose);
-  Handle s(H5Aget_space(a.id), H5Sclose);
-  if (H5Sget_simple_extent_npoints(s.id) != 3)
-    throw InputError(file.string() + ": attribute '" + name + "' must hold 3 numbers (x, y, z)");
-  double v[3];
-  if (H5Aread(a.id, H5T_NATIVE_DOUBLE, v) < 0) fail(file, std::string("cannot read attribute '") + name + "'");
-  out = {v[0], v[1], v[2]};
+  if (probe::is_string_attribute(index) ? a.kind == Kind::numbers : a.kind == Kind::text)  // not from this walk
+    throw InputError(file.string() + ": cannot read attribute '" + name + "' of '" + object + "'");
+  return a;
+}
+
+// Attribute indices in probe::kAttributeNames.
+constexpr size_t kSpacing = 0, kOrigin = 1, kElementSize = 2, kUnit = 3;
+
+bool read_vec3_attr(hid_t obj, const std::string& object, size_t index, Vec3& out, const fs::path& file) {
+  const probe::Attribute a = attribute(obj, object, index, file);
+  if (a.kind != probe::Attribute::Kind::numbers) return false;
+  out = {a.numbers[0], a.numbers[1], a.numbers[2]};
   return true;
 }
 
 // A string attribute (fixed or variable length); false when absent.
-bool read_string_attr(hid_t obj, const char* name, std::string& out, const fs::path& file) {
-  if (H5Aexists(obj, name) <= 0) {
-    H5Eclear2(H5E_DEFAULT);
-    return false;
-  }
-  Handle a(H5Aopen(obj, name, H5P_DEFAULT), H5Aclose);
-  Handle t(H5Aget_type(a.id), H5Tclose);
-  if (H5Tget_class(t.id) != H5T_STRING) throw InputError(file.string() + ": attribute '" + name + "' must be a string");
-  Handle mem(H5Tcopy(H5T_C_S1), H5Tclose);
-  H5Tset_cset(mem.id, H5Tget_cset(t.id));  // HDF5 converts no character sets: read as stored (ASCII or UTF-8)
-  if (H5Tis_variable_str(t.id) > 0) {
-    H5Tset_size(mem.id, H5T_VARIABLE);
-    char* value = nullptr;
-    if (H5Aread(a.id, mem.id, &value) < 0) fail(file, std::string("cannot read attribute '") + name + "'");
-    out = value ? value : "";
-    H5free_memory(value);
-  } else {
-    const size_t n = H5Tget_size(t.id);
-    std::string buf(n + 1, '\0');
-    H5Tset_size(mem.id, n + 1);
-    if (H5Aread(a.id, mem.id, buf.data()) < 0) fail(file, std::string("cannot read attribute '") + name + "'");
-    out = buf.c_str();
-  }
+bool read_string_attr(hid_t obj, const std::string& object, size_t index, std::string& out, const fs::path& file) {
+  const probe::Attribute a = attribute(obj, object, index, file);
+  if (a.kind != probe::Attribute::Kind::text) return false;
+  out = a.text;
   return true;
 }
 
@@ -247,17 +247,18 @@ struct Geometry {
 
 Geometry read_geometry(hid_t file_id, hid_t dset, const std::string& dataset, const fs::path& file) {
   Geometry g;
-  g.has_spacing = read_vec3_attr(dset, "spacing", g.spacing, file);
-  g.has_origin = read_vec3_attr(dset, "origin", g.origin, file);
-  g.has_unit = read_string_attr(dset, "unit", g.unit, file);
+  g.has_spacing = read_vec3_attr(dset, dataset, kSpacing, g.spacing, file);
+  g.has_origin = read_vec3_attr(dset, dataset, kOrigin, g.origin, file);
+  g.has_unit = read_string_attr(dset, dataset, kUnit, g.unit, file);
   if (!g.has_spacing) {
     Vec3 zyx{1, 1, 1};
-    bool found = read_vec3_attr(dset, "element_size_um", zyx, file);
+    bool found = read_vec3_attr(dset, dataset, kElementSize, zyx, file);
     if (!found) {
-      const std::string group = dataset.substr(0, dataset.rfind('/'));
-      Handle grp(H5Oopen(file_id, group.empty() ? "/" : group.c_str(), H5P_DEFAULT), H5Oclose);
+      std::string group = dataset.substr(0, dataset.rfind('/'));
+      if (group.empty()) group = "/";
+      Handle grp(H5Oopen(file_id, group.c_str(), H5P_DEFAULT), H5Oclose);
       H5Eclear2(H5E_DEFAULT);
-      if (grp) found = read_vec3_attr(grp.id, "element_size_um", zyx, file);
+      if (grp) found = read_vec3_attr(grp.id, group, kElementSize, zyx, file);
     }
     if (found) {
       g.spacing = {zyx[2], zyx[1], zyx[0]};
@@ -762,7 +763,11 @@ std::string read_string_attribute(const fs::path& file, const std::string& datas
   Handle f = open_file(file, false, dataset);
   Handle d = open_dataset(f.id, file, dataset);
   std::string out;
-  read_string_attr(d.id, name.c_str(), out, file);
+  const auto* names = std::begin(probe::kAttributeNames);
+  const auto at = std::find_if(names, std::end(probe::kAttributeNames), [&](const char* n) { return name == n; });
+  if (at == std::end(probe::kAttributeNames) || !probe::is_string_attribute(static_cast<size_t>(at - names)))
+    throw Error("read_string_attribute: '" + name + "' is not one of the string attributes the readers read");
+  read_string_attr(d.id, dataset, static_cast<size_t>(at - names), out, file);
   return out;
 }
 
