@@ -15,7 +15,8 @@
 // worker is killed and the next request starts a new one. It ends when this process closes the
 // socket or dies (EOF, PR_SET_PDEATHSIG).
 // If the helper fails, runs out of its memory or time, the file is refused with an InputError naming
-// it; otherwise the caller reads it in-process. The verdict is cached per file (path, device, inode,
+// it; otherwise the caller reads it in-process, taking the readers' attributes from the walk's answer
+// (probed_attribute below), so that no attribute message is decoded in the caller's process. The verdict is cached per file (path, device, inode,
 // size, modification and change time), so a file is probed once per process while it does not change.
 //
 // Environment: SKEL_HDF5_PROBE=0 turns the probe off (trusted data); SKEL_HDF5_PROBE=fork runs the
