@@ -50,11 +50,20 @@ namespace skel::io {
 
 namespace {
 
-// Address space the walk may map beyond what its process had mapped (the helper's start-up mapping,
-// or this process's for the forked child). The readers' metadata walk needs a few MiB; 1 GiB stays
-// below libFuzzer's -malloc_limit_mb=1024, so that a larger metadata allocation fails in the probe
-// instead of being reported by the fuzzer.
-constexpr uint64_t kChildMemory = uint64_t{1} << 30;
+// Memory the walk may map beyond what its process had mapped (the helper's start-up mapping, or this
+// process's for the forked child): probe::memory_limit_bytes(), SKEL_HDF5_PROBE_MEMORY_MB, default
+// 1 GiB. The readers' metadata walk needs a few MiB, the voxel walk up to 64 MiB plus libhdf5's chunk
+// cache; 1 GiB stays below libFuzzer's -malloc_limit_mb=1024, so that a larger metadata allocation
+// fails in the probe instead of being reported by the fuzzer.
+uint64_t child_memory() {
+  try {
+    return probe::memory_limit_bytes();
+  } catch (const std::invalid_argument& e) {
+    throw Error(e.what());
+  }
+}
+
+std::string too_much_memory(const fs::path& file);
 constexpr double kDefaultTimeout = 60;
 // Exit status of the helper when AddressSanitizer stopped it (its exitcode, hdf5_probe_main.cpp).
 constexpr int kSanitizerExit = 66;
@@ -80,13 +89,6 @@ double probe_timeout() {
   return std::min(s, 1e7);  // ~4 months: "no limit" without overflowing the clock arithmetic
 }
 
-// Bytes of address space this process has mapped (/proc/self/statm, first field, in pages).
-uint64_t mapped_bytes() {
-  std::ifstream in("/proc/self/statm");
-  uint64_t pages = 0;
-  in >> pages;
-  return pages * static_cast<uint64_t>(sysconf(_SC_PAGESIZE));
-}
 
 struct Stamp {
   dev_t dev = 0;
@@ -132,6 +134,11 @@ std::string damaged(const fs::path& file, const std::string& what) {
   return file.string() + " is damaged: the HDF5 library " + what + " reading its structure in a separate process; not opened";
 }
 
+std::string too_much_memory(const fs::path& file) {
+  return damaged(file, "needed more than " + std::to_string(child_memory() >> 20) + " MiB of memory") +
+         " (SKEL_HDF5_PROBE_MEMORY_MB sets the limit)";
+}
+
 std::string timed_out(const fs::path& file, double timeout) {
   return damaged(file, "did not finish within " + format_seconds(timeout) + " s") + " (SKEL_HDF5_PROBE_TIMEOUT sets the limit)";
 }
@@ -140,7 +147,7 @@ std::string timed_out(const fs::path& file, double timeout) {
 std::string ended(const fs::path& file, int status) {
   if (WIFSIGNALED(status)) return damaged(file, "crashed (" + signal_name(WTERMSIG(status)) + ")");
   if (WIFEXITED(status) && WEXITSTATUS(status) == probe::kWalkOutOfMemory)
-    return damaged(file, "needed more than " + std::to_string(kChildMemory >> 20) + " MiB of memory");
+    return too_much_memory(file);
   if (WIFEXITED(status) && WEXITSTATUS(status) == kSanitizerExit) return damaged(file, "made a memory error (AddressSanitizer)");
   return damaged(file, "failed (exit status " + std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")");
 }
@@ -434,15 +441,15 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
       if (out.size() == sizeof status) std::memcpy(&status, out.data(), sizeof status);
       return ended(file, status);
     }
-    if (reply[1] == probe::kWalkOutOfMemory) return damaged(file, "needed more than " + std::to_string(kChildMemory >> 20) + " MiB of memory");
+    if (reply[1] == probe::kWalkOutOfMemory) return too_much_memory(file);
     return take_answer(file, out, result);
   }
 }
 
 // ------------------------------------------------------------------ the forked child (no helper)
 
-[[noreturn]] void child_main(const char* path, const std::string& dataset, int out, pid_t parent, uint64_t address_limit,
-                             double timeout) {
+[[noreturn]] void child_main(const char* path, const std::string& dataset, int out, pid_t parent, const probe::MemoryUse& base,
+                             uint64_t memory, double timeout) {
   // Die with the parent; the parent's handlers (libFuzzer's, sanitizers', the CLI's) do not apply here.
   prctl(PR_SET_PDEATHSIG, SIGKILL);
   if (getppid() != parent) _exit(probe::kWalkOk);
@@ -461,8 +468,8 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
   }
   const rlimit no_core{0, 0};
   setrlimit(RLIMIT_CORE, &no_core);
-  const rlimit as{address_limit, address_limit};
-  setrlimit(RLIMIT_AS, &as);
+  probe::limit_memory(base, memory);
+  probe::exit_on_fault_at_the_limit();
   alarm(static_cast<unsigned>(std::ceil(timeout)) + 2);  // a second stop, should the parent be gone
   probe::quiet_hdf5_errors();
   std::string payload;
@@ -485,7 +492,8 @@ std::string fork_probe(const fs::path& file, const std::string& dataset, double 
   if (pipe2(fds, O_CLOEXEC) != 0)
     throw Error("cannot check the HDF5 file " + file.string() + " in a separate process: pipe: " + std::strerror(errno) +
                 " (SKEL_HDF5_PROBE=0 reads trusted files without this check)");
-  const uint64_t limit = mapped_bytes() + kChildMemory;
+  const probe::MemoryUse base = probe::memory_use();
+  const uint64_t memory = child_memory();
   const pid_t parent = getpid();
   const std::string path = file.string();
   const auto deadline = deadline_after(timeout);  // the time counts from the fork
@@ -499,7 +507,7 @@ std::string fork_probe(const fs::path& file, const std::string& dataset, double 
   }
   if (pid == 0) {
     close(fds[0]);
-    child_main(path.c_str(), dataset, fds[1], parent, limit, timeout);
+    child_main(path.c_str(), dataset, fds[1], parent, base, memory, timeout);
   }
   {
     std::lock_guard lock(g_cache_mutex);
@@ -581,6 +589,7 @@ void probe_hdf5_file(const fs::path& file, const std::string& dataset) {
     }
   }
   const double timeout = probe_timeout();
+  child_memory();  // a wrong SKEL_HDF5_PROBE_MEMORY_MB is an error before any walk
   probe::WalkResult result;
   std::string refusal;
   {

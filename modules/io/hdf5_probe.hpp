@@ -21,8 +21,10 @@
 //
 // Environment: SKEL_HDF5_PROBE=0 turns the probe off (trusted data); SKEL_HDF5_PROBE=fork runs the
 // walk in a forked child of this process instead of the helper (also what happens when no helper is
-// found); SKEL_HDF5_PROBE_TIMEOUT=S sets the timeout in seconds (default 60); SKEL_HDF5_PROBE_HELPER
-// names the helper program (default: skelflow-hdf5-probe beside this program, else the build tree's).
+// found); SKEL_HDF5_PROBE_TIMEOUT=S sets the timeout in seconds (default 60);
+// SKEL_HDF5_PROBE_MEMORY_MB=M the memory a walk may add (MiB, default 1024; limited as address space
+// and as private writable memory, since AddressSanitizer reserves its allocator's range at start-up);
+// SKEL_HDF5_PROBE_HELPER names the helper program (default: skelflow-hdf5-probe beside this program, else the build tree's).
 // Limits: a memory error of libhdf5 that does not crash the walk is not seen in the forked child of a
 // build without AddressSanitizer (the helper has it unless SKEL_HDF5_PROBE_ASAN=OFF or the compiler
 // lacks it). Files Skelflow writes and reads itself (out-of-core scratch stores) are not probed.

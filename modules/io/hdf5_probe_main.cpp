@@ -33,7 +33,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
+#include <exception>
 #include <string>
 #include <vector>
 
@@ -54,15 +54,23 @@ namespace {
 
 using namespace skel::io::probe;
 
-constexpr uint64_t kMemory = uint64_t{1} << 30;        // address space beyond the start-up mapping
 constexpr uint64_t kRetireGrowth = uint64_t{256} << 20;  // growth after which the worker retires
 constexpr uint32_t kMaxRequestBytes = uint32_t{1} << 20;
 
-uint64_t mapped_bytes() {
-  std::ifstream in("/proc/self/statm");
-  uint64_t pages = 0;
-  in >> pages;
-  return pages * static_cast<uint64_t>(sysconf(_SC_PAGESIZE));
+// True when this process has mapped more than kRetireGrowth beyond `base` (address space or, under
+// AddressSanitizer, whose allocator range is reserved at start-up, private writable memory).
+bool grown(const MemoryUse& base) {
+  const MemoryUse now = memory_use();
+  return now.size > base.size + kRetireGrowth || now.data > base.data + kRetireGrowth;
+}
+
+// The memory limit of SKEL_HDF5_PROBE_MEMORY_MB (the client checked it), else the default.
+uint64_t memory_limit() {
+  try {
+    return memory_limit_bytes();
+  } catch (const std::exception&) {
+    return kDefaultMemoryMiB << 20;
+  }
 }
 
 bool read_all(int fd, void* data, size_t n) {
@@ -116,7 +124,7 @@ constexpr int kRetired = 5;
 // A walker: serves requests on stdin until EOF (exit 0) or until it retires (kRetired, after its
 // reply). `current` (shared with the server) holds the id of the request being walked, 0 between
 // requests, so that the server knows whether a death ended a request.
-int walk_requests(uint64_t base, volatile uint32_t* current) {
+int walk_requests(const MemoryUse& base, volatile uint32_t* current) {
   std::string path, dataset, payload;
   for (;;) {
     uint32_t head[4];
@@ -130,7 +138,7 @@ int walk_requests(uint64_t base, volatile uint32_t* current) {
     const int outcome = walk_file(path.c_str(), dataset, payload);
     alarm(0);
     const bool clean = close_leftovers();
-    const bool retire = outcome != kWalkOk || !clean || mapped_bytes() > base + kRetireGrowth;
+    const bool retire = outcome != kWalkOk || !clean || grown(base);
     const uint32_t reply[3] = {head[3], static_cast<uint32_t>(outcome), static_cast<uint32_t>(payload.size())};
     // stdin is a socket: the reply goes back on it.
     if (!write_all(STDIN_FILENO, reply, sizeof reply) || !write_all(STDIN_FILENO, payload.data(), payload.size())) return 0;
@@ -151,9 +159,8 @@ int serve(pid_t parent) {
   H5open();
   auto* current = static_cast<volatile uint32_t*>(mmap(nullptr, 4096, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0));
   if (current == MAP_FAILED) return 4;
-  const uint64_t base = mapped_bytes();
-  const rlimit as{base + kMemory, base + kMemory};
-  setrlimit(RLIMIT_AS, &as);
+  limit_memory(memory_use(), memory_limit());
+  exit_on_fault_at_the_limit();
   const pid_t server = getpid();
   // Ready: the client waits for this before its first request (a helper that cannot start, e.g. a
   // missing shared library, is then an error about the helper, not a verdict on a file).
@@ -165,7 +172,7 @@ int serve(pid_t parent) {
     if (walker == 0) {
       prctl(PR_SET_PDEATHSIG, SIGKILL);
       if (getppid() != server) _exit(0);
-      _exit(walk_requests(mapped_bytes(), current));
+      _exit(walk_requests(memory_use(), current));
     }
     int status = 0;
     while (waitpid(walker, &status, 0) < 0) {
@@ -196,18 +203,19 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: %s FILE [DATASET]\n"
                  "  walks the metadata of an HDF5 file as Skelflow's structure probe does (docs/reliability.md);\n"
-                 "  exit status 0: the walk finished; 3: libhdf5 needed more than 1 GiB; otherwise libhdf5 crashed\n"
+                 "  exit status 0: the walk finished; 3: libhdf5 needed more than SKEL_HDF5_PROBE_MEMORY_MB (default\n"
+                 "  1024 MiB); otherwise libhdf5 crashed\n"
                  "  or, in a build with AddressSanitizer, made a memory error (its report above, status 66)\n",
                  argv[0]);
     return 2;
   }
-  const uint64_t base = mapped_bytes();
-  const rlimit as{base + kMemory, base + kMemory};
-  setrlimit(RLIMIT_AS, &as);
+  limit_memory(memory_use(), memory_limit());
+  exit_on_fault_at_the_limit();
   std::string payload;
   const int outcome = walk_file(argv[1], argc == 3 ? argv[2] : "", payload);
   if (outcome == kWalkOutOfMemory) {
-    std::fprintf(stderr, "%s: the HDF5 library needed more than 1 GiB of memory\n", argv[1]);
+    std::fprintf(stderr, "%s: the HDF5 library needed more than %llu MiB of memory\n", argv[1],
+                 static_cast<unsigned long long>(memory_limit() >> 20));
     return outcome;
   }
   WalkResult result;

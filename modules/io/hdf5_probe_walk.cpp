@@ -3,7 +3,17 @@
 
 #include <hdf5.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
 #include <cstring>
 #include <new>
 #include <type_traits>
@@ -312,6 +322,95 @@ void put_record(std::string& out, const std::string& name, const ObjectAttribute
 
 
 }  // namespace
+
+uint64_t memory_limit_bytes() {
+  const char* v = std::getenv("SKEL_HDF5_PROBE_MEMORY_MB");
+  if (!v || !*v) return kDefaultMemoryMiB << 20;
+  char* end = nullptr;
+  errno = 0;
+  const unsigned long long mib = std::strtoull(v, &end, 10);
+  if (end == v || *end != '\0' || errno != 0 || v[0] == '-' || mib < 64 || mib > (1ull << 20))
+    throw std::invalid_argument(std::string("SKEL_HDF5_PROBE_MEMORY_MB must be a number of MiB from 64 to 1048576, got '") + v + "'");
+  return static_cast<uint64_t>(mib) << 20;
+}
+
+MemoryUse memory_use() {
+  MemoryUse use;
+  std::FILE* f = std::fopen("/proc/self/status", "re");
+  if (!f) return use;
+  char line[256];
+  while (std::fgets(line, sizeof line, f)) {
+    unsigned long long kib = 0;
+    if (std::sscanf(line, "VmSize: %llu kB", &kib) == 1) use.size = static_cast<uint64_t>(kib) << 10;
+    if (std::sscanf(line, "VmData: %llu kB", &kib) == 1) use.data = static_cast<uint64_t>(kib) << 10;
+  }
+  std::fclose(f);
+  return use;
+}
+
+namespace {
+uint64_t g_size_limit = 0, g_data_limit = 0;
+constexpr uint64_t kNearTheLimit = uint64_t{64} << 20;
+
+// VmSize and VmData from /proc/self/status with system calls only (a signal handler).
+bool memory_use_in_handler(uint64_t& size, uint64_t& data) {
+  static char buf[4096];
+  // Raw system calls: the sanitizer runtime's interceptors ask for the thread's stack bounds, which
+  // needs memory, and there is none left.
+  const long fd = syscall(SYS_openat, AT_FDCWD, "/proc/self/status", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  const long n = syscall(SYS_read, fd, buf, sizeof buf - 1);
+  syscall(SYS_close, fd);
+  if (n <= 0) return false;
+  buf[n] = '\0';
+  // Plain loops: the sanitizer runtime's interceptors of strstr and strlen may need memory.
+  const auto field = [&](const char* name) -> uint64_t {
+    const char* p = nullptr;
+    for (const char* line = buf; *line && !p; ++line) {
+      if (line != buf && line[-1] != '\n') continue;
+      size_t k = 0;
+      while (name[k] && line[k] == name[k]) ++k;
+      if (!name[k]) p = line + k;
+    }
+    if (!p) return 0;
+    while (*p == ' ' || *p == '\t') ++p;
+    uint64_t kib = 0;
+    while (*p >= '0' && *p <= '9') kib = kib * 10 + static_cast<uint64_t>(*p++ - '0');
+    return kib << 10;
+  };
+  size = field("VmSize:");
+  data = field("VmData:");
+  return true;
+}
+
+void on_fault(int sig) {
+  uint64_t size = 0, data = 0;
+  if (memory_use_in_handler(size, data) &&
+      ((g_size_limit > 0 && size + kNearTheLimit > g_size_limit) || (g_data_limit > 0 && data + kNearTheLimit > g_data_limit)))
+    syscall(SYS_exit_group, kWalkOutOfMemory);
+  signal(sig, SIG_DFL);  // returning re-runs the faulting instruction, which now ends the process
+}
+}  // namespace
+
+void exit_on_fault_at_the_limit() {
+  struct sigaction sa {};
+  sa.sa_handler = on_fault;
+  sa.sa_flags = SA_RESETHAND;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGSEGV, &sa, nullptr);
+  sigaction(SIGBUS, &sa, nullptr);
+}
+
+void limit_memory(const MemoryUse& base, uint64_t bytes) {
+  g_size_limit = base.size + bytes;
+  g_data_limit = base.data > 0 ? base.data + bytes : 0;
+  const rlimit as{base.size + bytes, base.size + bytes};
+  setrlimit(RLIMIT_AS, &as);
+  if (base.data > 0) {
+    const rlimit data{base.data + bytes, base.data + bytes};
+    setrlimit(RLIMIT_DATA, &data);
+  }
+}
 
 void quiet_hdf5_errors() { H5Eset_auto2(H5E_DEFAULT, on_hdf5_error, nullptr); }
 

@@ -68,6 +68,28 @@ Attribute read_attribute(int64_t obj, size_t index);
 std::string encode(const WalkResult& r, const std::string& first, const std::string& second);
 bool decode(const std::string& bytes, WalkResult& r);
 
+// Memory a walk may add to its process: SKEL_HDF5_PROBE_MEMORY_MB (MiB, 64 to 1048576), default 1024.
+// Throws std::invalid_argument naming the variable on another value.
+constexpr uint64_t kDefaultMemoryMiB = 1024;
+uint64_t memory_limit_bytes();
+
+// What this process has mapped (/proc/self/status): all of it (VmSize) and its private writable
+// part (VmData), in bytes.
+struct MemoryUse {
+  uint64_t size = 0, data = 0;
+};
+MemoryUse memory_use();
+// Lets this process map at most `bytes` more than `base`: RLIMIT_AS on the address space and
+// RLIMIT_DATA on the private writable memory. Both are needed: under AddressSanitizer the allocator
+// reserves its whole range at start-up, so the address space does not grow when libhdf5 allocates
+// (RLIMIT_AS alone let a walk grow by ~350 MB/s until the timeout); its writable mappings do.
+void limit_memory(const MemoryUse& base, uint64_t bytes);
+// After limit_memory: a SIGSEGV or SIGBUS while the process is within 64 MiB of a limit ends it with
+// kWalkOutOfMemory instead (the sanitizer runtime's strdup interceptor writes through the NULL its
+// allocator returns at the limit, where libhdf5 reports the failed allocation); any other keeps
+// the signal's default action.
+void exit_on_fault_at_the_limit();
+
 // Installs the quiet HDF5 error handler of the walk (it notes failed allocations, prints nothing).
 void quiet_hdf5_errors();
 
