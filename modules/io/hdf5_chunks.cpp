@@ -1,5 +1,6 @@
 #include "io/hdf5_chunks.hpp"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -302,8 +303,10 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
   const std::array<int64_t, 3> chunk{static_cast<int64_t>(hc[2]), static_cast<int64_t>(hc[1]), static_cast<int64_t>(hc[0])};
   for (int64_t c : chunk)
     if (c <= 0) return decline();
+  // Unfiltered chunks have the size of their shape whatever the index says (libhdf5 reads exactly
+  // that): H5Dread reads them straight into the volume, faster than a copy through our buffers.
   auto filters = filter_pipeline(dcpl);
-  if (!filters) return decline();
+  if (!filters || filters->empty()) return decline();
   const hid_t type = H5Dget_type(dset);
   if (type < 0) return decline();
   Closer type_closer{type, H5Tclose};
@@ -360,14 +363,18 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
   // of stored bytes.
   const int64_t max_batch = std::max<int64_t>(1, int64_t{4} * threads);
   const hsize_t max_batch_bytes = hsize_t{256} << 20;
-  std::vector<ChunkJob> batch;
-  batch.reserve(static_cast<size_t>(max_batch));
+  // Buffers are reused from batch to batch (fresh large blocks cost a page fault per 4 KiB).
+  std::vector<ChunkJob> batch(static_cast<size_t>(std::min(max_batch, total)));
+  struct Scratch {
+    std::vector<unsigned char> a, b;
+  };
+  tbb::enumerable_thread_specific<Scratch> scratch;
   int64_t next = 0;
   while (next < total) {
-    batch.clear();
+    size_t count = 0;
     hsize_t batch_bytes = 0;
-    while (next < total && static_cast<int64_t>(batch.size()) < max_batch && batch_bytes < max_batch_bytes) {
-      ChunkJob c;
+    while (next < total && count < batch.size() && batch_bytes < max_batch_bytes) {
+      ChunkJob& c = batch[count++];
       c.index = {first[0] + next % nx, first[1] + next / nx % ny, first[2] + next / (nx * ny)};
       ++next;
       for (int k = 0; k < 3; ++k) c.origin[k] = c.index[k] * chunk[k];
@@ -380,11 +387,11 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
         throw InputError(file.string() + ": dataset '" + dataset + "': cannot look up chunk (" + std::to_string(c.index[0]) +
                          ", " + std::to_string(c.index[1]) + ", " + std::to_string(c.index[2]) +
                          ") in its chunk index: the file is damaged");
-      if (addr != HADDR_UNDEF && stored > 0) {
+      c.present = addr != HADDR_UNDEF && stored > 0;
+      if (c.present) {
         if (file_bytes > 0 && stored > file_bytes)
           decoder.refuse(c, "claims " + std::to_string(stored) + " stored bytes but the file has only " +
                                 std::to_string(file_bytes));
-        c.present = true;
         c.raw.resize(static_cast<size_t>(stored));
         uint32_t read_mask = 0;
         if (H5Dread_chunk(dset, H5P_DEFAULT, offset, &read_mask, c.raw.data()) < 0) {
@@ -394,16 +401,15 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
         c.mask = read_mask;
         batch_bytes += stored;
       }
-      batch.push_back(std::move(c));
     }
-    parallel_for(0, static_cast<int64_t>(batch.size()), threads, [&](int64_t b, int64_t e) {
-      std::vector<unsigned char> a, bb;
+    parallel_for(0, static_cast<int64_t>(count), threads, [&](int64_t b, int64_t e) {
+      Scratch& sc = scratch.local();
       for (int64_t i = b; i < e; ++i) {
         const ChunkJob& c = batch[static_cast<size_t>(i)];
-        place(c, c.present ? decoder.decode(c, a, bb) : nullptr);
+        place(c, c.present ? decoder.decode(c, sc.a, sc.b) : nullptr);
       }
     });
-    g_decoded += static_cast<int64_t>(batch.size());
+    g_decoded += static_cast<int64_t>(count);
   }
   return true;
 }

@@ -90,7 +90,11 @@ read once in a separate process (the helper `skelflow-hdf5-probe`, built with Ad
 1 GiB of address space and a 60 s limit, because the HDF5 library can crash or corrupt memory on
 damaged files; a file that crashes it, makes a memory error or exceeds it is refused naming the file.
 `SKEL_HDF5_PROBE=0` skips this for trusted data, `SKEL_HDF5_PROBE_TIMEOUT` sets the seconds,
-`SKEL_HDF5_PROBE_HELPER` names the helper (docs/reliability.md).
+`SKEL_HDF5_PROBE_HELPER` names the helper (docs/reliability.md). Chunked datasets compressed with
+deflate (with shuffle and Fletcher32 or not) are decoded by Skelflow's own code on the reader's
+threads, which refuses a damaged chunk naming it (x, y, z index) instead of letting the HDF5 library
+overrun a buffer; `SKEL_HDF5_OWN_CHUNKS=0` reads them through the HDF5 library instead. Other
+filters (szip, scale-offset, n-bit, plugins) are decoded by the HDF5 library.
 TIFF: a multi-page stack, or a folder of single-slice files (or a pattern such as `slices/z*.tif`)
 sorted naturally (z2 before z10); 8/16/32/64-bit unsigned, signed and float samples, BigTIFF,
 strips or tiles, any compression libtiff decodes (none, LZW, deflate, PackBits); only the pages and
