@@ -1,6 +1,5 @@
 #include "io/hdf5_chunks.hpp"
 
-#include <tbb/enumerable_thread_specific.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -8,6 +7,7 @@
 #include <bit>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <optional>
 #include <type_traits>
 #include <vector>
@@ -177,6 +177,16 @@ uint32_t fletcher32(const unsigned char* data, size_t bytes) {
   return (sum2 << 16) | sum1;
 }
 
+// Undoes HDF5's shuffle for E-byte elements: byte j of element i was stored at j * count + i.
+template <size_t E>
+void unshuffle(const unsigned char* src, unsigned char* dst, size_t count) {
+  for (size_t i = 0; i < count; ++i) {
+    unsigned char v[E];
+    for (size_t j = 0; j < E; ++j) v[j] = src[j * count + i];
+    std::memcpy(dst + i * E, v, E);
+  }
+}
+
 // One chunk of the box: its grid index, its first voxel (x, y, z) and, once read, its stored bytes.
 struct ChunkJob {
   std::array<int64_t, 3> index{}, origin{};
@@ -198,7 +208,7 @@ public:
   }
 
   // Undoes the filters of chunk `c` (its stored bytes in c.raw); returns the chunk's bytes, exactly
-  // chunk_bytes_ of them, in `a` or `b` (scratch buffers of the calling thread).
+  // chunk_bytes_ of them, in `a` or `b` (scratch buffers of the caller, reused from chunk to chunk).
   const unsigned char* decode(const ChunkJob& c, std::vector<unsigned char>& a, std::vector<unsigned char>& b) const {
     const unsigned char* data = c.raw.data();
     size_t n = c.raw.size();
@@ -246,11 +256,15 @@ public:
         out.resize(n);
         const size_t e = f.element, count = n / e;
         if (count > 1) {
-          for (size_t j = 0; j < e; ++j) {
-            const unsigned char* s = data + j * count;
-            unsigned char* d = out.data() + j;
-            for (size_t i = 0; i < count; ++i) d[i * e] = s[i];
-          }
+          if (e == 2) unshuffle<2>(data, out.data(), count);
+          else if (e == 4) unshuffle<4>(data, out.data(), count);
+          else if (e == 8) unshuffle<8>(data, out.data(), count);
+          else
+            for (size_t j = 0; j < e; ++j) {
+              const unsigned char* s = data + j * count;
+              unsigned char* d = out.data() + j;
+              for (size_t i = 0; i < count; ++i) d[i * e] = s[i];
+            }
           std::memcpy(out.data() + count * e, data + count * e, n - count * e);
           data = out.data();
         }
@@ -355,62 +369,56 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
       }
   };
 
-  threads = effective_threads(threads);
   const int64_t nx = last[0] - first[0] + 1, ny = last[1] - first[1] + 1, nz = last[2] - first[2] + 1;
   const int64_t total = nx * ny * nz;
-  // Batches of chunks: read by this thread (libhdf5: the index lookup and the stored bytes), then
-  // decoded and placed on `threads` threads. A batch holds at most 4 chunks per thread and ~256 MiB
-  // of stored bytes.
-  const int64_t max_batch = std::max<int64_t>(1, int64_t{4} * threads);
-  const hsize_t max_batch_bytes = hsize_t{256} << 20;
-  // Buffers are reused from batch to batch (fresh large blocks cost a page fault per 4 KiB).
-  std::vector<ChunkJob> batch(static_cast<size_t>(std::min(max_batch, total)));
-  struct Scratch {
+  // `workers` loops, each taking the next chunk: its lookup in the chunk index and its stored bytes
+  // come from libhdf5 under `read_mutex` (one libhdf5 call at a time; the caller holds the
+  // process-wide HDF5 mutex throughout, so no other thread of the process is inside libhdf5), the
+  // decoding and copying run outside it, so one worker reads while the others inflate. Each worker
+  // keeps its buffers from chunk to chunk. A box of one chunk is read on the calling thread alone.
+  const int workers = static_cast<int>(std::min<int64_t>(effective_threads(threads), total));
+  std::mutex read_mutex;
+  std::atomic<int64_t> next{0};
+  parallel_chunks(0, workers, workers, workers, [&](int64_t, int64_t, int64_t) {
+    ChunkJob c;
     std::vector<unsigned char> a, b;
-  };
-  tbb::enumerable_thread_specific<Scratch> scratch;
-  int64_t next = 0;
-  while (next < total) {
-    size_t count = 0;
-    hsize_t batch_bytes = 0;
-    while (next < total && count < batch.size() && batch_bytes < max_batch_bytes) {
-      ChunkJob& c = batch[count++];
-      c.index = {first[0] + next % nx, first[1] + next / nx % ny, first[2] + next / (nx * ny)};
-      ++next;
-      for (int k = 0; k < 3; ++k) c.origin[k] = c.index[k] * chunk[k];
-      const hsize_t offset[3] = {static_cast<hsize_t>(c.origin[2]), static_cast<hsize_t>(c.origin[1]),
-                                 static_cast<hsize_t>(c.origin[0])};
-      unsigned mask = 0;
-      haddr_t addr = HADDR_UNDEF;
-      hsize_t stored = 0;
-      if (H5Dget_chunk_info_by_coord(dset, offset, &mask, &addr, &stored) < 0)
-        throw InputError(file.string() + ": dataset '" + dataset + "': cannot look up chunk (" + std::to_string(c.index[0]) +
-                         ", " + std::to_string(c.index[1]) + ", " + std::to_string(c.index[2]) +
-                         ") in its chunk index: the file is damaged");
-      c.present = addr != HADDR_UNDEF && stored > 0;
-      if (c.present) {
-        if (file_bytes > 0 && stored > file_bytes)
-          decoder.refuse(c, "claims " + std::to_string(stored) + " stored bytes but the file has only " +
-                                std::to_string(file_bytes));
-        c.raw.resize(static_cast<size_t>(stored));
-        uint32_t read_mask = 0;
-        if (H5Dread_chunk(dset, H5P_DEFAULT, offset, &read_mask, c.raw.data()) < 0) {
-          H5Eclear2(H5E_DEFAULT);
-          decoder.refuse(c, "cannot be read");
+    try {
+      for (int64_t k = next++; k < total; k = next++) {
+        c.index = {first[0] + k % nx, first[1] + k / nx % ny, first[2] + k / (nx * ny)};
+        for (int j = 0; j < 3; ++j) c.origin[j] = c.index[j] * chunk[j];
+        const hsize_t offset[3] = {static_cast<hsize_t>(c.origin[2]), static_cast<hsize_t>(c.origin[1]),
+                                   static_cast<hsize_t>(c.origin[0])};
+        {
+          std::lock_guard lock(read_mutex);
+          unsigned mask = 0;
+          haddr_t addr = HADDR_UNDEF;
+          hsize_t stored = 0;
+          if (H5Dget_chunk_info_by_coord(dset, offset, &mask, &addr, &stored) < 0) {
+            H5Eclear2(H5E_DEFAULT);
+            decoder.refuse(c, "cannot be looked up in the chunk index");
+          }
+          c.present = addr != HADDR_UNDEF && stored > 0;
+          if (c.present) {
+            if (file_bytes > 0 && stored > file_bytes)
+              decoder.refuse(c, "claims " + std::to_string(stored) + " stored bytes but the file has only " +
+                                    std::to_string(file_bytes));
+            c.raw.resize(static_cast<size_t>(stored));
+            uint32_t read_mask = 0;
+            if (H5Dread_chunk(dset, H5P_DEFAULT, offset, &read_mask, c.raw.data()) < 0) {
+              H5Eclear2(H5E_DEFAULT);
+              decoder.refuse(c, "cannot be read");
+            }
+            c.mask = read_mask;
+          }
         }
-        c.mask = read_mask;
-        batch_bytes += stored;
+        place(c, c.present ? decoder.decode(c, a, b) : nullptr);
+        ++g_decoded;
       }
+    } catch (...) {
+      next = total;  // the other workers stop after their chunk
+      throw;
     }
-    parallel_for(0, static_cast<int64_t>(count), threads, [&](int64_t b, int64_t e) {
-      Scratch& sc = scratch.local();
-      for (int64_t i = b; i < e; ++i) {
-        const ChunkJob& c = batch[static_cast<size_t>(i)];
-        place(c, c.present ? decoder.decode(c, sc.a, sc.b) : nullptr);
-      }
-    });
-    g_decoded += static_cast<int64_t>(count);
-  }
+  });
   return true;
 }
 

@@ -9,7 +9,8 @@
 // of exactly the size the chunk must have, HDF5's shuffle undone, the element type converted. A chunk
 // that inflates to more or fewer bytes, fails to inflate or fails its checksum is refused with an
 // InputError naming the file, the dataset and the chunk's (x, y, z) index. Chunks are decoded in
-// parallel (no HDF5 call off the calling thread), so a deflated read is also faster than H5Dread.
+// parallel (one libhdf5 call at a time, under a lock of the read, while the caller holds the
+// process-wide HDF5 mutex), so a deflated read also gets faster than H5Dread where cores are free.
 //
 // Handled: chunked datasets whose filters are shuffle, deflate (at most one) and Fletcher32, in any
 // order, each honoured or skipped by the chunk's filter mask; stored types the standard little- or
@@ -38,7 +39,8 @@ bool own_chunk_decoding_enabled();
 // the chunks on `threads` threads (<= 0: all hardware threads). Returns false, having read nothing,
 // when the dataset is not one this decoder handles (see above): the caller reads it with H5Dread.
 // Throws InputError naming `file`, `dataset` and the chunk for a damaged chunk. The caller holds the
-// process-wide HDF5 mutex; only the calling thread calls HDF5.
+// process-wide HDF5 mutex for the whole call; the workers call libhdf5 (chunk lookup and raw read)
+// one at a time under a lock of their own, and inflate, unshuffle and copy outside it.
 template <class T>
 bool read_chunked_box(hid_t dset, const std::filesystem::path& file, const std::string& dataset, const Dims& dims,
                       const Dims& begin, const Dims& size, T* out, int threads);
