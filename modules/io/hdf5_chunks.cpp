@@ -195,6 +195,27 @@ struct ChunkJob {
   std::vector<unsigned char> raw;
 };
 
+// Each worker's buffers (stored bytes, two decoding buffers), kept from one read to the next up to
+// kBufferPoolBytes in all: a fresh megabyte block costs a page fault per 4 KiB on every read_box call
+// (libhdf5 keeps its chunk buffers on free lists for the same reason). Used only under the
+// process-wide HDF5 mutex, which every caller of read_chunked_box holds.
+struct WorkerBuffers {
+  std::vector<unsigned char> raw, a, b;
+};
+constexpr size_t kBufferPoolBytes = size_t{32} << 20;
+std::vector<WorkerBuffers>& buffer_pool() {
+  static std::vector<WorkerBuffers> pool;
+  return pool;
+}
+void trim_buffer_pool() {
+  size_t kept = 0;
+  for (WorkerBuffers& w : buffer_pool())
+    for (std::vector<unsigned char>* v : {&w.raw, &w.a, &w.b}) {
+      if (kept + v->capacity() > kBufferPoolBytes) std::vector<unsigned char>().swap(*v);
+      kept += v->capacity();
+    }
+}
+
 class Decoder {
 public:
   Decoder(const fs::path& file, const std::string& dataset, std::vector<Filter> filters, size_t chunk_bytes)
@@ -379,9 +400,28 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
   const int workers = static_cast<int>(std::min<int64_t>(effective_threads(threads), total));
   std::mutex read_mutex;
   std::atomic<int64_t> next{0};
-  parallel_chunks(0, workers, workers, workers, [&](int64_t, int64_t, int64_t) {
+  std::vector<WorkerBuffers>& pool = buffer_pool();
+  if (pool.size() < static_cast<size_t>(workers)) pool.resize(static_cast<size_t>(workers));
+  struct Trim {
+    ~Trim() { trim_buffer_pool(); }
+  } trim;
+  parallel_chunks(0, workers, workers, workers, [&](int64_t worker, int64_t, int64_t) {
+    WorkerBuffers& buffers = pool[static_cast<size_t>(worker)];
     ChunkJob c;
     std::vector<unsigned char> a, b;
+    c.raw.swap(buffers.raw);
+    a.swap(buffers.a);
+    b.swap(buffers.b);
+    struct GiveBack {
+      WorkerBuffers& to;
+      ChunkJob& c;
+      std::vector<unsigned char>&a, &b;
+      ~GiveBack() {
+        to.raw.swap(c.raw);
+        to.a.swap(a);
+        to.b.swap(b);
+      }
+    } give_back{buffers, c, a, b};
     try {
       for (int64_t k = next++; k < total; k = next++) {
         c.index = {first[0] + k % nx, first[1] + k / nx % ny, first[2] + k / (nx * ny)};
