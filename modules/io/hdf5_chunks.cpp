@@ -415,7 +415,8 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
     struct GiveBack {
       WorkerBuffers& to;
       ChunkJob& c;
-      std::vector<unsigned char>&a, &b;
+      std::vector<unsigned char>& a;
+      std::vector<unsigned char>& b;
       ~GiveBack() {
         to.raw.swap(c.raw);
         to.a.swap(a);
