@@ -7,6 +7,7 @@
 //        bench_io SIZE DIR run uint8|float32 LEVEL BLOCK
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <string>
 
@@ -38,6 +39,19 @@ Volume<T> read_npy(const std::string& path, Dims d) {
   return v;
 }
 
+// CPU seconds of this process (all threads) spent in f.
+template <class F>
+double cpu_of(F&& f) {
+  auto now = [] {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+  };
+  const double t0 = now();
+  f();
+  return now() - t0;
+}
+
 template <class T>
 int run(int64_t n, const std::string& dir, const std::string& dtype, int level, int64_t block) {
   const Dims d{n, n, n};
@@ -50,6 +64,7 @@ int run(int64_t n, const std::string& dir, const std::string& dtype, int level, 
   const io::VolumeInfo info = io::read_volume_info(file);
   DataPtr back;
   const double tr = bench::best_of(2, [&] { back = io::read_volume(file); });
+  const double cpu = cpu_of([&] { back = io::read_volume(file); });
   const auto* r = dynamic_cast<const Volume<T>*>(back.get());
   const bool same = r && *r == v;
   back.reset();
@@ -64,6 +79,29 @@ int run(int64_t n, const std::string& dir, const std::string& dtype, int level, 
           sum += static_cast<uint64_t>(box[box.size() / 2] != T{});
         }
   });
+  // The same reads through H5Dread (SKEL_HDF5_OWN_CHUNKS=0: libhdf5's filter pipeline, one thread)
+  // in the same process, for the ratio to our chunk decoding (io/hdf5_chunks.hpp).
+  setenv("SKEL_HDF5_OWN_CHUNKS", "0", 1);
+  bool same_h5 = false;
+  const double tr_h5 = bench::best_of(2, [&] { back = io::read_volume(file); });
+  const double cpu_h5 = cpu_of([&] { back = io::read_volume(file); });
+  {
+    const auto* r5 = dynamic_cast<const Volume<T>*>(back.get());
+    same_h5 = r5 && *r5 == v;
+    back.reset();
+  }
+  const double tb_h5 = bench::best_of(2, [&] {
+    for (int64_t z = 0; z < n; z += block)
+      for (int64_t y = 0; y < n; y += block)
+        for (int64_t x = 0; x < n; x += block) {
+          const Dims b{x, y, z}, s{std::min(block, n - x), std::min(block, n - y), std::min(block, n - z)};
+          const Volume<T> box = io::read_box<T>(file, "/volume", b, s);
+          sum += static_cast<uint64_t>(box[box.size() / 2] != T{});
+        }
+  });
+  unsetenv("SKEL_HDF5_OWN_CHUNKS");
+  std::printf("read_h5dread=%.4f\nblocks_h5dread=%.4f\nidentical_h5dread=%s\nread_cpu=%.4f\nread_h5dread_cpu=%.4f\n", tr_h5,
+              tb_h5, same_h5 ? "yes" : "NO", cpu, cpu_h5);
   std::printf("write=%.4f\nread=%.4f\nblocks=%.4f\nfile_bytes=%llu\nchunks=%lldx%lldx%lld\nidentical=%s\nblock_probe=%llu\n",
               tw, tr, tb, static_cast<unsigned long long>(size), static_cast<long long>(info.chunks[0]),
               static_cast<long long>(info.chunks[1]), static_cast<long long>(info.chunks[2]), same ? "yes" : "NO",

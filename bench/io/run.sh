@@ -19,6 +19,7 @@ get() { sed -n "s/^$1=//p" "$2"; }
 
 "$bin" "$n" "$work" generate
 rows=""
+cmp=""
 row() {  # dtype writer layout chunks write read blocks bytes peak identical
   rows+=$(awk -v n="$n" -v dt="$1" -v who="$2" -v lay="$3" -v ch="$4" -v tw="$5" -v tr="$6" -v tb="$7" -v fb="$8" -v pk="$9" -v same="${10}" 'BEGIN {
     bytes = n * n * n * (dt == "uint8" ? 1 : 4)
@@ -38,6 +39,11 @@ for dt in uint8 float32; do
     row "$dt" "ours" "$lay" "$(get chunks "$f")" "$(get write "$f")" "$(get read "$f")" "$(get blocks "$f")" \
         "$(get file_bytes "$f")" "$(get peak_rss_mib "$f")" "$(get identical "$f"); h5py reads it: $(get "h5py_reads_ours_$level" "$work/h5py_$dt.txt")"
   done
+  f="$work/ours_${dt}_1.txt"
+  cmp+=$(awk -v dt="$dt" -v r="$(get read "$f")" -v r5="$(get read_h5dread "$f")" -v c="$(get read_cpu "$f")" \
+    -v c5="$(get read_h5dread_cpu "$f")" -v b="$(get blocks "$f")" -v b5="$(get blocks_h5dread "$f")" \
+    -v same="$(get identical_h5dread "$f")" 'BEGIN {
+    printf "| %s | %.3f | %.3f | %.2f | %.3f | %.3f | %.3f | %.3f | %s |", dt, r, r5, r5 / r, c, c5, b, b5, same }')$'\n'
   p="$work/h5py_$dt.txt"
   for lay in contiguous auto_chunks auto_chunks_gzip1; do
     case $lay in
@@ -67,6 +73,14 @@ echo
 echo "| dtype | writer | layout | chunks | write (s) | write MB/s | read (s) | read MB/s | ${block}³ blocks (s) | blocks MB/s | file MiB | compression ratio | peak MiB | identical |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 printf "%s" "$rows"
+echo
+echo "Deflated reads (level 1): our chunk decoding (\`io/hdf5_chunks.hpp\`, chunks inflated on all $(nproc) threads) against"
+echo "libhdf5's filter pipeline in H5Dread (\`SKEL_HDF5_OWN_CHUNKS=0\`), same process and file, best of 2; CPU = one"
+echo "read, all threads of the process."
+echo
+echo "| dtype | read ours (s) | read H5Dread (s) | H5Dread / ours | CPU ours (s) | CPU H5Dread (s) | ${block}³ blocks ours (s) | ${block}³ blocks H5Dread (s) | identical |"
+echo "|---|---|---|---|---|---|---|---|---|"
+printf "%s" "$cmp"
 echo
 echo "HDF5 $(/usr/bin/python3 -c 'import h5py; print(h5py.version.hdf5_version, "(h5py", h5py.__version__ + ")")' 2>/dev/null || echo "?"); ours links the system HDF5"
 echo "$(dpkg-query -W -f='${Version}' libhdf5-dev 2>/dev/null || echo "?"). Machine: $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); temp dir on"

@@ -12,6 +12,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "io/hdf5_chunks.hpp"
 #include "io/hdf5_probe.hpp"
 #include "io/hdf5_write_driver.hpp"
 #include "skel/error.hpp"
@@ -286,7 +287,7 @@ template <> hid_t native<float>() { return H5T_NATIVE_FLOAT; }
 template <> hid_t native<double>() { return H5T_NATIVE_DOUBLE; }
 
 template <class T>
-Volume<T> read_into(Opened& o, const fs::path& file, const std::string& dataset, Dims begin, Dims size) {
+Volume<T> read_into(Opened& o, const fs::path& file, const std::string& dataset, Dims begin, Dims size, int threads = 0) {
   Grid g(size);
   const Geometry geo = read_geometry(o.file.id, o.dset.id, dataset, file);
   const Vec3& sp = geo.spacing;
@@ -297,6 +298,9 @@ Volume<T> read_into(Opened& o, const fs::path& file, const std::string& dataset,
               org[2] + static_cast<double>(begin[2]) * sp[2]};
   Volume<T> v = Volume<T>::uninitialized(g);
   if (v.size() == 0) return v;
+  // Chunked datasets with shuffle / deflate / Fletcher32: our own decoding (hdf5_chunks.hpp), which
+  // refuses a damaged chunk instead of letting libhdf5 overrun a buffer; anything else: H5Dread.
+  if (detail::read_chunked_box<T>(o.dset.id, file, dataset, o.dims, begin, size, v.data(), threads)) return v;
   hsize_t start[3] = {static_cast<hsize_t>(begin[2]), static_cast<hsize_t>(begin[1]), static_cast<hsize_t>(begin[0])};
   hsize_t count[3] = {static_cast<hsize_t>(size[2]), static_cast<hsize_t>(size[1]), static_cast<hsize_t>(size[0])};
   if (H5Sselect_hyperslab(o.space.id, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
@@ -399,7 +403,7 @@ void check_declared_size(const Opened& o, const fs::path& file, const std::strin
 
 }  // namespace
 
-DataPtr read_volume(const fs::path& file, const std::string& dataset) {
+DataPtr read_volume(const fs::path& file, const std::string& dataset, int threads) {
   std::lock_guard lock(hdf5_mutex());
   quiet();
   Opened o = open_volume(file, dataset);
@@ -410,14 +414,14 @@ DataPtr read_volume(const fs::path& file, const std::string& dataset) {
   check_declared_size(o, file, dataset);
   const Dims z{0, 0, 0};
   const std::string& t = o.dtype;
-  if (t == "uint8") return std::make_shared<VolumeU8>(read_into<uint8_t>(o, file, dataset, z, o.dims));
-  if (t == "uint16") return std::make_shared<VolumeU16>(read_into<uint16_t>(o, file, dataset, z, o.dims));
-  if (t == "uint32") return std::make_shared<VolumeU32>(read_into<uint32_t>(o, file, dataset, z, o.dims));
-  if (t == "uint64") return std::make_shared<VolumeU64>(read_into<uint64_t>(o, file, dataset, z, o.dims));
+  if (t == "uint8") return std::make_shared<VolumeU8>(read_into<uint8_t>(o, file, dataset, z, o.dims, threads));
+  if (t == "uint16") return std::make_shared<VolumeU16>(read_into<uint16_t>(o, file, dataset, z, o.dims, threads));
+  if (t == "uint32") return std::make_shared<VolumeU32>(read_into<uint32_t>(o, file, dataset, z, o.dims, threads));
+  if (t == "uint64") return std::make_shared<VolumeU64>(read_into<uint64_t>(o, file, dataset, z, o.dims, threads));
   if (t == "int8" || t == "int16" || t == "int32")
-    return std::make_shared<VolumeI32>(read_into<int32_t>(o, file, dataset, z, o.dims));
-  if (t == "float32") return std::make_shared<VolumeF32>(read_into<float>(o, file, dataset, z, o.dims));
-  return std::make_shared<VolumeF64>(read_into<double>(o, file, dataset, z, o.dims));  // float64, int64
+    return std::make_shared<VolumeI32>(read_into<int32_t>(o, file, dataset, z, o.dims, threads));
+  if (t == "float32") return std::make_shared<VolumeF32>(read_into<float>(o, file, dataset, z, o.dims, threads));
+  return std::make_shared<VolumeF64>(read_into<double>(o, file, dataset, z, o.dims, threads));  // float64, int64
 }
 
 template <class T>

@@ -46,9 +46,13 @@ struct WriteOptions {
 std::array<int64_t, 3> automatic_chunks(Dims dims, int64_t bytes_per_voxel);
 
 // Reads any supported dataset as its own voxel type (int8/int16 become int32, int64 becomes
-// float64 unless it fits... see read_volume_as for conversion). Throws InputError.
-DataPtr read_volume(const std::filesystem::path& file, const std::string& dataset = "/volume");
-// Reads a box [begin, begin + size) of the dataset (x, y, z) as Volume<T> (converted by HDF5).
+// float64 unless it fits... see read_volume_as for conversion). Throws InputError. Chunked datasets
+// with only shuffle / deflate / Fletcher32 filters are decoded by our code on `threads` threads (<= 0:
+// all hardware threads), which refuses a damaged chunk naming it (hdf5_chunks.hpp;
+// SKEL_HDF5_OWN_CHUNKS=0 reads through H5Dread instead); other datasets through H5Dread.
+DataPtr read_volume(const std::filesystem::path& file, const std::string& dataset = "/volume", int threads = 0);
+// Reads a box [begin, begin + size) of the dataset (x, y, z) as Volume<T> (converted by HDF5, or
+// decoded chunk by chunk as read_volume does: only the chunks the box touches).
 template <class T>
 Volume<T> read_box(const std::filesystem::path& file, const std::string& dataset, Dims begin, Dims size);
 VolumeInfo read_volume_info(const std::filesystem::path& file, const std::string& dataset = "/volume");

@@ -92,6 +92,10 @@ damaged files; a file that crashes it, makes a memory error or exceeds it is ref
 `SKEL_HDF5_PROBE=0` skips this for trusted data, `SKEL_HDF5_PROBE_TIMEOUT` sets the seconds,
 `SKEL_HDF5_PROBE_MEMORY_MB` the memory (MiB), `SKEL_HDF5_PROBE_HELPER` names the helper
 (docs/reliability.md). The spacing, origin and unit attributes are read there too and passed back.
+Chunked datasets compressed with deflate (with shuffle and Fletcher32 or not) are decoded by
+Skelflow's own code on the reader's threads, which refuses a damaged chunk naming it (x, y, z index)
+instead of letting the HDF5 library overrun a buffer; `SKEL_HDF5_OWN_CHUNKS=0` reads them through the
+HDF5 library instead. Other filters (szip, scale-offset, n-bit, plugins) are decoded by the HDF5 library.
 TIFF: a multi-page stack, or a folder of single-slice files (or a pattern such as `slices/z*.tif`)
 sorted naturally (z2 before z10); 8/16/32/64-bit unsigned, signed and float samples, BigTIFF,
 strips or tiles, any compression libtiff decodes (none, LZW, deflate, PackBits); only the pages and

@@ -24,7 +24,7 @@ VolumeFormat hdf5_volume_format() {
     return h;
   };
   f.read = [](const std::filesystem::path& p, const VolumeReadOptions& o) {
-    return read_volume(p, o.dataset.empty() ? "/volume" : o.dataset);
+    return read_volume(p, o.dataset.empty() ? "/volume" : o.dataset, o.threads);
   };
   f.read_box = [](const std::filesystem::path& p, const VolumeReadOptions& o, Dims begin, Dims size) -> DataPtr {
     const std::string ds = o.dataset.empty() ? "/volume" : o.dataset;
