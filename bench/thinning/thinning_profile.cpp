@@ -2,7 +2,8 @@
 // statistics, a hash of the skeleton and its topology numbers, so that speed changes can be checked
 // for identical results, and the peak memory of priority + thinning beyond the mask (VmHWM is reset after
 // the phantom is made, so the phantom's own float image does not count).
-// Usage: thinning_profile SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer]
+// Usage: thinning_profile SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer|chamfer8]
+// (chamfer: uint16 distances; chamfer8: ChamferOptions::narrow, uint8 where every distance fits)
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -38,7 +39,7 @@ void reset_peak() { std::ofstream("/proc/self/clear_refs") << "5"; }
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: %s SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer]\n", argv[0]);
+    std::fprintf(stderr, "usage: %s SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer|chamfer8]\n", argv[0]);
     return 2;
   }
   const int64_t n = std::stoll(argv[1]);
@@ -58,9 +59,10 @@ int main(int argc, char** argv) {
   const double base = status_bytes("VmRSS");
   const double t_prio0 = bench::now_seconds();
   DataPtr dt;
-  if (prio == "chamfer") {
+  if (prio == "chamfer" || prio == "chamfer8") {
     distance::ChamferOptions co;
     co.threads = threads;
+    co.narrow = prio == "chamfer8";
     dt = distance::chamfer(mask, co);
   } else {
     distance::EuclideanOptions eo;
@@ -96,8 +98,8 @@ int main(int argc, char** argv) {
   }
   const TopologyNumbers tn = topology(r.skeleton);
   const ThinningStatistics& s = r.stats;
-  std::printf("%s %lld^3 %s threads %d: %.3f s (best of %d)\n", shape.c_str(), static_cast<long long>(n),
-              argc > 3 ? argv[3] : "smooth", threads, t, repeats);
+  std::printf("%s %lld^3 %s threads %d: %.3f s (best of %d), priority type %s\n", shape.c_str(),
+              static_cast<long long>(n), argc > 3 ? argv[3] : "smooth", threads, t, repeats, dt->type_id().c_str());
   std::printf("priority %s %.3f s; peak beyond the mask (%.0f MiB at start): priority %.2f B/voxel, priority + "
               "thinning %.2f B/voxel (%.0f MiB), thinning working bytes (stats) %.2f B/voxel\n",
               prio.c_str(), t_prio, base / 1048576.0, (after_prio - base) / nv, (peak - base) / nv,

@@ -54,8 +54,8 @@ uint64_t upper_bound(const Grid& grid, const Weights64& w, bool border_is_object
   return sum;
 }
 
-// Accumulator type: 32 bits for uint16 output (INF + weight cannot overflow), 64 bits for uint32.
-template <class T> using Acc = std::conditional_t<sizeof(T) == 2, uint32_t, uint64_t>;
+// Accumulator type: 32 bits for uint8 and uint16 output (INF + weight cannot overflow), 64 bits for uint32.
+template <class T> using Acc = std::conditional_t<sizeof(T) <= 2, uint32_t, uint64_t>;
 
 // Forward raster scan of one row: r[x] = min over the forward mask (z-1 plane, row y-1, x-1).
 // py: row (y-1, z); zm, z0, zp: rows (y-1, y, y+1) of plane z-1; missing rows point to a row of B.
@@ -292,6 +292,35 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
 #if defined(__SSE4_1__)
   std::vector<uint16_t> tmp16(static_cast<size_t>(nx));
   const SimdWeights sw = simd_weights(w);
+  // uint8 output (chamfer with `narrow`): each row and its four neighbour rows are widened to uint16,
+  // run through the uint16 kernels and narrowed back with saturation at 255. Every value so computed
+  // is min(d, 255) of the uint16 result d (a saturated neighbour only gives values >= 255 again).
+  std::vector<uint16_t> wide(std::is_same_v<T, uint8_t> ? static_cast<size_t>(5 * nx) : size_t{0});
+  auto widen = [nx](const uint8_t* src, uint16_t* dst) {
+    int64_t x = 0;
+    for (; x + 16 <= nx; x += 16) {
+      const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + x));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + x), _mm_cvtepu8_epi16(v));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + x + 8), _mm_cvtepu8_epi16(_mm_srli_si128(v, 8)));
+    }
+    for (; x < nx; ++x) dst[x] = src[x];
+  };
+  auto narrow = [nx](const uint16_t* src, uint8_t* dst) {
+    int64_t x = 0;
+    for (; x + 16 <= nx; x += 16) {
+      const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + x));
+      const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + x + 8));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(dst + x), _mm_packus_epi16(_mm_min_epu16(a, _mm_set1_epi16(255)),
+                                                                              _mm_min_epu16(b, _mm_set1_epi16(255))));
+    }
+    for (; x < nx; ++x) dst[x] = static_cast<uint8_t>(std::min<uint16_t>(src[x], 255));
+  };
+  uint16_t* const w0 = wide.data();  // the row itself, then py, zm, z0, zp
+  auto wide_row = [&](int k, const T* src) {
+    uint16_t* dst = w0 + static_cast<int64_t>(k) * nx;
+    if constexpr (std::is_same_v<T, uint8_t>) widen(src, dst);
+    return static_cast<const uint16_t*>(dst);
+  };
 #endif
   const T* cr = const_row.data();
   const int64_t plane = nx * ny;
@@ -330,7 +359,11 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
       if constexpr (std::is_same_v<T, uint16_t>)
         forward_row_u16(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
                         row(y, z - 1), row(y + 1, z - 1), nx, w, sw, B, tmp16.data());
-      else
+      else if constexpr (std::is_same_v<T, uint8_t>) {
+        forward_row_u16(m + y * nx + z * plane, w0, wide_row(1, row(y - 1, z)), wide_row(2, row(y - 1, z - 1)),
+                        wide_row(3, row(y, z - 1)), wide_row(4, row(y + 1, z - 1)), nx, w, sw, B, tmp16.data());
+        narrow(w0, d + y * nx + z * plane);
+      } else
 #endif
       forward_row<T>(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
                      row(y, z - 1), row(y + 1, z - 1), nx, w, B, tmp.data());
@@ -353,7 +386,12 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
       if constexpr (std::is_same_v<T, uint16_t>)
         backward_row_u16(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
                          nx, w, sw, B, tmp16.data());
-      else
+      else if constexpr (std::is_same_v<T, uint8_t>) {
+        wide_row(0, d + y * nx + z * plane);
+        backward_row_u16(w0, wide_row(1, row(y + 1, z)), wide_row(2, row(y + 1, z + 1)), wide_row(3, row(y, z + 1)),
+                         wide_row(4, row(y - 1, z + 1)), nx, w, sw, B, tmp16.data());
+        narrow(w0, d + y * nx + z * plane);
+      } else
 #endif
       backward_row<T>(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
                       nx, w, B, tmp.data());
@@ -844,7 +882,20 @@ Volume<T> chamfer_as(const VolumeU8& mask, const ChamferOptions& options) {
 template Volume<uint16_t> chamfer_as<uint16_t>(const VolumeU8&, const ChamferOptions&);
 template Volume<uint32_t> chamfer_as<uint32_t>(const VolumeU8&, const ChamferOptions&);
 
+std::optional<VolumeU8> chamfer_u8(const VolumeU8& mask, const ChamferOptions& options) {
+  const Weights64 w = effective_weights(mask.grid(), options);
+  VolumeU8 d = chamfer_impl<uint8_t>(mask, w, options);
+  // 255 marks a saturated value (a distance >= 255, or unreached): then the uint8 values would tie
+  // voxels whose distances differ.
+  if (d.size() > 0 && std::memchr(d.data(), 255, static_cast<size_t>(d.size())) != nullptr) return std::nullopt;
+  return d;
+}
+
 DataPtr chamfer(const VolumeU8& mask, const ChamferOptions& options) {
+  if (options.narrow) {
+    chamfer_output_bits(mask.grid(), options);  // the same InputError as without `narrow`
+    if (auto d = chamfer_u8(mask, options)) return std::make_shared<VolumeU8>(std::move(*d));
+  }
   if (chamfer_output_bits(mask.grid(), options) == 16)
     return std::make_shared<VolumeU16>(chamfer_as<uint16_t>(mask, options));
   return std::make_shared<VolumeU32>(chamfer_as<uint32_t>(mask, options));
