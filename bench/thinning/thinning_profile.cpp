@@ -79,15 +79,20 @@ int main(int argc, char** argv) {
   // SKEL_PROFILE_RSS=1: the resident and peak memory at each progress report of thin_doht (phase ends:
   // 0.04 scan, 0.08 queue filled, 0.08-0.9 removal, 0.9 removal done, 1.0 finished).
   static const std::atomic<bool> never{false};
+  // The seconds since thin_doht started are printed too (the phases' times).
+  double t_thin0 = 0;
   if (std::getenv("SKEL_PROFILE_RSS"))
     o.interrupter = Interrupter(
         [&](double f) {
-          std::printf("  progress %.3f: RSS %.0f MiB, peak %.0f MiB\n", f, status_bytes("VmRSS") / 1048576.0,
-                      status_bytes("VmHWM") / 1048576.0);
+          std::printf("  progress %.3f at %.3f s: RSS %.0f MiB, peak %.0f MiB\n", f, bench::now_seconds() - t_thin0,
+                      status_bytes("VmRSS") / 1048576.0, status_bytes("VmHWM") / 1048576.0);
         },
         &never);
   ThinningResult r;
-  const double t = bench::best_of(repeats, [&] { r = thin_doht(mask, *dt, nullptr, o); });
+  const double t = bench::best_of(repeats, [&] {
+    t_thin0 = bench::now_seconds();
+    r = thin_doht(mask, *dt, nullptr, o);
+  });
   const double peak = status_bytes("VmHWM");
   const double nv = static_cast<double>(mask.size());
 

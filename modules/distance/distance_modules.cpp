@@ -72,8 +72,8 @@ border_is_object a mask without any background voxel gives the type's maximum (6
 everywhere, above every real distance. An empty mask gives all zeros.
 
 With `narrow` (in memory only; block-wise runs keep uint16/uint32) the scans run in uint8 with
-saturation at 255 (each row widened to uint16 for the SIMD kernels and narrowed back): since
-min(d + w, 255) is monotone, every value is min(d, 255) of the uint16 result d. If no voxel is
+saturation at 255 (SIMD, 16 voxels per step): since min(d + w, 255) is monotone, every value is
+min(d, 255) of the uint16 result d. If no voxel is
 saturated the uint8 volume is the output (equal values: a priority for thinning.doht gives the same
 skeleton with 1 byte per voxel instead of 2); otherwise (a distance of 255 or more: objects thicker
 than about 170 voxels with 3,4,5) the uint16/uint32 transform is computed instead, the uint8 pass
