@@ -234,10 +234,18 @@ public:
 
   [[nodiscard]] uint32_t neighbourhood(int64_t i) const {
     if (st_[i] & kBorder) return neighbourhood_slow(i);
+    // The nine rows of the 3x3x3 block in raster order (dz outer, dy, dx inner), three bits each: a
+    // 27-bit word with the centre at bit 13, which is dropped (bit k of the result = neighbour k of
+    // off_, the order neighbour_bit uses). Fewer address computations than 26 single offsets.
     const uint8_t* p = st_ + i;
-    uint32_t nb = 0;
-    for (int k = 0; k < 26; ++k) nb |= static_cast<uint32_t>(p[off_[static_cast<size_t>(k)]] & kObject) << k;
-    return nb;
+    uint32_t w = 0;
+    for (int r = 0; r < 9; ++r) {
+      const uint8_t* q = p + row_[static_cast<size_t>(r)];
+      const uint32_t bits = static_cast<uint32_t>(q[-1] & kObject) | static_cast<uint32_t>(q[0] & kObject) << 1 |
+                            static_cast<uint32_t>(q[1] & kObject) << 2;
+      w |= bits << (3 * r);
+    }
+    return (w & 0x1FFFu) | ((w >> 1) & 0x3FFE000u);
   }
 
   // Prefetch hints for the nine rows of the 3x3x3 neighbourhood of i: state (and priority) bytes.
