@@ -217,7 +217,7 @@ inline void Removal<T, E>::remove(int64_t t) {
       return;
     }
     st[s] = b | kDirty | kQueued;
-    q_.push(levels_.level(s), s);
+    push(levels_.level(s), s);
   };
   if (border) {
     int64_t nbr[26];
@@ -326,17 +326,23 @@ uint32_t Removal<T, E>::flag(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t
 }
 
 template <class T, class E>
-void Removal<T, E>::recheck(const BigVector<E>& tv, const BigVector<uint8_t>& dirs, int64_t nc, uint32_t chosen,
-                            uint32_t lv) {
+void Removal<T, E>::recheck(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nc, uint32_t chosen, uint32_t lv) {
   uint8_t* const st = st_;
   const Thinner& th = th_;
+  BucketQueue<E>& q = q_;
+  // The bucket is empty here (take_level emptied it; check and flag push nothing).
+  requeue_lv_ = lv;
+  requeue_w_ = 0;
+  fresh_pos_.clear();
+  bool cached = false;
   for (int64_t j = 0; j < nc; ++j) {
     if (j + kAhead < nc) {  // prefetch the neighbourhood of a voxel that will be removed soon
       if (dirs[static_cast<size_t>(j + kAhead)] & chosen)
         th.prefetch(static_cast<int64_t>(tv[static_cast<size_t>(j + kAhead)]), pv_);
     }
     const uint8_t d = dirs[static_cast<size_t>(j)];
-    const int64_t t = static_cast<int64_t>(tv[static_cast<size_t>(j)]);
+    const E te = tv[static_cast<size_t>(j)];
+    const int64_t t = static_cast<int64_t>(te);
     if (d & chosen) {
       st[t] &= static_cast<uint8_t>(~kQueued);
       // Unchanged neighbourhood since the parallel check (and not an end point): still deletable.
@@ -347,12 +353,40 @@ void Removal<T, E>::recheck(const BigVector<E>& tv, const BigVector<uint8_t>& di
       ++stats_.tests;
       uint32_t nb = 0;
       if (th.deletable(t, nb)) remove(t);
-    } else if (d & 64u) {
-      q_.push(lv, t);  // end points are never cached
     } else {
-      q_.push_cached(lv, t, static_cast<uint8_t>(kCacheValid | (d & 63u)));
+      // Re-queued in place (requeue_w_ <= j): end points are never cached.
+      const uint8_t c = (d & 64u) ? uint8_t{0} : static_cast<uint8_t>(kCacheValid | (d & 63u));
+      cached |= c != 0;
+      tv[static_cast<size_t>(requeue_w_)] = te;
+      dirs[static_cast<size_t>(requeue_w_)] = c;
+      ++requeue_w_;
     }
   }
+  requeue_lv_ = ~0u;
+  // Merge from the back: fresh entry k (bucket position k) goes after the first fresh_pos_[k]
+  // re-queued ones.
+  const int64_t w = requeue_w_, f = static_cast<int64_t>(fresh_pos_.size());
+  auto& bucket = q.bucket[lv];
+  tv.resize(static_cast<size_t>(w + f));
+  if (cached) dirs.resize(static_cast<size_t>(w + f));
+  int64_t i = w - 1, out = w + f - 1;
+  for (int64_t k = f - 1; k >= 0; --k) {
+    const int64_t pos = static_cast<int64_t>(fresh_pos_[static_cast<size_t>(k)]);
+    while (i >= pos) {
+      tv[static_cast<size_t>(out)] = tv[static_cast<size_t>(i)];
+      if (cached) dirs[static_cast<size_t>(out)] = dirs[static_cast<size_t>(i)];
+      --out;
+      --i;
+    }
+    tv[static_cast<size_t>(out)] = bucket[static_cast<size_t>(k)];
+    if (cached) dirs[static_cast<size_t>(out)] = 0;
+    --out;
+  }
+  bucket.clear();
+  std::swap(tv, bucket);
+  if (cached) std::swap(dirs, q.cache[lv]);
+  q.size += w;
+  q.peak = std::max(q.peak, q.size);
 }
 
 template <class T, class E>

@@ -477,8 +477,11 @@ public:
   // union of the candidates' directions (bits 0..5) and their count through `nc`.
   uint32_t flag(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nt, int64_t& nc);
   // Sequential recheck of the candidates of direction bit `chosen`: removes the still deletable ones;
-  // the candidates of other directions go back to level lv with their directions cached.
-  void recheck(const BigVector<E>& tv, const BigVector<uint8_t>& dirs, int64_t nc, uint32_t chosen, uint32_t lv);
+  // the candidates of other directions go back to level lv with their directions cached. They are
+  // compacted into the front of tv and dirs (no second buffer for them) and merged with the voxels
+  // the removals queue at level lv meanwhile, in the order of a push at the time (the bucket's order);
+  // tv and dirs then hold the buffers the bucket had.
+  void recheck(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nc, uint32_t chosen, uint32_t lv);
 
   // Removes t and queues its unqueued object neighbours (marking all of them kDirty).
   inline void remove(int64_t t);
@@ -487,10 +490,19 @@ private:
   static constexpr int64_t kProgressTests = int64_t{1} << 21;
   void progress();
 
+  // A push at level requeue_lv_ while recheck() runs: its position among the re-queued candidates.
+  void push(uint32_t level, int64_t s) {
+    if (level == requeue_lv_) fresh_pos_.push_back(static_cast<E>(requeue_w_));
+    q_.push(level, s);
+  }
+
   uint8_t* st_;
   const Thinner& th_;
   const Levels<T>& levels_;
   BucketQueue<E>& q_;
+  uint32_t requeue_lv_ = ~0u;  // the level recheck() re-queues to (none outside recheck)
+  int64_t requeue_w_ = 0;      // candidates re-queued so far
+  BigVector<E> fresh_pos_;     // per push at requeue_lv_: requeue_w_ at that time
   const T* pv_;
   ThinningStatistics& stats_;
   int threads_;

@@ -250,6 +250,7 @@ TEST(ThinningPhases, SmoothCheckFlagAndRecheckOnALine) {
   std::vector<int64_t> requeued(q.bucket[0].begin(), q.bucket[0].end());
   EXPECT_EQ(requeued, (std::vector<int64_t>{a, m}));
   EXPECT_TRUE(q.cache[0].empty());  // an end point and a fresh voxel: no cached directions
+  EXPECT_EQ(q.size, 2);
   EXPECT_TRUE(s.st[m] & kDirty);
 }
 
