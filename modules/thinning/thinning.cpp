@@ -68,10 +68,14 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
   // mask's neighbours, so the state is written afterwards, by a second pass over the rows that gives
   // the same bytes as the one-pass scan writes.
   const bool in_place = st == m;
+  if (static_cast<uint64_t>(nx) * static_cast<uint64_t>(ny) > (uint64_t{1} << 32))
+    throw InputError("mask: planes of " + std::to_string(nx) + "x" + std::to_string(ny) +
+                     " voxels exceed 2^32; thinning needs nx * ny <= 2^32");
   std::vector<PlaneScan> planes(static_cast<size_t>(nz));
   parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z) {
       PlaneScan& pl = planes[static_cast<size_t>(z)];
+      pl.base = nx * ny * z;
       for (int64_t y = 0; y < ny; ++y) {
         const int64_t row = nx * (y + ny * z);
         const bool edge_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
@@ -104,7 +108,7 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
           pl.keys.insert(order_key(v));
           if (s & kLocked) continue;
           const bool boundary = edge || !(m[i - 1] && m[i + 1] && m[i - nx] && m[i + nx] && m[i - nx * ny] && m[i + nx * ny]);
-          if (boundary) pl.boundary.push_back(i);
+          if (boundary) pl.boundary.push_back(static_cast<uint32_t>(i - pl.base));
         }
         if (in_place) continue;
         if (edge_row) {
@@ -164,18 +168,18 @@ void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels,
   int64_t chunks = std::min<int64_t>(nz, 4 * effective_threads(threads));
   while (chunks > 1 && chunks * nlev > std::max<int64_t>(boundary_total, int64_t{1} << 16)) chunks /= 2;
   std::vector<std::vector<int64_t>> hist(static_cast<size_t>(chunks));
-  std::vector<std::vector<uint32_t>> plane_levels(static_cast<size_t>(nz));
+  // The level of each boundary voxel is computed twice (histogram, then placement) instead of stored:
+  // the fill is the peak of a dense object's thinning (most object voxels are boundary voxels).
   parallel_chunks(0, nz, chunks, threads, [&](int64_t c, int64_t z0, int64_t z1) {
     auto& h = hist[static_cast<size_t>(c)];
     h.assign(static_cast<size_t>(nlev), 0);
     for (int64_t z = z0; z < z1; ++z) {
       const auto& b = planes[static_cast<size_t>(z)].boundary;
-      auto& l = plane_levels[static_cast<size_t>(z)];
-      l.resize(b.size());
-      for (size_t j = 0; j < b.size(); ++j) {
-        st[b[j]] |= kQueued;
-        l[j] = levels.level(b[j]);
-        ++h[l[j]];
+      const int64_t base = planes[static_cast<size_t>(z)].base;
+      for (const uint32_t o : b) {
+        const int64_t i = base + o;
+        st[i] |= kQueued;
+        ++h[levels.level(i)];
       }
     }
   });
@@ -193,10 +197,13 @@ void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels,
     auto& h = hist[static_cast<size_t>(c)];
     for (int64_t z = z0; z < z1; ++z) {
       auto& b = planes[static_cast<size_t>(z)].boundary;
-      auto& l = plane_levels[static_cast<size_t>(z)];
-      for (size_t j = 0; j < b.size(); ++j) q.bucket[l[j]][static_cast<size_t>(h[l[j]]++)] = static_cast<E>(b[j]);
-      std::vector<int64_t>().swap(b);
-      std::vector<uint32_t>().swap(l);
+      const int64_t base = planes[static_cast<size_t>(z)].base;
+      for (const uint32_t o : b) {
+        const int64_t i = base + o;
+        const uint32_t l = levels.level(i);
+        q.bucket[l][static_cast<size_t>(h[l]++)] = static_cast<E>(i);
+      }
+      std::vector<uint32_t>().swap(b);
     }
   });
   q.size = q.peak = boundary_total;
@@ -261,6 +268,10 @@ void Removal<T, E>::take_level(size_t lv, BigVector<E>& tv, BigVector<uint8_t>& 
   tc.clear();
   std::swap(tv, q.bucket[lv]);
   std::swap(tc, q.cache[lv]);
+  // The bucket starts from an empty buffer (tv's old one is freed): the same-level pushes of this
+  // sub-iteration are few; a second buffer as large as the level would be the removal's peak.
+  BigVector<E>().swap(q.bucket[lv]);
+  BigVector<uint8_t>().swap(q.cache[lv]);
   const auto h = static_cast<std::ptrdiff_t>(q.head[lv]);
   if (h > 0) {
     tv.erase(tv.begin(), tv.begin() + h);
@@ -268,6 +279,7 @@ void Removal<T, E>::take_level(size_t lv, BigVector<E>& tv, BigVector<uint8_t>& 
   }
   q.head[lv] = 0;
   q.size -= static_cast<int64_t>(tv.size());
+  q.taken_peak = std::max(q.taken_peak, static_cast<int64_t>(tv.size()));
 }
 
 template <class T, class E>
@@ -415,7 +427,6 @@ void Removal<T, E>::run_smooth() {
     }
     if (!found) break;
   }
-  q_.extra_bytes = tv.capacity() * sizeof(E) + tc.capacity() + dirs.capacity();
 }
 
 std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int threads) {
@@ -577,7 +588,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
     Removal<T, E> removal(st, th, levels, q, pv, stats, threads, irq);
     if (opt.variant == ThinningVariant::Basic) removal.run_basic();
     else removal.run_smooth();
-    stats.bytes = q.capacity_bytes() + levels.bytes();
+    stats.bytes = q.peak_bytes() + levels.bytes();
     irq.check(0.9);
 
     skel = collect_skeleton(st, mask.dims(), threads);

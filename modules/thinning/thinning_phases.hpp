@@ -377,7 +377,7 @@ struct BucketQueue {
   std::vector<size_t> head;
   int64_t lowest = 0;
   int64_t size = 0, peak = 0;
-  uint64_t extra_bytes = 0;  // working buffers outside the buckets (smooth variant)
+  int64_t taken_peak = 0;  // smooth variant: the largest level taken out of its bucket at once
   explicit BucketQueue(int64_t levels)
       : bucket(static_cast<size_t>(levels)), cache(static_cast<size_t>(levels)), head(static_cast<size_t>(levels), 0) {}
   void push(uint32_t level, int64_t i) {
@@ -396,12 +396,12 @@ struct BucketQueue {
     if (static_cast<int64_t>(level) < lowest) lowest = level;
     peak = std::max(peak, ++size);
   }
-  [[nodiscard]] uint64_t capacity_bytes() const {
-    uint64_t b = extra_bytes + bucket.capacity() * sizeof(bucket[0]) + cache.capacity() * sizeof(cache[0]) +
-                 head.capacity() * sizeof(size_t);
-    for (const auto& v : bucket) b += v.capacity() * sizeof(E);
-    for (const auto& v : cache) b += v.capacity();
-    return b;
+  // Working bytes (statistics): the bucket tables, and the most entries queued at once plus the
+  // largest taken level, each an index and a direction byte (the taken level's buffer is freed as it
+  // is taken, so capacities at the end would not show the peak).
+  [[nodiscard]] uint64_t peak_bytes() const {
+    return bucket.capacity() * sizeof(bucket[0]) + cache.capacity() * sizeof(cache[0]) +
+           head.capacity() * sizeof(size_t) + static_cast<uint64_t>(peak + taken_peak) * (sizeof(E) + 1);
   }
   // Advances `lowest` to the first non-empty bucket; false if the queue is empty.
   bool settle() {
@@ -409,8 +409,7 @@ struct BucketQueue {
     while (lowest < n) {
       auto& b = bucket[static_cast<size_t>(lowest)];
       if (head[static_cast<size_t>(lowest)] < b.size()) return true;
-      // Keep the capacity: levels are revisited (smooth variant); nothing is freed before the end, so
-      // the final capacities are the peak queue memory (reported in the statistics).
+      // Keep the capacity: levels are revisited (smooth variant; take_level frees the taken buffer).
       b.clear();
       cache[static_cast<size_t>(lowest)].clear();
       head[static_cast<size_t>(lowest)] = 0;
@@ -427,8 +426,10 @@ struct PlaneScan {
   int64_t objects = 0;
   bool nan = false;            // a NaN priority at an object voxel
   KeySet keys;                 // distinct order_key()s of the object voxels' priorities
-  std::vector<int64_t> boundary;  // unlocked object voxels with a background 6-neighbour (or on an
-                                  // array face), raster order
+  int64_t base = 0;            // index of the plane's first voxel (nx * ny * z)
+  // Unlocked object voxels with a background 6-neighbour (or on an array face), raster order, as
+  // offsets x + nx * y from `base` (4 bytes; planes of more than 2^32 voxels are refused).
+  std::vector<uint32_t> boundary;
 };
 
 // Phase 1: writes the initial state to `st` (mask.size() bytes): kObject, kLocked, kBorder on the

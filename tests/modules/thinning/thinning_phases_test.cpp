@@ -81,7 +81,7 @@ TEST(ThinningPhases, ScanSetsFlagsAndFindsTheBoundaryInRasterOrder) {
   std::vector<int64_t> boundary;
   int64_t objects = 0;
   for (const auto& p : s.planes) {
-    boundary.insert(boundary.end(), p.boundary.begin(), p.boundary.end());
+    for (const uint32_t o : p.boundary) boundary.push_back(p.base + o);
     objects += p.objects;
     EXPECT_FALSE(p.nan);
   }
@@ -127,7 +127,8 @@ TEST(ThinningPhases, InitialQueueHoldsTheBoundaryPerLevelInRasterOrder) {
   for (int threads : {1, 3}) {
     Scanned s = scan(mask, pr, nullptr, threads);
     std::vector<int64_t> boundary;
-    for (const auto& p : s.planes) boundary.insert(boundary.end(), p.boundary.begin(), p.boundary.end());
+    for (const auto& p : s.planes)
+      for (const uint32_t o : p.boundary) boundary.push_back(p.base + o);
     int64_t objects = 0;
     const Levels<uint32_t> lv(pr.data(), gather_keys(s.planes, objects));
     BucketQueue<uint32_t> q(lv.count());
