@@ -3,7 +3,10 @@
 // for identical results, and the peak memory of priority + thinning beyond the mask (VmHWM is reset after
 // the phantom is made, so the phantom's own float image does not count).
 // Usage: thinning_profile SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer|chamfer8]
-// (chamfer: uint16 distances; chamfer8: ChamferOptions::narrow, uint8 where every distance fits)
+// [inplace]
+// (chamfer: uint16 distances; chamfer8: ChamferOptions::narrow, uint8 where every distance fits;
+// inplace: thin_doht_in_place on a copy of the mask made before the peak is reset, as the pipeline
+// thins in the mask's buffer when it is the mask's last reader: the skeleton costs no bytes beyond it)
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -57,6 +60,13 @@ int main(int argc, char** argv) {
   no.threads = threads;
   const std::string prio = argc > 6 ? argv[6] : "edt";
   const VolumeU8 mask = synthetic::make_network(no).mask;
+  const bool in_place = argc > 7 && std::string(argv[7]) == "inplace";
+  if (in_place && repeats != 1) {
+    std::fprintf(stderr, "inplace: one run only (repeats = 1)\n");
+    return 2;
+  }
+  VolumeU8 work;  // in place: the buffer that is thinned (a fresh copy per repeat)
+  if (in_place) work = mask;
   reset_peak();
   const double base = status_bytes("VmRSS");
   const double t_prio0 = bench::now_seconds();
@@ -101,10 +111,15 @@ int main(int argc, char** argv) {
   const double t = bench::best_of(repeats, [&] {
     t_thin0 = bench::now_seconds();
     const double c0 = cpu_now();
-    r = thin_doht(mask, *dt, nullptr, o);
+    if (in_place) {
+      r = thin_doht_in_place(work, *dt, nullptr, o);  // one run (repeats = 1): `work` is the skeleton now
+    } else {
+      r = thin_doht(mask, *dt, nullptr, o);
+    }
     cpu_best = std::min(cpu_best, cpu_now() - c0);
   });
   const double peak = status_bytes("VmHWM");
+  if (in_place) r.skeleton = std::move(work);  // for the hash and topology below
   const double nv = static_cast<double>(mask.size());
 
   uint64_t h = 1469598103934665603ull;  // FNV-1a over the skeleton
