@@ -78,7 +78,7 @@ locked voxel is counted as stuck; the module warns with the number of such compo
 Memory: the skeleton output (1 byte per voxel) doubles as the state array; the queue holds 4 bytes
 per queued voxel (8 in volumes above 2^32 voxels), 1 more per entry of the level being processed and
 of a level holding re-queued smooth-variant candidates (their cached directions): at most the object
-voxels, typically the boundary layer (0.4 bytes per voxel on 512³ rods); levels are ranked from the
+voxels, typically the boundary layer (0.3 bytes per voxel on 512³ rods, 0.9 on 512³ plates); levels are ranked from the
 priority values on the fly (no per-voxel array). A uint8 priority (distance.chamfer with `narrow`)
 costs 1 byte per voxel instead of 2 and gives the same skeleton. The input mask and priority are read only,
 except in a headless in-memory run where this node is the mask's last reader: the executor then hands
