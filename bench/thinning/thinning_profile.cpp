@@ -2,12 +2,18 @@
 // statistics, a hash of the skeleton and its topology numbers, so that speed changes can be checked
 // for identical results, and the peak memory of priority + thinning beyond the mask (VmHWM is reset after
 // the phantom is made, so the phantom's own float image does not count).
-// Usage: thinning_profile SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer]
+// Usage: thinning_profile SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer|chamfer8]
+// [inplace]
+// (chamfer: uint16 distances; chamfer8: ChamferOptions::narrow, uint8 where every distance fits;
+// inplace: thin_doht_in_place on a copy of the mask made before the peak is reset, as the pipeline
+// thins in the mask's buffer when it is the mask's last reader: the skeleton costs no bytes beyond it)
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
 #include <cstdio>
+#include <ctime>
 #include <string>
 
 #include "common/bench_util.hpp"
@@ -38,7 +44,7 @@ void reset_peak() { std::ofstream("/proc/self/clear_refs") << "5"; }
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: %s SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer]\n", argv[0]);
+    std::fprintf(stderr, "usage: %s SIZE [rods|plates] [basic|smooth] [threads] [repeats] [edt|chamfer|chamfer8]\n", argv[0]);
     return 2;
   }
   const int64_t n = std::stoll(argv[1]);
@@ -54,13 +60,21 @@ int main(int argc, char** argv) {
   no.threads = threads;
   const std::string prio = argc > 6 ? argv[6] : "edt";
   const VolumeU8 mask = synthetic::make_network(no).mask;
+  const bool in_place = argc > 7 && std::string(argv[7]) == "inplace";
+  if (in_place && repeats != 1) {
+    std::fprintf(stderr, "inplace: one run only (repeats = 1)\n");
+    return 2;
+  }
+  VolumeU8 work;  // in place: the buffer that is thinned (a fresh copy per repeat)
+  if (in_place) work = mask;
   reset_peak();
   const double base = status_bytes("VmRSS");
   const double t_prio0 = bench::now_seconds();
   DataPtr dt;
-  if (prio == "chamfer") {
+  if (prio == "chamfer" || prio == "chamfer8") {
     distance::ChamferOptions co;
     co.threads = threads;
+    co.narrow = prio == "chamfer8";
     dt = distance::chamfer(mask, co);
   } else {
     distance::EuclideanOptions eo;
@@ -77,16 +91,35 @@ int main(int argc, char** argv) {
   // SKEL_PROFILE_RSS=1: the resident and peak memory at each progress report of thin_doht (phase ends:
   // 0.04 scan, 0.08 queue filled, 0.08-0.9 removal, 0.9 removal done, 1.0 finished).
   static const std::atomic<bool> never{false};
+  // The seconds since thin_doht started are printed too (the phases' times).
+  double t_thin0 = 0;
   if (std::getenv("SKEL_PROFILE_RSS"))
     o.interrupter = Interrupter(
         [&](double f) {
-          std::printf("  progress %.3f: RSS %.0f MiB, peak %.0f MiB\n", f, status_bytes("VmRSS") / 1048576.0,
-                      status_bytes("VmHWM") / 1048576.0);
+          std::printf("  progress %.3f at %.3f s: RSS %.0f MiB, peak %.0f MiB\n", f, bench::now_seconds() - t_thin0,
+                      status_bytes("VmRSS") / 1048576.0, status_bytes("VmHWM") / 1048576.0);
         },
         &never);
   ThinningResult r;
-  const double t = bench::best_of(repeats, [&] { r = thin_doht(mask, *dt, nullptr, o); });
+  // Process CPU seconds of each run too (all threads; less sensitive to a loaded machine than wall time).
+  auto cpu_now = [] {
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+  };
+  double cpu_best = 1e300;
+  const double t = bench::best_of(repeats, [&] {
+    t_thin0 = bench::now_seconds();
+    const double c0 = cpu_now();
+    if (in_place) {
+      r = thin_doht_in_place(work, *dt, nullptr, o);  // one run (repeats = 1): `work` is the skeleton now
+    } else {
+      r = thin_doht(mask, *dt, nullptr, o);
+    }
+    cpu_best = std::min(cpu_best, cpu_now() - c0);
+  });
   const double peak = status_bytes("VmHWM");
+  if (in_place) r.skeleton = std::move(work);  // for the hash and topology below
   const double nv = static_cast<double>(mask.size());
 
   uint64_t h = 1469598103934665603ull;  // FNV-1a over the skeleton
@@ -96,8 +129,9 @@ int main(int argc, char** argv) {
   }
   const TopologyNumbers tn = topology(r.skeleton);
   const ThinningStatistics& s = r.stats;
-  std::printf("%s %lld^3 %s threads %d: %.3f s (best of %d)\n", shape.c_str(), static_cast<long long>(n),
-              argc > 3 ? argv[3] : "smooth", threads, t, repeats);
+  std::printf("%s %lld^3 %s threads %d: %.3f s, CPU %.3f s (best of %d), priority type %s\n", shape.c_str(),
+              static_cast<long long>(n), argc > 3 ? argv[3] : "smooth", threads, t, cpu_best, repeats,
+              dt->type_id().c_str());
   std::printf("priority %s %.3f s; peak beyond the mask (%.0f MiB at start): priority %.2f B/voxel, priority + "
               "thinning %.2f B/voxel (%.0f MiB), thinning working bytes (stats) %.2f B/voxel\n",
               prio.c_str(), t_prio, base / 1048576.0, (after_prio - base) / nv, (peak - base) / nv,

@@ -54,8 +54,8 @@ uint64_t upper_bound(const Grid& grid, const Weights64& w, bool border_is_object
   return sum;
 }
 
-// Accumulator type: 32 bits for uint16 output (INF + weight cannot overflow), 64 bits for uint32.
-template <class T> using Acc = std::conditional_t<sizeof(T) == 2, uint32_t, uint64_t>;
+// Accumulator type: 32 bits for uint8 and uint16 output (INF + weight cannot overflow), 64 bits for uint32.
+template <class T> using Acc = std::conditional_t<sizeof(T) <= 2, uint32_t, uint64_t>;
 
 // Forward raster scan of one row: r[x] = min over the forward mask (z-1 plane, row y-1, x-1).
 // py: row (y-1, z); zm, z0, zp: rows (y-1, y, y+1) of plane z-1; missing rows point to a row of B.
@@ -277,6 +277,160 @@ void backward_row_u16(uint16_t* r, const uint16_t* py, const uint16_t* zm, const
     carry = _mm_unpacklo_epi64(lo, lo);
   }
 }
+// uint8 rows (chamfer with `narrow`): the same kernels on 16 voxels per step with saturating uint8
+// adds, so every value is min(d, 255) of the uint16 result d (min and d + w are monotone; 255 + w stays
+// 255). chamfer_u8 rejects the volume if any value reached 255.
+struct SimdWeights8 {
+  __m128i fy, fz, exy, exz, eyz, v, inf;
+  __m128i fx1, fx2, fx4, fx8, ramp_fwd, ramp_bwd;  // ramp_fwd: (1..16)*fx; ramp_bwd: (16..1)*fx
+  uint32_t fx;
+};
+SimdWeights8 simd_weights8(const Weights64& w) {
+  auto b = [](uint64_t x) { return static_cast<char>(static_cast<uint8_t>(std::min<uint64_t>(x, 255))); };
+  auto s = [&](uint64_t x) { return _mm_set1_epi8(b(x)); };
+  SimdWeights8 r;
+  r.fy = s(w.fy);
+  r.fz = s(w.fz);
+  r.exy = s(w.exy);
+  r.exz = s(w.exz);
+  r.eyz = s(w.eyz);
+  r.v = s(w.v);
+  r.inf = _mm_set1_epi8(-1);
+  r.fx1 = s(w.fx);
+  r.fx2 = s(2 * w.fx);
+  r.fx4 = s(4 * w.fx);
+  r.fx8 = s(8 * w.fx);
+  alignas(16) char f[16], g[16];
+  for (int i = 0; i < 16; ++i) {
+    f[i] = b(static_cast<uint64_t>(i + 1) * w.fx);
+    g[i] = b(static_cast<uint64_t>(16 - i) * w.fx);
+  }
+  r.ramp_fwd = _mm_load_si128(reinterpret_cast<const __m128i*>(f));
+  r.ramp_bwd = _mm_load_si128(reinterpret_cast<const __m128i*>(g));
+  r.fx = static_cast<uint32_t>(w.fx);
+  return r;
+}
+
+inline __m128i ld8(const uint8_t* p) { return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p)); }
+
+// Minimum over the 12 plane/row neighbours of voxels x..x+15 (1 <= x, x + 16 <= nx - 1).
+inline __m128i neighbours12_u8(const uint8_t* py, const uint8_t* zm, const uint8_t* z0, const uint8_t* zp, int64_t x,
+                               const SimdWeights8& s) {
+  const __m128i vtx = _mm_adds_epu8(
+      _mm_min_epu8(_mm_min_epu8(ld8(zm + x - 1), ld8(zm + x + 1)), _mm_min_epu8(ld8(zp + x - 1), ld8(zp + x + 1))), s.v);
+  const __m128i eyz = _mm_adds_epu8(_mm_min_epu8(ld8(zm + x), ld8(zp + x)), s.eyz);
+  const __m128i exz = _mm_adds_epu8(_mm_min_epu8(ld8(z0 + x - 1), ld8(z0 + x + 1)), s.exz);
+  const __m128i fz = _mm_adds_epu8(ld8(z0 + x), s.fz);
+  const __m128i exy = _mm_adds_epu8(_mm_min_epu8(ld8(py + x - 1), ld8(py + x + 1)), s.exy);
+  const __m128i fy = _mm_adds_epu8(ld8(py + x), s.fy);
+  return _mm_min_epu8(_mm_min_epu8(_mm_min_epu8(vtx, eyz), _mm_min_epu8(exz, fz)), _mm_min_epu8(exy, fy));
+}
+
+void forward_row_u8(const uint8_t* m, uint8_t* r, const uint8_t* py, const uint8_t* zm, const uint8_t* z0,
+                    const uint8_t* zp, int64_t nx, const Weights64& w64, const SimdWeights8& s, uint32_t B,
+                    uint8_t* tmp) {
+  const uint32_t fy = static_cast<uint32_t>(w64.fy), fz = static_cast<uint32_t>(w64.fz);
+  const uint32_t exy = static_cast<uint32_t>(w64.exy), exz = static_cast<uint32_t>(w64.exz);
+  const uint32_t eyz = static_cast<uint32_t>(w64.eyz), vv = static_cast<uint32_t>(w64.v);
+  auto at = [&](const uint8_t* row, int64_t x) -> uint32_t { return (x < 0 || x >= nx) ? B : row[x]; };
+  auto scalar = [&](int64_t x) {
+    uint32_t c = std::min({at(py, x - 1) + exy, at(py, x) + fy, at(py, x + 1) + exy, at(zm, x - 1) + vv,
+                           at(zm, x) + eyz, at(zm, x + 1) + vv, at(z0, x - 1) + exz, at(z0, x) + fz,
+                           at(z0, x + 1) + exz, at(zp, x - 1) + vv, at(zp, x) + eyz, at(zp, x + 1) + vv});
+    tmp[x] = m[x] ? static_cast<uint8_t>(std::min<uint32_t>(c, 255)) : 0;
+  };
+  scalar(0);
+  int64_t x = 1;
+  const __m128i zero = _mm_setzero_si128();
+  for (; x + 16 <= nx - 1; x += 16) {
+    const __m128i mk = ld8(m + x);
+    if (_mm_testz_si128(mk, mk)) {  // sixteen background voxels: nothing to propagate
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), zero);
+      continue;
+    }
+    const __m128i c = neighbours12_u8(py, zm, z0, zp, x, s);
+    const __m128i bg = _mm_cmpeq_epi8(mk, zero);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), _mm_andnot_si128(bg, c));
+  }
+  for (; x < nx; ++x) scalar(x);
+  // prefix: r[x] = min(tmp[x], r[x-1] + fx)
+  uint32_t prev = B;
+  __m128i carry = _mm_set1_epi8(static_cast<char>(static_cast<uint8_t>(std::min<uint32_t>(B, 255))));
+  const __m128i last = _mm_set1_epi8(15);
+  x = 0;
+  for (; x + 16 <= nx; x += 16) {
+    __m128i v = ld8(tmp + x);
+    if (_mm_testz_si128(v, v)) {  // all background: zeros, and the carry is 0
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+      carry = v;
+      continue;
+    }
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(v, s.inf, 15), s.fx1));
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(v, s.inf, 14), s.fx2));
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(v, s.inf, 12), s.fx4));
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(v, s.inf, 8), s.fx8));
+    v = _mm_min_epu8(v, _mm_adds_epu8(carry, s.ramp_fwd));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+    carry = _mm_shuffle_epi8(v, last);  // broadcast lane 15
+  }
+  if (x > 0) prev = r[x - 1];
+  for (; x < nx; ++x) {
+    const uint32_t v = std::min<uint32_t>({tmp[x], prev + s.fx, 255});
+    r[x] = static_cast<uint8_t>(v);
+    prev = v;
+  }
+}
+
+void backward_row_u8(uint8_t* r, const uint8_t* py, const uint8_t* zm, const uint8_t* z0, const uint8_t* zp,
+                     int64_t nx, const Weights64& w64, const SimdWeights8& s, uint32_t B, uint8_t* tmp) {
+  const uint32_t fy = static_cast<uint32_t>(w64.fy), fz = static_cast<uint32_t>(w64.fz);
+  const uint32_t exy = static_cast<uint32_t>(w64.exy), exz = static_cast<uint32_t>(w64.exz);
+  const uint32_t eyz = static_cast<uint32_t>(w64.eyz), vv = static_cast<uint32_t>(w64.v);
+  auto at = [&](const uint8_t* row, int64_t x) -> uint32_t { return (x < 0 || x >= nx) ? B : row[x]; };
+  auto scalar = [&](int64_t x) {
+    uint32_t c = std::min({at(py, x - 1) + exy, at(py, x) + fy, at(py, x + 1) + exy, at(zm, x - 1) + vv,
+                           at(zm, x) + eyz, at(zm, x + 1) + vv, at(z0, x - 1) + exz, at(z0, x) + fz,
+                           at(z0, x + 1) + exz, at(zp, x - 1) + vv, at(zp, x) + eyz, at(zp, x + 1) + vv});
+    tmp[x] = static_cast<uint8_t>(std::min<uint32_t>(c, r[x]));
+  };
+  scalar(0);
+  int64_t x = 1;
+  for (; x + 16 <= nx - 1; x += 16) {
+    const __m128i cur = ld8(r + x);
+    if (_mm_testz_si128(cur, cur)) {  // sixteen background voxels (0 after the forward scan) stay 0
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), cur);
+      continue;
+    }
+    const __m128i c = neighbours12_u8(py, zm, z0, zp, x, s);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(tmp + x), _mm_min_epu8(c, cur));
+  }
+  for (; x < nx; ++x) scalar(x);
+  // suffix: r[x] = min(tmp[x], r[x+1] + fx), right to left
+  uint32_t prev = B;
+  const int64_t full = nx / 16 * 16;
+  for (x = nx - 1; x >= full; --x) {
+    const uint32_t v = std::min<uint32_t>({tmp[x], prev + s.fx, 255});
+    r[x] = static_cast<uint8_t>(v);
+    prev = v;
+  }
+  __m128i carry = _mm_set1_epi8(static_cast<char>(static_cast<uint8_t>(std::min<uint32_t>(prev, 255))));
+  const __m128i first = _mm_setzero_si128();
+  for (x = full - 16; x >= 0; x -= 16) {
+    __m128i v = ld8(tmp + x);
+    if (_mm_testz_si128(v, v)) {
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+      carry = v;
+      continue;
+    }
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(s.inf, v, 1), s.fx1));
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(s.inf, v, 2), s.fx2));
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(s.inf, v, 4), s.fx4));
+    v = _mm_min_epu8(v, _mm_adds_epu8(_mm_alignr_epi8(s.inf, v, 8), s.fx8));
+    v = _mm_min_epu8(v, _mm_adds_epu8(carry, s.ramp_bwd));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(r + x), v);
+    carry = _mm_shuffle_epi8(v, first);  // broadcast lane 0
+  }
+}
 #endif
 
 template <class T>
@@ -292,6 +446,8 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
 #if defined(__SSE4_1__)
   std::vector<uint16_t> tmp16(static_cast<size_t>(nx));
   const SimdWeights sw = simd_weights(w);
+  std::vector<uint8_t> tmp8(std::is_same_v<T, uint8_t> ? static_cast<size_t>(nx) : size_t{0});
+  const SimdWeights8 sw8 = simd_weights8(w);
 #endif
   const T* cr = const_row.data();
   const int64_t plane = nx * ny;
@@ -330,6 +486,9 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
       if constexpr (std::is_same_v<T, uint16_t>)
         forward_row_u16(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
                         row(y, z - 1), row(y + 1, z - 1), nx, w, sw, B, tmp16.data());
+      else if constexpr (std::is_same_v<T, uint8_t>)
+        forward_row_u8(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
+                       row(y, z - 1), row(y + 1, z - 1), nx, w, sw8, B, tmp8.data());
       else
 #endif
       forward_row<T>(m + y * nx + z * plane, d + y * nx + z * plane, row(y - 1, z), row(y - 1, z - 1),
@@ -353,6 +512,9 @@ Volume<T> chamfer_impl(const VolumeU8& mask, const Weights64& w, const ChamferOp
       if constexpr (std::is_same_v<T, uint16_t>)
         backward_row_u16(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
                          nx, w, sw, B, tmp16.data());
+      else if constexpr (std::is_same_v<T, uint8_t>)
+        backward_row_u8(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
+                        nx, w, sw8, B, tmp8.data());
       else
 #endif
       backward_row<T>(d + y * nx + z * plane, row(y + 1, z), row(y + 1, z + 1), row(y, z + 1), row(y - 1, z + 1),
@@ -844,7 +1006,20 @@ Volume<T> chamfer_as(const VolumeU8& mask, const ChamferOptions& options) {
 template Volume<uint16_t> chamfer_as<uint16_t>(const VolumeU8&, const ChamferOptions&);
 template Volume<uint32_t> chamfer_as<uint32_t>(const VolumeU8&, const ChamferOptions&);
 
+std::optional<VolumeU8> chamfer_u8(const VolumeU8& mask, const ChamferOptions& options) {
+  const Weights64 w = effective_weights(mask.grid(), options);
+  VolumeU8 d = chamfer_impl<uint8_t>(mask, w, options);
+  // 255 marks a saturated value (a distance >= 255, or unreached): then the uint8 values would tie
+  // voxels whose distances differ.
+  if (d.size() > 0 && std::memchr(d.data(), 255, static_cast<size_t>(d.size())) != nullptr) return std::nullopt;
+  return d;
+}
+
 DataPtr chamfer(const VolumeU8& mask, const ChamferOptions& options) {
+  if (options.narrow) {
+    chamfer_output_bits(mask.grid(), options);  // the same InputError as without `narrow`
+    if (auto d = chamfer_u8(mask, options)) return std::make_shared<VolumeU8>(std::move(*d));
+  }
   if (chamfer_output_bits(mask.grid(), options) == 16)
     return std::make_shared<VolumeU16>(chamfer_as<uint16_t>(mask, options));
   return std::make_shared<VolumeU32>(chamfer_as<uint32_t>(mask, options));

@@ -17,6 +17,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include "skel/data.hpp"
@@ -57,6 +58,10 @@ struct ChamferOptions : DistanceOptions {
   ChamferWeights weights{};
   bool derive_from_spacing = false;  // replace `weights` by chamfer_weights_from_spacing(spacing)
   double spacing_scale = 3.0;        // scale used when derive_from_spacing is true
+  // chamfer(): a VolumeU8 when every distance of this mask is below 255 (1 byte per voxel instead of
+  // 2; the values equal the uint16 result), else the uint16/uint32 output as without it. The uint8
+  // scans saturate at 255; a saturated value makes chamfer() recompute in the wider type.
+  bool narrow = false;
 };
 
 // Largest finite chamfer value any mask on `grid` can produce with these options (a path of face
@@ -71,6 +76,10 @@ int chamfer_output_bits(const Grid& grid, const ChamferOptions& options);
 // background voxel reaches (border_is_object and no background at all) get the type's maximum,
 // which is above every finite value. Memory: 2 or 4 bytes per voxel (output only).
 DataPtr chamfer(const VolumeU8& mask, const ChamferOptions& options = {});
+// The chamfer distance in uint8 if every value is below 255: equal to chamfer_as<uint16_t> voxel for
+// voxel; nullopt if some object voxel's distance is 255 or more (or unreached). Memory: 1 byte per
+// voxel plus a few rows of scratch.
+std::optional<VolumeU8> chamfer_u8(const VolumeU8& mask, const ChamferOptions& options = {});
 // Same, with a fixed output type; throws InputError if T cannot hold chamfer_upper_bound.
 template <class T> Volume<T> chamfer_as(const VolumeU8& mask, const ChamferOptions& options = {});
 

@@ -68,10 +68,14 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
   // mask's neighbours, so the state is written afterwards, by a second pass over the rows that gives
   // the same bytes as the one-pass scan writes.
   const bool in_place = st == m;
+  if (static_cast<uint64_t>(nx) * static_cast<uint64_t>(ny) > (uint64_t{1} << 32))
+    throw InputError("mask: planes of " + std::to_string(nx) + "x" + std::to_string(ny) +
+                     " voxels exceed 2^32; thinning needs nx * ny <= 2^32");
   std::vector<PlaneScan> planes(static_cast<size_t>(nz));
   parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z) {
       PlaneScan& pl = planes[static_cast<size_t>(z)];
+      pl.base = nx * ny * z;
       for (int64_t y = 0; y < ny; ++y) {
         const int64_t row = nx * (y + ny * z);
         const bool edge_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
@@ -104,7 +108,7 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
           pl.keys.insert(order_key(v));
           if (s & kLocked) continue;
           const bool boundary = edge || !(m[i - 1] && m[i + 1] && m[i - nx] && m[i + nx] && m[i - nx * ny] && m[i + nx * ny]);
-          if (boundary) pl.boundary.push_back(i);
+          if (boundary) pl.boundary.push_back(static_cast<uint32_t>(i - pl.base));
         }
         if (in_place) continue;
         if (edge_row) {
@@ -155,27 +159,27 @@ std::vector<uint64_t> gather_keys(const std::vector<PlaneScan>& planes, int64_t&
 // each chunk then writes its entries at its offset in every level, in the same order a sequential
 // push in raster order would give. The per-chunk histograms cost chunks x levels counters, so with
 // very many distinct priorities fewer chunks are used (one = the sequential order).
-template <class T>
+template <class T, class E>
 void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels, uint8_t* st, int64_t nz, int threads,
-                        BucketQueue& q) {
+                        BucketQueue<E>& q) {
   int64_t boundary_total = 0;
   for (const PlaneScan& pl : planes) boundary_total += static_cast<int64_t>(pl.boundary.size());
   const int64_t nlev = levels.count();
   int64_t chunks = std::min<int64_t>(nz, 4 * effective_threads(threads));
   while (chunks > 1 && chunks * nlev > std::max<int64_t>(boundary_total, int64_t{1} << 16)) chunks /= 2;
   std::vector<std::vector<int64_t>> hist(static_cast<size_t>(chunks));
-  std::vector<std::vector<uint32_t>> plane_levels(static_cast<size_t>(nz));
+  // The level of each boundary voxel is computed twice (histogram, then placement) instead of stored:
+  // the fill is the peak of a dense object's thinning (most object voxels are boundary voxels).
   parallel_chunks(0, nz, chunks, threads, [&](int64_t c, int64_t z0, int64_t z1) {
     auto& h = hist[static_cast<size_t>(c)];
     h.assign(static_cast<size_t>(nlev), 0);
     for (int64_t z = z0; z < z1; ++z) {
       const auto& b = planes[static_cast<size_t>(z)].boundary;
-      auto& l = plane_levels[static_cast<size_t>(z)];
-      l.resize(b.size());
-      for (size_t j = 0; j < b.size(); ++j) {
-        st[b[j]] |= kQueued;
-        l[j] = levels.level(b[j]);
-        ++h[l[j]];
+      const int64_t base = planes[static_cast<size_t>(z)].base;
+      for (const uint32_t o : b) {
+        const int64_t i = base + o;
+        st[i] |= kQueued;
+        ++h[levels.level(i)];
       }
     }
   });
@@ -193,18 +197,21 @@ void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels,
     auto& h = hist[static_cast<size_t>(c)];
     for (int64_t z = z0; z < z1; ++z) {
       auto& b = planes[static_cast<size_t>(z)].boundary;
-      auto& l = plane_levels[static_cast<size_t>(z)];
-      for (size_t j = 0; j < b.size(); ++j) q.bucket[l[j]][static_cast<size_t>(h[l[j]]++)] = b[j];
-      std::vector<int64_t>().swap(b);
-      std::vector<uint32_t>().swap(l);
+      const int64_t base = planes[static_cast<size_t>(z)].base;
+      for (const uint32_t o : b) {
+        const int64_t i = base + o;
+        const uint32_t l = levels.level(i);
+        q.bucket[l][static_cast<size_t>(h[l]++)] = static_cast<E>(i);
+      }
+      std::vector<uint32_t>().swap(b);
     }
   });
   q.size = q.peak = boundary_total;
   q.lowest = 0;
 }
 
-template <class T>
-inline void Removal<T>::remove(int64_t t) {
+template <class T, class E>
+inline void Removal<T, E>::remove(int64_t t) {
   uint8_t* const st = st_;
   const bool border = st[t] & kBorder;
   st[t] &= kBorder;
@@ -217,7 +224,7 @@ inline void Removal<T>::remove(int64_t t) {
       return;
     }
     st[s] = b | kDirty | kQueued;
-    q_.push(levels_.level(s), s);
+    push(levels_.level(s), s);
   };
   if (border) {
     int64_t nbr[26];
@@ -228,21 +235,21 @@ inline void Removal<T>::remove(int64_t t) {
   }
 }
 
-template <class T>
-void Removal<T>::progress() {
+template <class T, class E>
+void Removal<T, E>::progress() {
   if (stats_.tests >= next_check_) {
     next_check_ = stats_.tests + kProgressTests;
     irq_.check(0.08 + 0.82 * std::min(1.0, static_cast<double>(stats_.removed) / total_));
   }
 }
 
-template <class T>
-void Removal<T>::run_basic() {
+template <class T, class E>
+void Removal<T, E>::run_basic() {
   uint8_t* const st = st_;
-  BucketQueue& q = q_;
+  BucketQueue<E>& q = q_;
   while (q.settle()) {
     const size_t lv = static_cast<size_t>(q.lowest);
-    const int64_t t = q.bucket[lv][q.head[lv]++];
+    const int64_t t = static_cast<int64_t>(q.bucket[lv][q.head[lv]++]);
     --q.size;
     st[t] &= static_cast<uint8_t>(~kQueued);
     ++stats_.tests;
@@ -252,38 +259,48 @@ void Removal<T>::run_basic() {
   }
 }
 
-template <class T>
-void Removal<T>::take_level(size_t lv, BigVector<int64_t>& tv) {
+template <class T, class E>
+void Removal<T, E>::take_level(size_t lv, BigVector<E>& tv, BigVector<uint8_t>& tc) {
   // Take the whole bucket (swap, no copy); entries pushed at this level meanwhile go to the emptied
   // bucket, which reuses the previous level's buffer.
-  BucketQueue& q = q_;
+  BucketQueue<E>& q = q_;
   tv.clear();
+  tc.clear();
   std::swap(tv, q.bucket[lv]);
-  if (q.head[lv] > 0) tv.erase(tv.begin(), tv.begin() + static_cast<std::ptrdiff_t>(q.head[lv]));
+  std::swap(tc, q.cache[lv]);
+  // The bucket starts from an empty buffer (tv's old one is freed): the same-level pushes of this
+  // sub-iteration are few; a second buffer as large as the level would be the removal's peak.
+  BigVector<E>().swap(q.bucket[lv]);
+  BigVector<uint8_t>().swap(q.cache[lv]);
+  const auto h = static_cast<std::ptrdiff_t>(q.head[lv]);
+  if (h > 0) {
+    tv.erase(tv.begin(), tv.begin() + h);
+    if (!tc.empty()) tc.erase(tc.begin(), tc.begin() + h);
+  }
   q.head[lv] = 0;
   q.size -= static_cast<int64_t>(tv.size());
+  q.taken_peak = std::max(q.taken_peak, static_cast<int64_t>(tv.size()));
 }
 
-template <class T>
-int64_t Removal<T>::check(const BigVector<int64_t>& tv, BigVector<uint8_t>& dirs) const {
+template <class T, class E>
+int64_t Removal<T, E>::check(const BigVector<E>& tv, const BigVector<uint8_t>& tc, BigVector<uint8_t>& dirs) const {
   const uint8_t* const st = st_;
   const Thinner& th = th_;
   const DirectionMasks& dm = direction_masks();
   const int64_t nt = static_cast<int64_t>(tv.size());
+  const uint8_t* const cached = tc.empty() ? nullptr : tc.data();
   std::atomic<int64_t> fresh{0};
   auto check_range = [&](int64_t b, int64_t e) {
     int64_t tested = 0;
     for (int64_t j = b; j < e; ++j) {
       if (j + kAhead < e) {  // prefetch: the state of a voxel checked soon, its rows if uncached
-        const uint64_t ahead = static_cast<uint64_t>(tv[static_cast<size_t>(j + kAhead)]);
-        const int64_t a = static_cast<int64_t>(ahead & kIndexMask);
-        if (ahead & kCacheValid) __builtin_prefetch(st + a, 0);  // a is a voxel index: in range
+        const int64_t a = static_cast<int64_t>(tv[static_cast<size_t>(j + kAhead)]);
+        if (cached && (cached[j + kAhead] & kCacheValid)) __builtin_prefetch(st + a, 0);  // a voxel index: in range
         else th.prefetch_state(a);
       }
-      const uint64_t entry = static_cast<uint64_t>(tv[static_cast<size_t>(j)]);
-      const int64_t t = static_cast<int64_t>(entry & kIndexMask);
-      if ((entry & kCacheValid) && !(st[t] & kDirty)) {
-        dirs[static_cast<size_t>(j)] = static_cast<uint8_t>((entry >> 56) & 63u);
+      const int64_t t = static_cast<int64_t>(tv[static_cast<size_t>(j)]);
+      if (cached && (cached[j] & kCacheValid) && !(st[t] & kDirty)) {
+        dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(cached[j] & 63u);
         continue;
       }
       ++tested;
@@ -298,21 +315,21 @@ int64_t Removal<T>::check(const BigVector<int64_t>& tv, BigVector<uint8_t>& dirs
   return fresh.load();
 }
 
-template <class T>
-uint32_t Removal<T>::flag(BigVector<int64_t>& tv, const BigVector<uint8_t>& dirs, int64_t nt, int64_t& nc_out) {
+template <class T, class E>
+uint32_t Removal<T, E>::flag(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nt, int64_t& nc_out) {
   // Branch-free. Candidates keep kQueued while the removals of the recheck run (their removed
   // neighbours must not queue them again); the re-queued ones keep it afterwards.
   uint8_t* const st = st_;
   uint32_t x_set = 0;
   int64_t nc = 0;
   for (int64_t j = 0; j < nt; ++j) {
-    if (j + 2 * kAhead < nt)
-      __builtin_prefetch(st + (static_cast<uint64_t>(tv[static_cast<size_t>(j + 2 * kAhead)]) & kIndexMask), 1);
-    const uint64_t t = static_cast<uint64_t>(tv[static_cast<size_t>(j)]) & kIndexMask;
+    if (j + 2 * kAhead < nt) __builtin_prefetch(st + static_cast<int64_t>(tv[static_cast<size_t>(j + 2 * kAhead)]), 1);
+    const E t = tv[static_cast<size_t>(j)];
     const uint8_t d = dirs[static_cast<size_t>(j)];
     st[t] = static_cast<uint8_t>((st[t] & ~(kQueued | kDirty)) | (d != 0 ? kQueued : 0));
     x_set |= d;
-    tv[static_cast<size_t>(nc)] = static_cast<int64_t>(t | (static_cast<uint64_t>(d) << 56));
+    tv[static_cast<size_t>(nc)] = t;
+    dirs[static_cast<size_t>(nc)] = d;
     nc += d != 0;
   }
   x_set &= 63u;
@@ -320,18 +337,24 @@ uint32_t Removal<T>::flag(BigVector<int64_t>& tv, const BigVector<uint8_t>& dirs
   return x_set;
 }
 
-template <class T>
-void Removal<T>::recheck(const BigVector<int64_t>& tv, int64_t nc, uint32_t chosen, uint32_t lv) {
+template <class T, class E>
+void Removal<T, E>::recheck(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nc, uint32_t chosen, uint32_t lv) {
   uint8_t* const st = st_;
   const Thinner& th = th_;
+  BucketQueue<E>& q = q_;
+  // The bucket is empty here (take_level emptied it; check and flag push nothing).
+  requeue_lv_ = lv;
+  requeue_w_ = 0;
+  fresh_pos_.clear();
+  bool cached = false;
   for (int64_t j = 0; j < nc; ++j) {
     if (j + kAhead < nc) {  // prefetch the neighbourhood of a voxel that will be removed soon
-      const uint64_t ahead = static_cast<uint64_t>(tv[static_cast<size_t>(j + kAhead)]);
-      if ((ahead >> 56) & chosen) th.prefetch(static_cast<int64_t>(ahead & kIndexMask), pv_);
+      if (dirs[static_cast<size_t>(j + kAhead)] & chosen)
+        th.prefetch(static_cast<int64_t>(tv[static_cast<size_t>(j + kAhead)]), pv_);
     }
-    const uint64_t entry = static_cast<uint64_t>(tv[static_cast<size_t>(j)]);
-    const uint8_t d = static_cast<uint8_t>(entry >> 56);
-    const int64_t t = static_cast<int64_t>(entry & kIndexMask);
+    const uint8_t d = dirs[static_cast<size_t>(j)];
+    const E te = tv[static_cast<size_t>(j)];
+    const int64_t t = static_cast<int64_t>(te);
     if (d & chosen) {
       st[t] &= static_cast<uint8_t>(~kQueued);
       // Unchanged neighbourhood since the parallel check (and not an end point): still deletable.
@@ -343,26 +366,55 @@ void Removal<T>::recheck(const BigVector<int64_t>& tv, int64_t nc, uint32_t chos
       uint32_t nb = 0;
       if (th.deletable(t, nb)) remove(t);
     } else {
-      const uint64_t cache = (d & 64u) ? 0 : (kCacheValid | (static_cast<uint64_t>(d & 63u) << 56));
-      q_.push(lv, static_cast<int64_t>(static_cast<uint64_t>(t) | cache));
+      // Re-queued in place (requeue_w_ <= j): end points are never cached.
+      const uint8_t c = (d & 64u) ? uint8_t{0} : static_cast<uint8_t>(kCacheValid | (d & 63u));
+      cached |= c != 0;
+      tv[static_cast<size_t>(requeue_w_)] = te;
+      dirs[static_cast<size_t>(requeue_w_)] = c;
+      ++requeue_w_;
     }
   }
+  requeue_lv_ = ~0u;
+  // Merge from the back: fresh entry k (bucket position k) goes after the first fresh_pos_[k]
+  // re-queued ones.
+  const int64_t w = requeue_w_, f = static_cast<int64_t>(fresh_pos_.size());
+  auto& bucket = q.bucket[lv];
+  tv.resize(static_cast<size_t>(w + f));
+  if (cached) dirs.resize(static_cast<size_t>(w + f));
+  int64_t i = w - 1, out = w + f - 1;
+  for (int64_t k = f - 1; k >= 0; --k) {
+    const int64_t pos = static_cast<int64_t>(fresh_pos_[static_cast<size_t>(k)]);
+    while (i >= pos) {
+      tv[static_cast<size_t>(out)] = tv[static_cast<size_t>(i)];
+      if (cached) dirs[static_cast<size_t>(out)] = dirs[static_cast<size_t>(i)];
+      --out;
+      --i;
+    }
+    tv[static_cast<size_t>(out)] = bucket[static_cast<size_t>(k)];
+    if (cached) dirs[static_cast<size_t>(out)] = 0;
+    --out;
+  }
+  bucket.clear();
+  std::swap(tv, bucket);
+  if (cached) std::swap(dirs, q.cache[lv]);
+  q.size += w;
+  q.peak = std::max(q.peak, q.size);
 }
 
-template <class T>
-void Removal<T>::run_smooth() {
-  BigVector<int64_t> tv;
-  BigVector<uint8_t> dirs;
+template <class T, class E>
+void Removal<T, E>::run_smooth() {
+  BigVector<E> tv;
+  BigVector<uint8_t> tc, dirs;
   int64_t iteration = 0;
   while (true) {
     ++iteration;
     bool found = false;
     while (!found && q_.settle()) {
       const size_t lv = static_cast<size_t>(q_.lowest);
-      take_level(lv, tv);
+      take_level(lv, tv, tc);
       const int64_t nt = static_cast<int64_t>(tv.size());
       dirs.assign(tv.size(), 0);
-      stats_.tests += check(tv, dirs);
+      stats_.tests += check(tv, tc, dirs);
       int64_t nc = 0;
       const uint32_t x_set = flag(tv, dirs, nt, nc);
       if (x_set == 0) continue;  // nothing deletable at this level: next level
@@ -370,12 +422,11 @@ void Removal<T>::run_smooth() {
       ++stats_.sub_iterations;
       const uint32_t chosen = 1u << choose_subiteration(x_set, iteration);
       // Sequential rechecking of the chosen sub-iteration; others are re-queued.
-      recheck(tv, nc, chosen, static_cast<uint32_t>(lv));
+      recheck(tv, dirs, nc, chosen, static_cast<uint32_t>(lv));
       progress();
     }
     if (!found) break;
   }
-  q_.extra_bytes = tv.capacity() * 8 + dirs.capacity();
 }
 
 std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int threads) {
@@ -484,9 +535,12 @@ void finish_state(uint8_t* st, const std::vector<int64_t>& skel, const Dims& dim
 // Explicit instantiations for the priority types of visit_volume (the tests call the phases).
 #define SKEL_THINNING_PHASES(T)                                                                              \
   template std::vector<PlaneScan> scan_planes<T>(const VolumeU8&, const T*, const VolumeU8*, uint8_t*, int); \
-  template void fill_initial_queue<T>(std::vector<PlaneScan>&, const Levels<T>&, uint8_t*, int64_t, int,      \
-                                      BucketQueue&);                                                         \
-  template class Removal<T>;
+  template void fill_initial_queue<T, uint32_t>(std::vector<PlaneScan>&, const Levels<T>&, uint8_t*, int64_t, \
+                                                int, BucketQueue<uint32_t>&);                                \
+  template void fill_initial_queue<T, uint64_t>(std::vector<PlaneScan>&, const Levels<T>&, uint8_t*, int64_t, \
+                                                int, BucketQueue<uint64_t>&);                                \
+  template class Removal<T, uint32_t>;                                                                       \
+  template class Removal<T, uint64_t>;
 SKEL_THINNING_PHASES(uint8_t)
 SKEL_THINNING_PHASES(uint16_t)
 SKEL_THINNING_PHASES(uint32_t)
@@ -504,7 +558,7 @@ using namespace detail;
 
 // `state`: where the state and then the skeleton go; null: a new volume (res.skeleton), else the
 // mask's own buffer (thin_doht_in_place; res.skeleton stays empty).
-template <class T>
+template <class T, class E>
 ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const VolumeU8* locked,
                          const ThinningOptions& opt, uint8_t* state) {
   ThinningResult res;
@@ -527,14 +581,14 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
     Levels<T> levels(pv, std::move(all_keys));
     stats.priority_levels = levels.count();
     Thinner th(st, mask.dims(), opt.end_point_length);
-    BucketQueue q(levels.count());
+    BucketQueue<E> q(levels.count());
     fill_initial_queue(planes, levels, st, mask.nz(), threads, q);
     irq.check(0.08);
 
-    Removal<T> removal(st, th, levels, q, pv, stats, threads, irq);
+    Removal<T, E> removal(st, th, levels, q, pv, stats, threads, irq);
     if (opt.variant == ThinningVariant::Basic) removal.run_basic();
     else removal.run_smooth();
-    stats.bytes = q.capacity_bytes() + levels.bytes();
+    stats.bytes = q.peak_bytes() + levels.bytes();
     irq.check(0.9);
 
     skel = collect_skeleton(st, mask.dims(), threads);
@@ -552,7 +606,7 @@ uint32_t thinning_directions(uint32_t nb) { return detail::matched_directions(nb
 
 namespace {
 ThinningResult thin_checked(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
-                            const ThinningOptions& options, uint8_t* state) {
+                            const ThinningOptions& options, uint8_t* state, int entry_bytes = 0) {
   if (options.end_point_length < 0)
     throw InputError("end_point_length: expected >= 0, got " + std::to_string(options.end_point_length));
   const Grid& pg = volume_grid(priority, "priority");
@@ -564,10 +618,23 @@ ThinningResult thin_checked(const VolumeU8& mask, const DataObject& priority, co
   if (locked && locked->dims() != mask.dims())
     throw InputError("locked: dims " + dims_text(locked->dims()) + " differ from the mask's " +
                      dims_text(mask.dims()));
-  return visit_volume(priority, "priority",
-                      [&](const auto& pv) { return thin_impl(mask, pv, locked, options, state); });
+  // 4-byte queue entries (voxel indices) where every index fits, else 8.
+  if (entry_bytes == 0) entry_bytes = queue_entry_bytes(mask.dims());
+  if (entry_bytes == 4 && queue_entry_bytes(mask.dims()) != 4)
+    throw Error("thin_doht: 4-byte queue entries cannot index " + dims_text(mask.dims()) + " voxels");
+  return visit_volume(priority, "priority", [&](const auto& pv) {
+    using T = typename std::decay_t<decltype(pv)>::value_type;
+    if (entry_bytes == 4) return thin_impl<T, uint32_t>(mask, pv, locked, options, state);
+    return thin_impl<T, uint64_t>(mask, pv, locked, options, state);
+  });
 }
 }  // namespace
+
+ThinningResult detail::thin_doht_with_entries(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
+                                              const ThinningOptions& options, int entry_bytes) {
+  if (entry_bytes != 4 && entry_bytes != 8) throw Error("thin_doht_with_entries: entry_bytes must be 4 or 8");
+  return thin_checked(mask, priority, locked, options, nullptr, entry_bytes);
+}
 
 ThinningResult thin_doht(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
                          const ThinningOptions& options) {

@@ -34,9 +34,17 @@ namespace skel::thinning::detail {
 constexpr uint8_t kObject = 1, kQueued = 2, kVisited = 4, kLocked = 8, kBorder = 16;
 // A 26-neighbour was removed since the voxel's sub-iteration directions were cached (smooth variant).
 constexpr uint8_t kDirty = 32;
-// Smooth-variant queue entries may carry the voxel's cached sub-iteration directions (bits 56..61)
-// and a validity bit (62) above the voxel index (< 2^56).
-constexpr uint64_t kIndexMask = (uint64_t{1} << 56) - 1, kCacheValid = uint64_t{1} << 62;
+// Queue entries are voxel indices: uint32_t where every index fits (volumes of at most 2^32 voxels),
+// else uint64_t (queue_entry_bytes). The smooth variant's cached sub-iteration directions of a
+// re-queued candidate live beside the entry, in a byte array of its bucket: bits 0..5 the
+// directions, kCacheValid set.
+constexpr uint8_t kCacheValid = 128;
+
+// Bytes per queue entry for a volume of these dims: 4 if every voxel index is below 2^32, else 8.
+inline int queue_entry_bytes(const Dims& dims) {
+  const uint64_t n = static_cast<uint64_t>(dims[0]) * static_cast<uint64_t>(dims[1]) * static_cast<uint64_t>(dims[2]);
+  return n <= (uint64_t{1} << 32) ? 4 : 8;
+}
 
 // Direction masks of fig. 2.17 for the 26 neighbour directions v.
 struct DirectionMasks {
@@ -226,10 +234,18 @@ public:
 
   [[nodiscard]] uint32_t neighbourhood(int64_t i) const {
     if (st_[i] & kBorder) return neighbourhood_slow(i);
+    // The nine rows of the 3x3x3 block in raster order (dz outer, dy, dx inner), three bits each: a
+    // 27-bit word with the centre at bit 13, which is dropped (bit k of the result = neighbour k of
+    // off_, the order neighbour_bit uses). Fewer address computations than 26 single offsets.
     const uint8_t* p = st_ + i;
-    uint32_t nb = 0;
-    for (int k = 0; k < 26; ++k) nb |= static_cast<uint32_t>(p[off_[static_cast<size_t>(k)]] & kObject) << k;
-    return nb;
+    uint32_t w = 0;
+    for (int r = 0; r < 9; ++r) {
+      const uint8_t* q = p + row_[static_cast<size_t>(r)];
+      const uint32_t bits = static_cast<uint32_t>(q[-1] & kObject) | static_cast<uint32_t>(q[0] & kObject) << 1 |
+                            static_cast<uint32_t>(q[1] & kObject) << 2;
+      w |= bits << (3 * r);
+    }
+    return (w & 0x1FFFu) | ((w >> 1) & 0x3FFE000u);
   }
 
   // Prefetch hints for the nine rows of the 3x3x3 neighbourhood of i: state (and priority) bytes.
@@ -351,23 +367,41 @@ public:
   std::unique_ptr<std::atomic<uint32_t>[]> cache_{new std::atomic<uint32_t>[size_t{1} << kCacheBits]()};
 };
 
-// Bucket queue over dense levels; FIFO inside a bucket.
+// Bucket queue over dense levels; FIFO inside a bucket. E: the entry (voxel index) type, uint32_t or
+// uint64_t. cache[v] is empty (no entry of bucket v carries cached directions) or as long as
+// bucket[v]: the cached directions of each entry (kCacheValid | bits 0..5, or 0).
+template <class E>
 struct BucketQueue {
-  std::vector<BigVector<int64_t>> bucket;
+  std::vector<BigVector<E>> bucket;
+  std::vector<BigVector<uint8_t>> cache;
   std::vector<size_t> head;
   int64_t lowest = 0;
   int64_t size = 0, peak = 0;
-  uint64_t extra_bytes = 0;  // working buffers outside the buckets (smooth variant)
-  explicit BucketQueue(int64_t levels) : bucket(static_cast<size_t>(levels)), head(static_cast<size_t>(levels), 0) {}
+  int64_t taken_peak = 0;  // smooth variant: the largest level taken out of its bucket at once
+  explicit BucketQueue(int64_t levels)
+      : bucket(static_cast<size_t>(levels)), cache(static_cast<size_t>(levels)), head(static_cast<size_t>(levels), 0) {}
   void push(uint32_t level, int64_t i) {
-    bucket[level].push_back(i);
+    bucket[level].push_back(static_cast<E>(i));
+    if (!cache[level].empty()) cache[level].push_back(0);
     if (static_cast<int64_t>(level) < lowest) lowest = level;
     peak = std::max(peak, ++size);
   }
-  [[nodiscard]] uint64_t capacity_bytes() const {
-    uint64_t b = extra_bytes + bucket.capacity() * sizeof(bucket[0]) + head.capacity() * sizeof(size_t);
-    for (const auto& v : bucket) b += v.capacity() * sizeof(int64_t);
-    return b;
+  // An entry with cached directions `c` (kCacheValid | directions).
+  void push_cached(uint32_t level, int64_t i, uint8_t c) {
+    auto& b = bucket[level];
+    auto& k = cache[level];
+    if (k.size() < b.size()) k.resize(b.size(), 0);
+    b.push_back(static_cast<E>(i));
+    k.push_back(c);
+    if (static_cast<int64_t>(level) < lowest) lowest = level;
+    peak = std::max(peak, ++size);
+  }
+  // Working bytes (statistics): the bucket tables, and the most entries queued at once plus the
+  // largest taken level, each an index and a direction byte (the taken level's buffer is freed as it
+  // is taken, so capacities at the end would not show the peak).
+  [[nodiscard]] uint64_t peak_bytes() const {
+    return bucket.capacity() * sizeof(bucket[0]) + cache.capacity() * sizeof(cache[0]) +
+           head.capacity() * sizeof(size_t) + static_cast<uint64_t>(peak + taken_peak) * (sizeof(E) + 1);
   }
   // Advances `lowest` to the first non-empty bucket; false if the queue is empty.
   bool settle() {
@@ -375,9 +409,9 @@ struct BucketQueue {
     while (lowest < n) {
       auto& b = bucket[static_cast<size_t>(lowest)];
       if (head[static_cast<size_t>(lowest)] < b.size()) return true;
-      // Keep the capacity: levels are revisited (smooth variant); nothing is freed before the end, so
-      // the final capacities are the peak queue memory (reported in the statistics).
+      // Keep the capacity: levels are revisited (smooth variant; take_level frees the taken buffer).
       b.clear();
+      cache[static_cast<size_t>(lowest)].clear();
       head[static_cast<size_t>(lowest)] = 0;
       ++lowest;
     }
@@ -392,8 +426,10 @@ struct PlaneScan {
   int64_t objects = 0;
   bool nan = false;            // a NaN priority at an object voxel
   KeySet keys;                 // distinct order_key()s of the object voxels' priorities
-  std::vector<int64_t> boundary;  // unlocked object voxels with a background 6-neighbour (or on an
-                                  // array face), raster order
+  int64_t base = 0;            // index of the plane's first voxel (nx * ny * z)
+  // Unlocked object voxels with a background 6-neighbour (or on an array face), raster order, as
+  // offsets x + nx * y from `base` (4 bytes; planes of more than 2^32 voxels are refused).
+  std::vector<uint32_t> boundary;
 };
 
 // Phase 1: writes the initial state to `st` (mask.size() bytes): kObject, kLocked, kBorder on the
@@ -409,15 +445,16 @@ std::vector<uint64_t> gather_keys(const std::vector<PlaneScan>& planes, int64_t&
 // Phase 3: the boundary voxels of `planes` into `q` (sized levels.count()), per level in raster
 // order, buckets sized exactly; marks them kQueued. Frees the planes' boundary lists. The result does
 // not depend on `threads`.
-template <class T>
+template <class T, class E>
 void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels, uint8_t* st, int64_t nz, int threads,
-                        BucketQueue& q);
+                        BucketQueue<E>& q);
 
-// Phase 4: the removal loops over the queue. `progress` reports between 0.08 and 0.9.
-template <class T>
+// Phase 4: the removal loops over the queue (entries of type E, see BucketQueue). `progress` reports
+// between 0.08 and 0.9.
+template <class T, class E>
 class Removal {
 public:
-  Removal(uint8_t* st, const Thinner& th, const Levels<T>& levels, BucketQueue& q, const T* priority,
+  Removal(uint8_t* st, const Thinner& th, const Levels<T>& levels, BucketQueue<E>& q, const T* priority,
           ThinningStatistics& stats, int threads, const Interrupter& irq)
       : st_(st), th_(th), levels_(levels), q_(q), pv_(priority), stats_(stats), threads_(threads), irq_(irq),
         total_(static_cast<double>(stats.object_voxels)), next_check_(stats.tests + kProgressTests) {}
@@ -429,19 +466,23 @@ public:
   void run_smooth();
 
   // Smooth steps, for one sub-iteration at level `lv` (public for tests).
-  // Moves the unread entries of bucket lv to `tv` (the bucket keeps tv's old buffer).
-  void take_level(size_t lv, BigVector<int64_t>& tv);
+  // Moves the unread entries of bucket lv to `tv` and their cached directions to `tc` (empty if none
+  // is cached; the bucket keeps tv's and tc's old buffers).
+  void take_level(size_t lv, BigVector<E>& tv, BigVector<uint8_t>& tc);
   // The parallel check (reads the state only): dirs[j] = candidate_directions of entry j if it is
   // deletable, else 0; a cached entry whose neighbourhood is unchanged (no kDirty) keeps its cached
   // directions. Returns the number of deletability tests run.
-  int64_t check(const BigVector<int64_t>& tv, BigVector<uint8_t>& dirs) const;
+  int64_t check(const BigVector<E>& tv, const BigVector<uint8_t>& tc, BigVector<uint8_t>& dirs) const;
   // Flags the checked voxels (candidates keep kQueued, kDirty cleared) and compacts the candidates to
-  // the front of tv with their directions in bits 56..62, in queue order. Returns the union of the
-  // candidates' directions (bits 0..5) and their count through `nc`.
-  uint32_t flag(BigVector<int64_t>& tv, const BigVector<uint8_t>& dirs, int64_t nt, int64_t& nc);
+  // the front of tv, their directions (bits 0..6) to the front of dirs, in queue order. Returns the
+  // union of the candidates' directions (bits 0..5) and their count through `nc`.
+  uint32_t flag(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nt, int64_t& nc);
   // Sequential recheck of the candidates of direction bit `chosen`: removes the still deletable ones;
-  // the candidates of other directions go back to level lv with their directions cached.
-  void recheck(const BigVector<int64_t>& tv, int64_t nc, uint32_t chosen, uint32_t lv);
+  // the candidates of other directions go back to level lv with their directions cached. They are
+  // compacted into the front of tv and dirs (no second buffer for them) and merged with the voxels
+  // the removals queue at level lv meanwhile, in the order of a push at the time (the bucket's order);
+  // tv and dirs then hold the buffers the bucket had.
+  void recheck(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t nc, uint32_t chosen, uint32_t lv);
 
   // Removes t and queues its unqueued object neighbours (marking all of them kDirty).
   inline void remove(int64_t t);
@@ -450,10 +491,19 @@ private:
   static constexpr int64_t kProgressTests = int64_t{1} << 21;
   void progress();
 
+  // A push at level requeue_lv_ while recheck() runs: its position among the re-queued candidates.
+  void push(uint32_t level, int64_t s) {
+    if (level == requeue_lv_) fresh_pos_.push_back(static_cast<E>(requeue_w_));
+    q_.push(level, s);
+  }
+
   uint8_t* st_;
   const Thinner& th_;
   const Levels<T>& levels_;
-  BucketQueue& q_;
+  BucketQueue<E>& q_;
+  uint32_t requeue_lv_ = ~0u;  // the level recheck() re-queues to (none outside recheck)
+  int64_t requeue_w_ = 0;      // candidates re-queued so far
+  BigVector<E> fresh_pos_;     // per push at requeue_lv_: requeue_w_ at that time
   const T* pv_;
   ThinningStatistics& stats_;
   int threads_;
@@ -461,6 +511,11 @@ private:
   double total_;
   int64_t next_check_;
 };
+
+// thin_doht with a fixed queue entry type (tests: the uint64_t entries of volumes above 2^32 voxels
+// on small volumes). `entry_bytes` 4 or 8; 4 needs queue_entry_bytes(mask.dims()) == 4.
+ThinningResult thin_doht_with_entries(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
+                                      const ThinningOptions& options, int entry_bytes);
 
 // Phase 5: the object voxels of `st` in raster order.
 std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int threads);

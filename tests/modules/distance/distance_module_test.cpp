@@ -1,6 +1,7 @@
 // The distance.* modules through run_module: ports, parameters, output types, mask rules.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -56,6 +57,20 @@ TEST(DistanceModules, ChamferOutputTypeAndWeights) {
                        {{"weights", std::vector<int64_t>{10000, 14142, 17321}}, {"border_is_object", true}});
   auto c2 = r2.get<VolumeU32>("distance");  // bound 10000 * (14 + 12 + 10) does not fit uint16
   EXPECT_EQ(3u * 14142u, (*c2)(7, 6, 5));  // (3,3,0) beats (4,1,0) = 44142 and (3,2,2) = 44642
+}
+
+TEST(DistanceModules, ChamferNarrowGivesUint8WhereEveryValueFits) {
+  auto m = ball_mask();
+  auto r = run_module("distance.chamfer", {{"mask", m}}, {{"narrow", true}});
+  auto c8 = r.get<VolumeU8>("distance");
+  auto c16 = run_module("distance.chamfer", {{"mask", m}}, {}).get<VolumeU16>("distance");
+  ASSERT_EQ(c8->size(), c16->size());
+  for (int64_t i = 0; i < c8->size(); ++i) EXPECT_EQ((*c16)[i], (*c8)[i]) << "voxel " << i;
+  // weights whose values reach 255: uint16 as without `narrow`
+  auto r2 = run_module("distance.chamfer", {{"mask", m}},
+                       {{"narrow", true}, {"weights", std::vector<int64_t>{100, 141, 173}}});
+  auto w16 = r2.get<VolumeU16>("distance");
+  EXPECT_EQ(3 * 141, (*w16)(7, 6, 5));  // (3,3,0) beats (4,1,0) = 441 and (3,2,2) = 446
 }
 
 TEST(DistanceModules, FeatureTransformMethods) {

@@ -3,8 +3,10 @@
 // a literal padded-array implementation of the thesis raster scans.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <queue>
 #include <random>
 #include <vector>
@@ -352,6 +354,69 @@ TEST(Chamfer, EmptyAndFullMasks) {
   auto nn = std::dynamic_pointer_cast<const VolumeU32>(n.nearest);
   ASSERT_TRUE(nn);
   for (auto v : *nn) EXPECT_EQ(OUT32, v);
+}
+
+// ChamferOptions::narrow: the uint8 scans equal the uint16 result voxel for voxel where every value
+// is below 255 (random masks, rows long enough for the SIMD path and their tails, border as object,
+// anisotropic weights); a value of 255 or more (a thick object, or large weights) gives the uint16
+// output instead, equal to chamfer without `narrow`.
+TEST(Chamfer, NarrowEqualsUint16WhereEveryValueFitsElseFallsBack) {
+  std::mt19937 rng(21);
+  std::uniform_int_distribution<int64_t> len(1, 70), side(1, 12);
+  int narrowed = 0, widened = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    ChamferOptions o;
+    o.border_is_object = trial % 4 == 3;
+    if (trial % 5 == 4) o.weights = ChamferWeights::isotropic(20, 28, 35);
+    if (trial % 7 == 6) o.weights = ChamferWeights::isotropic(200, 280, 345);  // saturates at once
+    const VolumeU8 m = random_mask(rng, {len(rng), side(rng), side(rng)}, 0.3 + 0.69 * (trial % 6) / 5.0);
+    const VolumeU16 wide = chamfer_as<uint16_t>(m, o);
+    const bool fits = std::all_of(wide.begin(), wide.end(), [](uint16_t v) { return v < 255; });
+    const std::optional<VolumeU8> d8 = chamfer_u8(m, o);
+    ASSERT_EQ(fits, d8.has_value()) << "trial " << trial;
+    o.narrow = true;
+    const DataPtr d = chamfer(m, o);
+    if (fits) {
+      ++narrowed;
+      auto c = std::dynamic_pointer_cast<const VolumeU8>(d);
+      ASSERT_TRUE(c) << "trial " << trial << " " << d->type_id();
+      for (int64_t i = 0; i < m.size(); ++i) ASSERT_EQ(wide[i], (*c)[i]) << "trial " << trial << " voxel " << i;
+      for (int64_t i = 0; i < m.size(); ++i) ASSERT_EQ(wide[i], (*d8)[i]) << "trial " << trial << " voxel " << i;
+    } else {
+      ++widened;
+      auto c = std::dynamic_pointer_cast<const VolumeU16>(d);
+      ASSERT_TRUE(c) << "trial " << trial << " " << d->type_id();
+      EXPECT_TRUE(*c == wide) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(narrowed, 40);
+  EXPECT_GE(widened, 10);
+}
+
+TEST(Chamfer, NarrowOnAThickObjectFallsBackAtTheFirstValueOf255) {
+  // A full 180 x 180 x 3 slab in x-y with the border as background: values up to 3 * 90 = 270 (> 254)
+  // in x-y, but z is only 3 thick: no value exceeds 6 (two face steps out in z) -> fits.
+  ChamferOptions o;
+  o.narrow = true;
+  VolumeU8 slab({180, 180, 3}, 1);
+  auto c8 = std::dynamic_pointer_cast<const VolumeU8>(chamfer(slab, o));
+  ASSERT_TRUE(c8);
+  EXPECT_EQ(6, *std::max_element(c8->begin(), c8->end()));
+  // A cube of 172: the centre is 86 face steps (258) from the border: uint16, equal to the plain run.
+  VolumeU8 cube({172, 172, 172}, 1);
+  DataPtr d = chamfer(cube, o);
+  auto c16 = std::dynamic_pointer_cast<const VolumeU16>(d);
+  ASSERT_TRUE(c16) << d->type_id();
+  EXPECT_EQ(258, (*c16)(85, 85, 85));
+  EXPECT_FALSE(chamfer_u8(cube, o).has_value());
+  // A cube of 168: the centre is 84 face steps (252): fits in uint8.
+  VolumeU8 cube2({168, 168, 168}, 1);
+  auto c8b = std::dynamic_pointer_cast<const VolumeU8>(chamfer(cube2, o));
+  ASSERT_TRUE(c8b);
+  EXPECT_EQ(252, (*c8b)(83, 83, 83));
+  o.narrow = false;
+  const VolumeU16 plain = chamfer_as<uint16_t>(cube2, o);
+  for (int64_t i = 0; i < plain.size(); ++i) ASSERT_EQ(plain[i], (*c8b)[i]) << "voxel " << i;
 }
 
 // Literal padded-array version of the two raster scans of thesis §2.3.1 / §2.3.2 carrying b(p).

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <random>
 
+#include "distance/distance.hpp"
 #include "shapes.hpp"
 #include "synthetic/network.hpp"
 #include "thinning/thinning.hpp"
@@ -125,6 +126,45 @@ TEST(Thinning, IdenticalForAnyThreadCount) {
       EXPECT_TRUE(rt.skeleton == r1.skeleton) << t << " threads";
       EXPECT_EQ(rt.stats.tests, r1.stats.tests);
     }
+  }
+}
+
+TEST(Thinning, Uint8AndUint16ChamferPrioritiesGiveTheSameSkeleton) {
+  // distance::chamfer with `narrow` gives uint8 distances equal to the uint16 ones: thin_doht ranks
+  // both into the same levels, so the skeleton and every statistic are the same (random blobs and
+  // the rods/plates phantoms, both variants, 1 and 2 threads).
+  std::vector<VolumeU8> masks;
+  for (uint32_t seed = 1; seed <= 4; ++seed) masks.push_back(test::random_blobs(36, seed, 0.46 + 0.01 * seed, 2));
+  for (const char* shape : {"rods", "plates"}) {
+    synthetic::NetworkOptions no;
+    no.shape = parse_enum<synthetic::Shape>(shape, "shape");
+    no.size = {72, 64, 56};
+    no.seed = 3;
+    no.threads = 2;
+    masks.push_back(synthetic::make_network(no).mask);
+  }
+  for (size_t k = 0; k < masks.size(); ++k) {
+    const VolumeU8& m = masks[k];
+    distance::ChamferOptions co;
+    const DataPtr d16 = distance::chamfer(m, co);
+    co.narrow = true;
+    const DataPtr d8 = distance::chamfer(m, co);
+    ASSERT_TRUE(std::dynamic_pointer_cast<const VolumeU16>(d16));
+    ASSERT_TRUE(std::dynamic_pointer_cast<const VolumeU8>(d8)) << d8->type_id();
+    for (auto v : {ThinningVariant::Basic, ThinningVariant::Smooth})
+      for (int t : {1, 2}) {
+        const std::string what = "mask " + std::to_string(k) + (v == ThinningVariant::Basic ? " basic " : " smooth ") +
+                                 std::to_string(t) + " threads";
+        const ThinningResult a = thin_doht(m, *d16, nullptr, opts(v, 2, t));
+        const ThinningResult b = thin_doht(m, *d8, nullptr, opts(v, 2, t));
+        EXPECT_TRUE(a.skeleton == b.skeleton) << what;
+        EXPECT_EQ(a.stats.priority_levels, b.stats.priority_levels) << what;
+        EXPECT_EQ(a.stats.tests, b.stats.tests) << what;
+        EXPECT_EQ(a.stats.removed, b.stats.removed) << what;
+        EXPECT_EQ(a.stats.sub_iterations, b.stats.sub_iterations) << what;
+        EXPECT_GT(a.stats.removed, 0) << what;
+        expect_same_topology(m, b.skeleton, what);
+      }
   }
 }
 
