@@ -479,10 +479,19 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   struct Tgt {
     int32_t x, y, z;
     uint32_t i;
-    int32_t fc[Scratch::kLandmarks];  // landmark distances of the target
-    uint32_t lmask;                   // landmarks whose field holds the target
+    int32_t fc[Scratch::kLandmarks + 1];  // field distances of the target (the last: the pivot's)
+    uint32_t lmask;                       // fields that hold the target
   };
   constexpr int K = Scratch::kLandmarks;
+  // The fields: the landmarks, and the last pivot search's distances (a field from a base like any
+  // other: exact to its limit, clipped beyond), while it is there.
+  const int nf = S.pivot_field ? K + 1 : K;
+  auto f_on = [&](int s2) { return s2 < K ? S.lm[s2].on : S.pivot_field; };
+  auto f_raw = [&](int s2, uint32_t v) -> uint32_t { return s2 < K ? S.lm[s2].f[v] : S.pdist(v); };
+  auto f_val = [&](int s2, uint32_t v) -> int32_t {
+    const uint32_t r = f_raw(s2, v);
+    return static_cast<int32_t>(r ? r - 1 : (s2 < K ? S.lm_radius : S.pivot_limit) + 1);
+  };
   Tgt tg[64];
   std::vector<Tgt> tg_heap;
   Tgt* rem = tg;
@@ -514,10 +523,10 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     t.i = static_cast<uint32_t>(i);
     t.lmask = 0;
     const uint32_t ci = index_at(t.x, t.y, t.z, want[i]);
-    for (int s2 = 0; s2 < K; ++s2) {
+    for (int s2 = 0; s2 < nf; ++s2) {
       t.fc[s2] = 0;
-      if (!S.lm[s2].on || ci == kNone || S.lm[s2].f[ci] == 0) continue;
-      t.fc[s2] = static_cast<int32_t>(S.lm_value(s2, ci));
+      if (!f_on(s2) || ci == kNone || f_raw(s2, ci) == 0) continue;
+      t.fc[s2] = f_val(s2, ci);
       t.lmask |= 1u << s2;
     }
     use_lm |= t.lmask != 0;
@@ -536,8 +545,8 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       }
       return m;
     }
-    int32_t fv[K];
-    for (int s2 = 0; s2 < K; ++s2) fv[s2] = S.lm[s2].on ? static_cast<int32_t>(S.lm_value(s2, idx)) : 0;
+    int32_t fv[Scratch::kLandmarks + 1];
+    for (int s2 = 0; s2 < nf; ++s2) fv[s2] = f_on(s2) ? f_val(s2, idx) : 0;
     uint32_t m = std::numeric_limits<uint32_t>::max();
     for (size_t j = 0; j < nrem; ++j) {
       int32_t d = std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z);
@@ -681,6 +690,8 @@ int64_t pivot_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_
   };
   if (S.pdist8.empty()) run(S.pdist16);
   else run(S.pdist8);
+  S.pivot_field = S.fields;
+  S.pivot_limit = limit;
   return static_cast<int64_t>(S.pqueue.size());
 }
 
@@ -884,8 +895,11 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
                    : std::make_unique<Scratch>(static_cast<size_t>(P.nl), plimit);
     // Landmark fields to the radius t (one byte per entry): a box holds them around targets up to
     // margin + 1 voxels beyond the block.
-    s->lm_radius = sh.landmarks && !sh.full && t <= 253 ? t : 0;
+    s->fields = sh.landmarks && !sh.full;
+    s->lm_radius = s->fields && t <= 253 ? t : 0;
     s->lm_min_visited = sh.landmark_min_visited >= 0 ? sh.landmark_min_visited : 12 * static_cast<int64_t>(t);
+    if (s->lm_radius > 0)  // allocated up front, so the bytes do not depend on which worker built fields
+      for (Scratch::Landmark& L : s->lm) L.f.assign(s->stamp.size(), 0);
     return s;
   };
   auto release = [&](std::unique_ptr<Scratch> s) {

@@ -192,7 +192,11 @@ struct Scratch {
     const uint8_t f = lm[s].f[v];
     return f ? f - 1u : lm_radius + 1;
   }
+  bool fields = false;            // fields for the A*: the landmarks (if lm_radius > 0) and the pivot's
+  bool pivot_field = false;       // the last pivot's distances serve the A* as a field too (if `fields`)
+  uint32_t pivot_limit = 0;
   void clear_landmarks() {
+    pivot_field = false;
     for (Landmark& L : lm) {
       for (uint32_t v : L.list) L.f[v] = 0;
       L.list.clear();
@@ -353,7 +357,8 @@ int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, ui
 
 // Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
 // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
-// voxels in distance order. Returns the number of visited voxels.
+// voxels in distance order; where S.fields, the own searches that follow in the block use them as
+// one more landmark field (clipped at limit + 1). Returns the number of visited voxels.
 int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit);
 
 // What the workers of phase 3 share: inputs, the output, the claims and the counters.
