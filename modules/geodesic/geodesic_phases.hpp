@@ -181,7 +181,7 @@ struct Scratch {
     std::vector<uint32_t> list;  // entries set, in distance order (clearing, and the BFS queue)
     bool on = false;
   };
-  static constexpr int kLandmarks = 4;
+  static constexpr int kLandmarks = 2;
   Landmark lm[kLandmarks];
   int lm_next = 0;                // slot the next field replaces (round robin)
   uint32_t lm_radius = 0;
