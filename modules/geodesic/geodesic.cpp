@@ -425,7 +425,8 @@ namespace {
 // Landmark policy: a field (about 2 t^2 voxels on a flat surface, both sides of a thin plate) is
 // built after an own search that closed at least S.lm_min_visited voxels (12 t by default: rim
 // crossings), unless a field already starts within kLandmarkReuse steps of its far target. Measured
-// on 256³ plates, t = 40 (bench/RESULTS.md): 8 t, 16 t and reuse distances 2-16 are no better.
+// on 256³ plates, t = 40 (bench/RESULTS.md): t and 4 t cost more than they save, 6 t is worse,
+// 9-18 t the same; reuse distances 2-16 make little difference.
 constexpr uint32_t kLandmarkReuse = 8;
 
 // Breadth-first field from the L voxel with scratch index `ci` at padded position `pos` to the
