@@ -80,8 +80,8 @@ int main(int argc, char** argv) {
   std::printf("Threshold mode, %d threads. Yardstick: `distance.euclidean` (exact EDT) on the same mask in the same run. "
               "CPU = user + system seconds of all threads (the machine is shared: wall times depend on the load, CPU times much less); prepare/search = the algorithm's own phase timers (wall); k = object voxels, |L| = boundary-layer voxels; searches = searches run (one A* search per base point with targets left, "
               "plus pivots: breadth-first to t + t/4), of them pivots and long (own searches that ended at t with targets left); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
-  std::printf("| phantom | size | t | object %% | time (s) | CPU (s) | prepare (s) | search (s) | EDT (s) | EDT CPU (s) | time / EDT | CPU / EDT CPU | |L| / k | searches | pivots | long | visited / k | bytes / k | prepare / search B/k | importance hash |\n");
-  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("| phantom | size | t | object %% | time (s) | CPU (s) | prepare (s) | search (s) | EDT (s) | EDT CPU (s) | time / EDT | CPU / EDT CPU | |L| / k | searches | pivots | long | landmarks | visited / k | bytes / k | prepare / search B/k | importance hash |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const std::string& shape : shapes) {
     for (int64_t n : sizes) {
       synthetic::NetworkOptions no;
@@ -101,15 +101,16 @@ int main(int argc, char** argv) {
         geodesic::Options go;
         go.threshold = t;
         go.threads = threads;
+        if (const char* lm = std::getenv("GEO_LANDMARKS")) go.landmarks = std::string(lm) != "0";
         geodesic::Result r;
         const double c1 = cpu_seconds();
         const double s = bench::best_of(1, [&] { r = geodesic::boundary_distance(ph.mask, go); });
         const double cpu = cpu_seconds() - c1;
-        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %lld | %lld | %lld | %.0f | %.1f | %.1f / %.1f | %016llx |\n", shape.c_str(),
+        std::printf("| %s | %lld³ | %lld | %.1f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f | %.2f | %lld | %lld | %lld | %lld | %.0f | %.1f | %.1f / %.1f | %016llx |\n", shape.c_str(),
                     static_cast<long long>(n), static_cast<long long>(t), 100.0 * static_cast<double>(k) / static_cast<double>(ph.mask.size()),
                     s, cpu, r.stats.seconds_prepare, r.stats.seconds_search, edt, edt_cpu, s / edt, cpu / edt_cpu, static_cast<double>(r.stats.layer_voxels) / static_cast<double>(k),
                     static_cast<long long>(r.stats.searches), static_cast<long long>(r.stats.pivots),
-                    static_cast<long long>(r.stats.long_searches),
+                    static_cast<long long>(r.stats.long_searches), static_cast<long long>(r.stats.landmarks),
                     static_cast<double>(r.stats.visited) / static_cast<double>(k), static_cast<double>(r.stats.bytes) / static_cast<double>(k),
                     static_cast<double>(r.stats.bytes_prepare) / static_cast<double>(k), static_cast<double>(r.stats.bytes_search) / static_cast<double>(k),
                     static_cast<unsigned long long>(importance_hash(r.importance)));

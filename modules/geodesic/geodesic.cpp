@@ -422,6 +422,54 @@ Buckets bucket_by_base(const Prepared& P) {
 
 namespace {
 
+// Landmark policy: a field (about 2 t^2 voxels on a flat surface, both sides of a thin plate) is
+// built after an own search that closed at least S.lm_min_visited voxels (12 t by default: rim
+// crossings), unless a field already starts within kLandmarkReuse steps of its far target. Measured
+// on 256³ plates, t = 40 (bench/RESULTS.md): t and 4 t cost more than they save, 6 t is worse,
+// 9-18 t the same; reuse distances 2-16 make little difference.
+constexpr uint32_t kLandmarkReuse = 8;
+
+// Breadth-first field from the L voxel with scratch index `ci` at padded position `pos` to the
+// radius S.lm_radius, into the next landmark slot. The caller checks that a box holds every voxel
+// within the radius (a 6-path of length R stays within R on every axis), so the field is the true
+// distance within the radius. Returns the voxels visited.
+template <bool kBoxed>
+int64_t landmark_bfs(const Prepared& P, Scratch& S, uint32_t ci, int64_t pos) {
+  const Domain& D = P.dom;
+  const int s2 = S.lm_next;
+  S.lm_next = (S.lm_next + 1) % Scratch::kLandmarks;
+  Scratch::Landmark& L = S.lm[s2];
+  const size_t n = S.stamp.size();
+  if (L.f.size() != n) L.f.assign(n, 0);
+  for (uint32_t v : L.list) L.f[v] = 0;
+  L.list.clear();
+  S.lm_pos.clear();
+  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
+  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};
+  const uint32_t R = S.lm_radius;
+  L.f[ci] = 1;
+  L.list.push_back(ci);
+  S.lm_pos.push_back(pos);
+  for (size_t head = 0; head < L.list.size(); ++head) {
+    const uint32_t v = L.list[head];
+    const uint8_t dv1 = L.f[v];
+    if (static_cast<uint32_t>(dv1) - 1 >= R) continue;
+    const int64_t p = S.lm_pos[head];
+    for (int k2 = 0; k2 < 6; ++k2) {
+      const int64_t q = p + nb[k2];
+      if (!P.layer.test(q)) continue;
+      const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[k2]) : static_cast<uint32_t>(P.layer.rank(q));
+      if (L.f[u]) continue;
+      L.f[u] = static_cast<uint8_t>(dv1 + 1);
+      L.list.push_back(u);
+      S.lm_pos.push_back(q);
+    }
+  }
+  L.on = true;
+  ++S.lm_built;
+  return static_cast<int64_t>(L.list.size());
+}
+
 template <bool kBoxed>
 int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
                      const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
@@ -432,6 +480,18 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   struct Tgt {
     int32_t x, y, z;
     uint32_t i;
+    int32_t fc[Scratch::kLandmarks + 1];  // field distances of the target (the last: the pivot's)
+    uint32_t lmask;                       // fields that hold the target
+  };
+  constexpr int K = Scratch::kLandmarks;
+  // The fields: the landmarks, and the last pivot search's distances (a field from a base like any
+  // other: exact to its limit, clipped beyond), while it is there.
+  const int nf = S.pivot_field ? K + 1 : K;
+  auto f_on = [&](int s2) { return s2 < K ? S.lm[s2].on : S.pivot_field; };
+  auto f_raw = [&](int s2, uint32_t v) -> uint32_t { return s2 < K ? S.lm[s2].f[v] : S.pdist(v); };
+  auto f_val = [&](int s2, uint32_t v) -> int32_t {
+    const uint32_t r = f_raw(s2, v);
+    return static_cast<int32_t>(r ? r - 1 : (s2 < K ? S.lm_radius : S.pivot_limit) + 1);
   };
   Tgt tg[64];
   std::vector<Tgt> tg_heap;
@@ -447,18 +507,55 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     y = static_cast<int32_t>(r / D.BX);
     x = static_cast<int32_t>(r % D.BX);
   };
+  // Scratch index of the L voxel at padded (x, y, z) with L-id l, or kNone where a box does not
+  // hold it.
+  auto index_at = [&](int32_t x, int32_t y, int32_t z, uint32_t l) -> uint32_t {
+    if constexpr (kBoxed) {
+      if (x < S.bx0 || y < S.by0 || z < S.bz0 || x >= S.bx0 + S.bw || y >= S.by0 + S.bh || z >= S.bz0 + S.bd) return kNone;
+      return S.box_index(x, y, z);
+    } else {
+      return l;
+    }
+  };
+  bool use_lm = false;
   for (size_t i = 0; i < want.size(); ++i) {
     Tgt t{};
     coords(want_pos[i], t.x, t.y, t.z);
     t.i = static_cast<uint32_t>(i);
+    t.lmask = 0;
+    const uint32_t ci = index_at(t.x, t.y, t.z, want[i]);
+    for (int s2 = 0; s2 < nf; ++s2) {
+      t.fc[s2] = 0;
+      if (!f_on(s2) || ci == kNone || f_raw(s2, ci) == 0) continue;
+      t.fc[s2] = f_val(s2, ci);
+      t.lmask |= 1u << s2;
+    }
+    use_lm |= t.lmask != 0;
     rem[nrem++] = t;
   }
-  auto h = [&](int32_t x, int32_t y, int32_t z) {
-    if (nrem == 1) return static_cast<uint32_t>(std::abs(x - rem[0].x) + std::abs(y - rem[0].y) + std::abs(z - rem[0].z));
+  // h = the smallest lower bound over the remaining targets; each target's bound is the larger of
+  // the 1-norm distance and its landmark bounds |f(c) - f(v)| (both consistent, so their max and
+  // the min over targets are too: a closed voxel's g is final and the result is that of plain A*).
+  auto h = [&](int32_t x, int32_t y, int32_t z, uint32_t idx) {
+    if (!use_lm) {
+      if (nrem == 1) return static_cast<uint32_t>(std::abs(x - rem[0].x) + std::abs(y - rem[0].y) + std::abs(z - rem[0].z));
+      uint32_t m = std::numeric_limits<uint32_t>::max();
+      for (size_t j = 0; j < nrem; ++j) {
+        const uint32_t d = static_cast<uint32_t>(std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z));
+        m = std::min(m, d);
+      }
+      return m;
+    }
+    int32_t fv[Scratch::kLandmarks + 1];
+    for (int s2 = 0; s2 < nf; ++s2) fv[s2] = f_on(s2) ? f_val(s2, idx) : 0;
     uint32_t m = std::numeric_limits<uint32_t>::max();
     for (size_t j = 0; j < nrem; ++j) {
-      const uint32_t d = static_cast<uint32_t>(std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z));
-      m = std::min(m, d);
+      int32_t d = std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z);
+      for (uint32_t lmk = rem[j].lmask; lmk; lmk &= lmk - 1) {
+        const int s2 = std::countr_zero(lmk);
+        d = std::max(d, std::abs(rem[j].fc[s2] - fv[s2]));
+      }
+      m = std::min(m, static_cast<uint32_t>(d));
     }
     return m;
   };
@@ -480,13 +577,15 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     coords(src_pos, x, y, z);
     const uint32_t si = kBoxed ? S.box_index(x, y, z) : src;
     const Scratch::Entry e{si, 0, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen};
-    const uint32_t f = h(x, y, z);
+    const uint32_t f = h(x, y, z, si);
     if (f <= limit) {
       lo = hi = f;
       push(f, e);
     }
   }
   int64_t visited = 0;
+  Tgt last_reached{};
+  last_reached.i = kNone;
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
   const int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
   const int64_t lstep[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
@@ -502,7 +601,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     if (S.stamp[e.id] == st) continue;  // closed already
     uint32_t hv = key - e.g;
     if (!track_gen || e.gen != gen) {  // h grew since the voxel was queued (a target was reached): requeue by its key
-      hv = h(e.x, e.y, e.z);
+      hv = h(e.x, e.y, e.z, e.id);
       e.gen = gen;
       if (e.g + hv > key) {
         if (e.g + hv <= last) push(e.g + hv, e);
@@ -515,6 +614,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       for (size_t j = 0; j < nrem; ++j)
         if (rem[j].x == e.x && rem[j].y == e.y && rem[j].z == e.z) {
           wd[rem[j].i] = e.g;
+          last_reached = rem[j];
           rem[j] = rem[--nrem];
           break;
         }
@@ -530,12 +630,32 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
                                 : static_cast<uint32_t>(P.layer.rank(q));
       if (S.stamp[u] == st) continue;
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
-      const uint32_t nf = e.g + 1 + h(x, y, z);
+      const uint32_t nf = e.g + 1 + h(x, y, z, u);
       if (nf <= last)
         push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
     }
   }
   for (uint32_t k2 = lo; k2 <= hi && k2 < bk.size(); ++k2) bk[k2].clear();
+  // An expensive search (typically across a plate's rim): a landmark field from its far target (the
+  // last one reached, or one left open), for the searches of the neighbouring bases, whose targets
+  // lie near it. Not where a field already starts next to that target.
+  if (S.lm_radius > 0 && visited >= S.lm_min_visited) {
+    const Tgt& c = nrem > 0 ? rem[0] : last_reached;
+    if (c.i != kNone) {
+      const uint32_t ci = index_at(c.x, c.y, c.z, want[c.i]);
+      bool covered = false;
+      for (int s2 = 0; s2 < K; ++s2)
+        if (S.lm[s2].on && ci != kNone && S.lm[s2].f[ci] != 0 && S.lm_value(s2, ci) <= kLandmarkReuse) covered = true;
+      const int64_t R = S.lm_radius;
+      // The box holds every voxel within R of the landmark (faces at the domain's need no room: L
+      // never reaches the guard voxels).
+      const bool inside = !kBoxed || ((c.x - S.bx0 >= R || S.bx0 == 0) && (c.y - S.by0 >= R || S.by0 == 0) &&
+                                      (c.z - S.bz0 >= R || S.bz0 == 0) && (S.bx0 + S.bw - 1 - c.x >= R || S.bx0 + S.bw == D.BX) &&
+                                      (S.by0 + S.bh - 1 - c.y >= R || S.by0 + S.bh == D.BY) &&
+                                      (S.bz0 + S.bd - 1 - c.z >= R || S.bz0 + S.bd == D.BZ));
+      if (!covered && inside && ci != kNone) visited += landmark_bfs<kBoxed>(P, S, ci, want_pos[c.i]);
+    }
+  }
   return visited;
 }
 
@@ -571,6 +691,8 @@ int64_t pivot_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_
   };
   if (S.pdist8.empty()) run(S.pdist16);
   else run(S.pdist8);
+  S.pivot_field = S.fields;
+  S.pivot_limit = limit;
   return static_cast<int64_t>(S.pqueue.size());
 }
 
@@ -770,8 +892,16 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
       return s;
     }
     const uint32_t plimit = pivot_margin ? t + pivot_margin : 0;
-    return boxed ? std::make_unique<Scratch>(bw, bh, bd, plimit)
-                 : std::make_unique<Scratch>(static_cast<size_t>(P.nl), plimit);
+    auto s = boxed ? std::make_unique<Scratch>(bw, bh, bd, plimit)
+                   : std::make_unique<Scratch>(static_cast<size_t>(P.nl), plimit);
+    // Landmark fields to the radius t (one byte per entry): a box holds them around targets up to
+    // margin + 1 voxels beyond the block.
+    s->fields = sh.landmarks && !sh.full;
+    s->lm_radius = s->fields && t <= 253 ? t : 0;
+    s->lm_min_visited = sh.landmark_min_visited >= 0 ? sh.landmark_min_visited : 12 * static_cast<int64_t>(t);
+    if (s->lm_radius > 0)  // allocated up front, so the bytes do not depend on which worker built fields
+      for (Scratch::Landmark& L : s->lm) L.f.assign(s->stamp.size(), 0);
+    return s;
   };
   auto release = [&](std::unique_ptr<Scratch> s) {
     std::lock_guard lock(scratch_mutex);
@@ -793,6 +923,7 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
         const int64_t z0 = D.BZ * bl.iz / nbz, z1 = D.BZ * (bl.iz + 1) / nbz;
         const int64_t y0 = D.BY * bl.iy / nby, y1 = D.BY * (bl.iy + 1) / nby;
         const int64_t w0 = rw * bl.ix / nbx, w1 = rw * (bl.ix + 1) / nbx;
+        S->begin_block();
         if (S->boxed())
           S->move_box(std::clamp<int64_t>(w0 * 64 - halo, 0, D.BX - bw), std::clamp<int64_t>(y0 - halo, 0, D.BY - bh),
                       std::clamp<int64_t>(z0 - halo, 0, D.BZ - bd));
@@ -816,7 +947,10 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
     });
   }
   uint64_t bytes = 0;
-  for (const auto& sc : pool) bytes += sc->bytes();
+  for (const auto& sc : pool) {
+    bytes += sc->bytes();
+    sh.n_landmarks += sc->lm_built;
+  }
   return bytes;
 }
 
@@ -869,6 +1003,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // Importance goes straight into the output (written once per voxel: each voxel is in exactly one
   // bucket, so threads never write the same element).
   SearchShared sh(P, B, mask, res.importance.data(), t, full);
+  sh.landmarks = opt.landmarks;
   const uint64_t scratch_bytes = search_bases(sh, opt.threads, opt.interrupter.sub(0.25, 0.97));
   threshold_surface(res.importance, res.surface_skeleton, t, opt.threads);
   res.stats.seconds_prepare = std::chrono::duration<double>(t1 - t0).count();
@@ -879,6 +1014,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.long_searches = sh.n_long.load();
   res.stats.saturated_by_pivot = sh.n_saturated.load();
   res.stats.visited = sh.n_visited.load();
+  res.stats.landmarks = sh.n_landmarks.load();
   // Peak of the two phases: the nearest-point transform (with L coordinates and the ring marks) and
   // the searches (with components, buckets, claims and the workers' scratch).
   const uint64_t search_bytes = P.obj.bytes() + P.layer.bytes() + P.base_bytes() + P.lcomp.size() * 4 +

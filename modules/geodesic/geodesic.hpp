@@ -27,6 +27,9 @@ struct Options {
   Mode mode = Mode::Threshold;
   int64_t threshold = 20;  // t, in 6-steps of the boundary layer
   int threads = 0;
+  // Landmark fields for the searches (ALT heuristic): the same importance, fewer closed voxels;
+  // off only to compare (tests, benchmarks).
+  bool landmarks = true;
   Interrupter interrupter;
 };
 
@@ -38,7 +41,8 @@ struct Statistics {
   int64_t pivots = 0;             // searches extended to t + t/4 to settle neighbouring bases
   int64_t long_searches = 0;      // own searches that ran to t with targets left
   int64_t saturated_by_pivot = 0; // targets proved >= t by a neighbouring base's search
-  int64_t visited = 0;            // layer voxels closed (A*) or dequeued (pivot BFS) over all searches
+  int64_t visited = 0;            // layer voxels closed (A*) or dequeued (pivot and landmark BFS) over all searches
+  int64_t landmarks = 0;          // landmark fields built (bounded BFS from the far target of an expensive search)
   uint64_t bytes = 0;             // peak working memory of the algorithm (without input/output)
   uint64_t bytes_prepare = 0;     // of which: peak of the preparation (bitmaps, b(p), rings)
   uint64_t bytes_search = 0;      // and peak of the searches (bitmaps, b(p), buckets, claims, scratch)

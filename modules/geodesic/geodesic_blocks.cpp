@@ -162,6 +162,7 @@ struct Driver {
       stats.summed.long_searches += s.long_searches;
       stats.summed.saturated_by_pivot += s.saturated_by_pivot;
       stats.summed.visited += s.visited;
+      stats.summed.landmarks += s.landmarks;
       stats.summed.bytes = std::max(stats.summed.bytes, s.bytes);
       return;
     }

@@ -41,7 +41,12 @@ a search stops as soon as all its targets are reached or no key <= t is left: a 
 stamp, so nothing is cleared after a search (the marks once every 65535 searches). When a search ends
 with targets left, a breadth-first search to t + t/4 from the same base settles, by the triangle
 inequality, the far targets of every base point within t/4 of it (a pivot), which saves most long
-searches on plates; voxels with a target so proved to saturate need no further search. In full mode,
+searches on plates; voxels with a target so proved to saturate need no further search. Landmarks (ALT,
+threshold mode, t <= 253): after a search that closed at least 12·t voxels (typically across a plate's
+rim) a breadth-first field to radius t is kept from its far target, and the last pivot's distances are
+kept as a field too; later searches of the same block bound a target c by max(1-norm, |f(c) - f(v)|)
+over the fields holding c (a field clipped at its radius is still a consistent lower bound), so they
+close little more than the voxels near their shortest paths, with the same distances. In full mode,
 targets in another 6-component of L are known to be infinite without searching. Results, and the
 search counts (searches, pivots, saturated targets, visited voxels), are identical for any thread
 count: the grid is cut into blocks (64-voxel x-ranges x y-bands x z-slabs, each at least 2·t/4 + 2
@@ -54,10 +59,10 @@ padded grid (two bitmaps with 32-bit ranks per word, 1.5 bits each) and 3 bytes 
 nearest-point transform adds 2 bits per object voxel (this ring and the next); the searches add 3
 bytes per object voxel (bucket members as offsets from their base) and about 1.06 per boundary-layer
 voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 1
-(pivot distance; 2 where t + t/4 > 254) bytes per entry of its scratch: one entry per voxel of a box
+(pivot distance; 2 where t + t/4 > 254) + 2 (two landmark fields) bytes per entry of its scratch: one entry per voxel of a box
 around its block (the block plus t + t/4 + 1 on every side, about 2.5 M voxels for t = 40), or one
 per boundary-layer voxel where that is fewer (small volumes, full mode), and the queues. In all
-about 10.5 bytes per object voxel for the 512³ plates phantom, 15.5 for the sparser mixed one.
+about 11.1 bytes per object voxel for the 512³ plates phantom, 16.8 for the sparser mixed one.
 
 Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
 with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the

@@ -169,6 +169,43 @@ struct Scratch {
   std::vector<int64_t> qpos;    // padded positions of the pivot search's queue
   // Box mode (bw > 0): entry of padded (x, y, z) = (x - bx0) + bw * ((y - by0) + bh * (z - bz0)).
   int64_t bw = 0, bh = 0, bd = 0, bx0 = 0, by0 = 0, bz0 = 0;
+  // Landmarks (ALT heuristic, see own_bfs): breadth-first distance fields over L from the far
+  // target of an expensive own search, bounded at `lm_radius` (<= 253; 0 = no landmarks) and kept
+  // as distance + 1 in one byte per entry (0 = farther than the radius), for the searches that
+  // follow in the same block. A field clipped at its radius, f(v) = min(d(lm, v), R + 1), is
+  // 1-Lipschitz along 6-steps, so |f(c) - f(v)| <= g(v, c) is a consistent lower bound. Fields are
+  // cleared (through their lists) when a block starts (begin_block), so what a search sees does not
+  // depend on which worker ran which block before.
+  struct Landmark {
+    std::vector<uint8_t> f;      // distance + 1, 0 = beyond the radius (allocated on first use)
+    std::vector<uint32_t> list;  // entries set, in distance order (clearing, and the BFS queue)
+    bool on = false;
+  };
+  static constexpr int kLandmarks = 2;
+  Landmark lm[kLandmarks];
+  int lm_next = 0;                // slot the next field replaces (round robin)
+  uint32_t lm_radius = 0;
+  int64_t lm_min_visited = 0;     // a field after an own search that closed at least this many voxels
+  int64_t lm_built = 0;           // fields built (diagnostics)
+  std::vector<int64_t> lm_pos;    // positions of the field BFS queue
+  [[nodiscard]] uint32_t lm_value(int s, uint32_t v) const {
+    const uint8_t f = lm[s].f[v];
+    return f ? f - 1u : lm_radius + 1;
+  }
+  bool fields = false;            // fields for the A*: the landmarks (if lm_radius > 0) and the pivot's
+  bool pivot_field = false;       // the last pivot's distances serve the A* as a field too (if `fields`)
+  uint32_t pivot_limit = 0;
+  void clear_landmarks() {
+    pivot_field = false;
+    for (Landmark& L : lm) {
+      for (uint32_t v : L.list) L.f[v] = 0;
+      L.list.clear();
+      L.on = false;
+    }
+    lm_next = 0;
+  }
+  // Called when a worker starts a block.
+  void begin_block() { clear_landmarks(); }
   // Dense: one entry per L voxel.
   Scratch(size_t nl, uint32_t pivot_limit) { allocate(nl, pivot_limit); }
   // Box of w x h x d voxels (origin set by move_box).
@@ -184,6 +221,7 @@ struct Scratch {
     }
     pqueue.clear();
     qpos.clear();
+    clear_landmarks();
     bx0 = x0, by0 = y0, bz0 = z0;
   }
   [[nodiscard]] uint32_t box_index(int64_t x, int64_t y, int64_t z) const {
@@ -210,8 +248,10 @@ struct Scratch {
   [[nodiscard]] uint64_t bytes() const {
     uint64_t qb = 0;
     for (const auto& b : buckets) qb += b.capacity() * sizeof(Entry);
+    uint64_t lb = lm_pos.capacity() * 8;
+    for (const Landmark& L : lm) lb += L.f.size() + L.list.capacity() * 4;
     return stamp.size() * 2 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
-           buckets.capacity() * sizeof(buckets[0]) + qb;
+           buckets.capacity() * sizeof(buckets[0]) + qb + lb;
   }
 
 private:
@@ -306,13 +346,19 @@ inline void for_each_layer_neighbour(const Prepared& P, int64_t pos, F&& f) {
 // bounded search) and the search stops as soon as every target is reached or no open voxel has a key
 // <= limit (early termination). Writes the exact distances <= limit to `wd` (kNone = farther than
 // `limit`: no 6-path in L that short). Returns the number of voxels closed (visited). Nothing needs
-// clearing afterwards (range-encoded marks, see Scratch).
+// clearing afterwards (range-encoded marks, see Scratch). With the worker's landmark fields (ALT,
+// see Scratch::Landmark) each target's bound is max(1-norm, |f(c) - f(v)|) over the fields that hold
+// the target: still consistent, so the distances are the same and fewer voxels are closed; after a
+// search that closed at least S.lm_min_visited voxels a field is built from its far target (its
+// voxels are counted in the returned number).
+
 int64_t own_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
                 const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd);
 
 // Pivot search: breadth-first over all of L within distance `limit` (< 65535) from `src`; the
 // distances stay readable (S.pivot_at) until the next pivot search, S.pqueue lists the visited
-// voxels in distance order. Returns the number of visited voxels.
+// voxels in distance order; where S.fields, the own searches that follow in the block use them as
+// one more landmark field (clipped at limit + 1). Returns the number of visited voxels.
 int64_t pivot_bfs(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit);
 
 // What the workers of phase 3 share: inputs, the output, the claims and the counters.
@@ -325,9 +371,11 @@ struct SearchShared {
   bool full = false;       // Mode::Full
   uint32_t pivot_margin = 0;  // 0 = no pivots
   bool force_box = false;     // tests: box scratch even where dense would be smaller
+  bool landmarks = true;      // tests and benchmarks: landmark fields for the A* (same results)
+  int64_t landmark_min_visited = -1;  // tests: a field after searches this large (-1: 12 t)
   // Bases are claimed once: by their own search or by a neighbouring pivot.
   std::vector<std::atomic<uint64_t>> claimed;
-  std::atomic<int64_t> n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
+  std::atomic<int64_t> n_landmarks{0}, n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
 
   SearchShared(const Prepared& p, const Buckets& b, const VolumeU8& m, float* out, uint32_t threshold, bool full_mode);
   // True for the one caller that claims base l.

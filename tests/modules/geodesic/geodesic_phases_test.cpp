@@ -311,21 +311,27 @@ VolumeU8 blobs(Dims d, uint64_t seed, double fill) {
 
 struct SearchRun {
   VolumeF32 importance;
-  int64_t searches, pivots, saturated, visited;
+  int64_t searches, pivots, saturated, visited, landmarks, long_searches;
 };
 
-SearchRun run_search(const VolumeU8& mask, uint32_t t, int threads, bool force_box) {
+// landmark_min_visited: -1 = the default policy, 0 = a landmark field after every own search.
+SearchRun run_search(const VolumeU8& mask, uint32_t t, int threads, bool force_box, bool landmarks = false,
+                     int64_t landmark_min_visited = -1) {
   Prepared P(mask.dims());
   prepare(mask, P, threads, {}, false, false);
   const Buckets B = bucket_by_base(P);
-  SearchRun r{VolumeF32(mask.grid(), 0.0f), 0, 0, 0, 0};
+  SearchRun r{VolumeF32(mask.grid(), 0.0f), 0, 0, 0, 0, 0, 0};
   SearchShared sh(P, B, mask, r.importance.data(), t, false);
   sh.force_box = force_box;
+  sh.landmarks = landmarks;
+  sh.landmark_min_visited = landmark_min_visited;
   search_bases(sh, threads, {});
   r.searches = sh.n_search.load();
   r.pivots = sh.n_pivots.load();
   r.saturated = sh.n_saturated.load();
   r.visited = sh.n_visited.load();
+  r.landmarks = sh.n_landmarks.load();
+  r.long_searches = sh.n_long.load();
   return r;
 }
 
@@ -361,6 +367,53 @@ TEST(GeodesicPhases, BoxScratchEqualsDenseScratchAndReference) {
       }
     }
   }
+}
+
+// Landmark fields (the ALT heuristic of the own searches) change only how many voxels the A*
+// closes: the importance equals that of the plain A* (and the definition), the searches, pivots,
+// long searches and saturations are the same, with the dense and the box scratch, for 1 and 2
+// threads, and the counts (landmarks and visited included) do not depend on the thread count.
+// Stress policy (a field after every own search) and the default one.
+TEST(GeodesicPhases, LandmarkSearchesEqualPlainAStar) {
+  int64_t fields = 0;
+  for (uint64_t seed : {5u, 7u}) {
+    const VolumeU8 m = blobs(Dims{66, 20, 14 + static_cast<int64_t>(seed)}, seed, 0.52);
+    for (uint32_t t : {4u, 9u, 20u}) {
+      const SearchRun plain = run_search(m, t, 1, false);
+      Options o;
+      o.threshold = t;
+      if (seed == 5 && t == 9) {
+        o.landmarks = true;
+        EXPECT_TRUE(plain.importance == boundary_distance_reference(m, o).importance);
+      }
+      for (int64_t lm_min : {int64_t{0}, int64_t{-1}}) {
+        for (bool box : {false, true}) {
+          SearchRun first{};
+          for (int threads : {1, 2}) {
+            const SearchRun r = run_search(m, t, threads, box, true, lm_min);
+            SCOPED_TRACE("seed " + std::to_string(seed) + " t " + std::to_string(t) + " min " + std::to_string(lm_min) +
+                         " box " + std::to_string(box) + " threads " + std::to_string(threads));
+            EXPECT_TRUE(r.importance == plain.importance);
+            EXPECT_EQ(r.searches, plain.searches);
+            EXPECT_EQ(r.pivots, plain.pivots);
+            EXPECT_EQ(r.long_searches, plain.long_searches);
+            EXPECT_EQ(r.saturated, plain.saturated);
+            if (threads == 1) {
+              first = r;
+              if (lm_min == 0) {
+                EXPECT_GT(r.landmarks, 0);
+                fields += r.landmarks;
+              }
+            } else {
+              EXPECT_EQ(r.landmarks, first.landmarks);
+              EXPECT_EQ(r.visited, first.visited);
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(fields, 100);
 }
 
 // Buckets of 255 members and more (their count is kept aside): a solid cube with one background

@@ -140,6 +140,29 @@ TEST(Geodesic, SlabMidSurfaceIsSelectedAndPivotsSaveSearches) {
   EXPECT_TRUE(a.importance == r.importance);
 }
 
+// Landmark fields on a plate: the searches across its rim (the expensive ones) build fields, the
+// importance is bit-identical to the plain A*'s (which equals the definition: the tests above), for
+// 1 and 2 threads, and the
+// A* closes fewer voxels (visited counts the fields' voxels too, so the difference is a lower bound
+// of the saving).
+TEST(Geodesic, LandmarksOnAPlateKeepTheImportanceAndCloseFewerVoxels) {
+  VolumeU8 m = slab(Dims{100, 80, 14}, 6, 3);
+  Options o;
+  o.threshold = 40;
+  o.landmarks = false;
+  const Result plain = boundary_distance(m, o);
+  EXPECT_EQ(plain.stats.landmarks, 0);
+  o.landmarks = true;
+  for (int th : {1, 2}) {
+    o.threads = th;
+    const Result a = boundary_distance(m, o);
+    EXPECT_TRUE(a.importance == plain.importance) << th;
+    EXPECT_GT(a.stats.landmarks, 0) << th;
+    EXPECT_LT(a.stats.visited, plain.stats.visited) << th;
+    EXPECT_EQ(a.stats.searches, plain.stats.searches) << th;
+  }
+}
+
 TEST(Geodesic, ThresholdBeyondPivotRangeEqualsReference) {
   // Pivot distances are 16-bit, so for t + t/4 >= 65534 the pivots are switched off; the values
   // must not change (here every path is shorter than t, so the values are the plain distances).
