@@ -33,9 +33,14 @@ std::mutex& hdf5_mutex() {
 }
 
 // Turns off HDF5's own error printing once; we collect the stack ourselves.
+// libhdf5's error printing off for the calling thread (Debian's libhdf5 is built thread-safe: its
+// error settings are per thread, so a once-per-process call left other threads printing stacks).
 void quiet() {
-  static std::once_flag once;
-  std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
+  thread_local bool done = false;
+  if (!done) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    done = true;
+  }
 }
 
 herr_t walk(unsigned n, const H5E_error2_t* e, void* data) {

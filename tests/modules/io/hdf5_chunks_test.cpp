@@ -10,7 +10,9 @@
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <fstream>
 #include <random>
+#include <thread>
 
 #include "io/hdf5_chunks.hpp"
 #include "io/hdf5_probe.hpp"
@@ -385,7 +387,7 @@ TEST(Hdf5Chunks, DamagedMiddleChunkOfALargeDatasetIsRefusedNamingIt) {
     std::vector<unsigned char> stored;
     std::string says;
   };
-  std::vector<unsigned char> garbage(600);
+  std::vector<unsigned char> garbage(2000);  // more than 1/1100 of the chunk: not refused by the ratio alone
   for (size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<unsigned char>(i * 37 + 11);
   const Damage damages[] = {
       {"short", deflated(bytes - 1000), "inflates to " + std::to_string(bytes - 1000) + " bytes, not the " + std::to_string(bytes)},
@@ -449,4 +451,66 @@ TEST(Hdf5Chunks, Fletcher32IsCheckedAndAMismatchIsRefusedNamingTheChunk) {
   const std::string what = error_of([&] { (void)io::read_volume(f); });
   EXPECT_EQ(what.rfind(f.string() + ": dataset '/volume': chunk (1, 0, 1) ", 0), 0u) << what;
   EXPECT_NE(what.find("fails its Fletcher32 checksum"), std::string::npos) << what;
+}
+
+namespace {
+uint64_t peak_rss_bytes() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) << 10;
+  return 0;
+}
+}  // namespace
+
+// A chunk shape of 1.8 GB (allowed with unlimited dims) whose stored bytes are a few dozen (libFuzzer,
+// session 9: the decoder zero-filled a 1.8 GB buffer before it inflated, and the fuzzer's process
+// went past its 2 GB RSS limit): deflate expands at most ~1032:1, so the chunk is refused before any
+// buffer is allocated. Before: "inflates to 100 bytes, not the 1811939328" after touching 1.8 GB.
+TEST(Hdf5Chunks, AChunkClaimingMoreThanDeflateCanExpandIsRefusedBeforeAllocating) {
+  const fs::path file = scratch() / "huge_chunk.h5";
+  const hid_t f = H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  const hsize_t dims[3] = {3, 3, 515}, max[3] = {H5S_UNLIMITED, H5S_UNLIMITED, H5S_UNLIMITED};
+  const hsize_t chunk[3] = {3, 50331648, 3};
+  const hid_t space = H5Screate_simple(3, dims, max);
+  const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+  H5Pset_chunk(dcpl, 3, chunk);
+  H5Pset_deflate(dcpl, 1);
+  const hid_t d = H5Dcreate2(f, "/volume", H5T_STD_U32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+  ASSERT_GE(d, 0);
+  const std::vector<unsigned char> stored = deflated(100);
+  const hsize_t offset[3] = {0, 0, 0};
+  ASSERT_GE(H5Dwrite_chunk(d, H5P_DEFAULT, 0, offset, stored.size(), stored.data()), 0);
+  H5Dclose(d);
+  H5Pclose(dcpl);
+  H5Sclose(space);
+  H5Fclose(f);
+  const uint64_t before = peak_rss_bytes();
+  const std::string what = error_of([&] { (void)io::read_box<uint32_t>(file, "/volume", {0, 0, 0}, {3, 3, 3}); });
+  EXPECT_NE(what.find("chunk (0, 0, 0)"), std::string::npos) << what;
+  EXPECT_NE(what.find("claims 1811939328 bytes but is stored in " + std::to_string(stored.size()) +
+                      ", more than deflate can expand"),
+            std::string::npos)
+      << what;
+  EXPECT_LT(peak_rss_bytes(), before + (uint64_t{256} << 20));
+}
+
+// Debian's libhdf5 is thread-safe, with its error printing set per thread: a read on a thread other
+// than the first one to read printed HDF5's error stack on stderr (the decoder's workers, a
+// pipeline's node threads). Before: "HDF5-DIAG: Error detected in HDF5 (1.10.8) thread 2: ...".
+TEST(Hdf5Chunks, NoThreadPrintsHdf5ErrorStacks) {
+  const fs::path file = scratch() / "plain.h5";
+  io::write_volume(file, random_volume<uint8_t>({4, 4, 4}, 1));
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  H5Gclose(H5Gcreate2(f, "/group", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+  H5Fclose(f);
+  (void)io::read_volume(file);  // this thread first
+  ::testing::internal::CaptureStderr();
+  std::string what;
+  // H5Dopen2 of a group fails inside libhdf5 (an error stack).
+  std::thread other([&] { what = error_of([&] { (void)io::read_volume(file, "/group"); }); });
+  other.join();
+  const std::string printed = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(what.find("'/group' is not a dataset"), std::string::npos) << what;
+  EXPECT_EQ(printed, "");
 }
