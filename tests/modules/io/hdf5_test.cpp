@@ -414,6 +414,53 @@ TEST(Hdf5, FuzzReproducersAreClearErrors) {
   EXPECT_GT(n, 0);
 }
 
+// Integer and float types whose precision, offset, padding or float layout are not standard are
+// refused before H5Dread: libhdf5's conversions trust those fields, and the libFuzzer input
+// libhdf5_int_to_double_bit_copy_sigbus.h5 (an 8-byte integer of precision 0 at bit offset 256)
+// made the integer-to-double conversion fault with SIGBUS in this process (session 9). A 40-bit
+// integer and a float with another exponent bias are refused the same way (before: read).
+TEST(Hdf5, NonStandardNumberTypesAreRefusedBeforeReading) {
+  const fs::path bus = fs::path(SKEL_SOURCE_DIR) / "fuzz" / "corpus" / "hdf5" / "libhdf5_int_to_double_bit_copy_sigbus.h5";
+  ASSERT_TRUE(fs::exists(bus));
+  try {
+    (void)io::read_volume(bus, "/volume");
+    ADD_FAILURE() << "read";
+  } catch (const InputError& err) {
+    EXPECT_EQ(std::string(err.what()), bus.string() + ": dataset '/volume' has a non-standard int64 type (0 bits of precision at "
+                                                      "bit offset 256 in 8 bytes); standard integer and IEEE float datasets are supported");
+  }
+  const fs::path file = scratch() / "odd_types.h5";
+  {
+    const hid_t f = H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    const hsize_t dims[3] = {2, 2, 2};
+    const hid_t space = H5Screate_simple(3, dims, nullptr);
+    const hid_t i40 = H5Tcopy(H5T_STD_I64LE);
+    H5Tset_precision(i40, 40);
+    const hid_t f32 = H5Tcopy(H5T_IEEE_F32LE);
+    H5Tset_ebias(f32, 100);
+    for (auto [name, type] : {std::pair{"/i40", i40}, std::pair{"/f32", f32}}) {
+      const hid_t d = H5Dcreate2(f, name, type, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+      ASSERT_GE(d, 0);
+      const double v[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+      H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v);
+      H5Dclose(d);
+    }
+    H5Tclose(i40);
+    H5Tclose(f32);
+    H5Sclose(space);
+    H5Fclose(f);
+  }
+  for (auto [name, says] : {std::pair<std::string, std::string>{"/i40", "non-standard int64 type (40 bits of precision at bit offset 0 in 8 bytes)"},
+                            {"/f32", "non-standard float32 type (a float layout other than IEEE 754)"}}) {
+    try {
+      (void)io::read_volume(file, name);
+      ADD_FAILURE() << name;
+    } catch (const InputError& err) {
+      EXPECT_NE(std::string(err.what()).find(says), std::string::npos) << err.what();
+    }
+  }
+}
+
 // The 8 libFuzzer findings inside libhdf5 1.10.8 go through the structure probe
 // (io/hdf5_probe.hpp), all refused naming the file. A SEGV under H5G__stab_lookup and 1.4 / 4.1 GB
 // metadata mallocs: the probe crashes or runs out of its 1 GiB (before the probe this test crashed:
