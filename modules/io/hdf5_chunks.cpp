@@ -441,12 +441,7 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
                                    static_cast<hsize_t>(c.origin[0])};
         {
           std::lock_guard lock(read_mutex);
-          // libhdf5 is thread-safe here, with error settings per thread: none printed from this one.
-          thread_local bool quiet = false;
-          if (!quiet) {
-            H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-            quiet = true;
-          }
+          quiet_hdf5_errors_on_this_thread();
           unsigned mask = 0;
           haddr_t addr = HADDR_UNDEF;
           hsize_t stored = 0;
@@ -486,5 +481,13 @@ template bool read_chunked_box(hid_t, const fs::path&, const std::string&, const
 template bool read_chunked_box(hid_t, const fs::path&, const std::string&, const Dims&, const Dims&, const Dims&, int32_t*, int);
 template bool read_chunked_box(hid_t, const fs::path&, const std::string&, const Dims&, const Dims&, const Dims&, float*, int);
 template bool read_chunked_box(hid_t, const fs::path&, const std::string&, const Dims&, const Dims&, const Dims&, double*, int);
+
+void quiet_hdf5_errors_on_this_thread() {
+  thread_local bool done = false;
+  if (!done) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    done = true;
+  }
+}
 
 }  // namespace skel::io::detail

@@ -49,4 +49,8 @@ bool read_chunked_box(hid_t dset, const std::filesystem::path& file, const std::
 int64_t own_chunks_decoded();
 int64_t own_chunk_reads_declined();
 
+// Turns libhdf5's error printing off for the calling thread, once per thread (Debian's libhdf5 is
+// thread-safe: its error settings are per thread).
+void quiet_hdf5_errors_on_this_thread();
+
 }  // namespace skel::io::detail

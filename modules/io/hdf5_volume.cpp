@@ -35,13 +35,7 @@ std::mutex& hdf5_mutex() {
 // Turns off HDF5's own error printing once; we collect the stack ourselves.
 // libhdf5's error printing off for the calling thread (Debian's libhdf5 is built thread-safe: its
 // error settings are per thread, so a once-per-process call left other threads printing stacks).
-void quiet() {
-  thread_local bool done = false;
-  if (!done) {
-    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-    done = true;
-  }
-}
+void quiet() { detail::quiet_hdf5_errors_on_this_thread(); }
 
 herr_t walk(unsigned n, const H5E_error2_t* e, void* data) {
   auto* s = static_cast<std::string*>(data);
