@@ -323,6 +323,10 @@ bool own_chunk_decoding_enabled() {
 
 int64_t own_chunks_decoded() { return g_decoded.load(); }
 int64_t own_chunk_reads_declined() { return g_declined.load(); }
+void count_remote_chunk_reads(int64_t decoded, int64_t declined) {
+  g_decoded += decoded;
+  g_declined += declined;
+}
 
 template <class T>
 bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& dataset, const Dims& dims, const Dims& begin,

@@ -48,6 +48,8 @@ bool read_chunked_box(hid_t dset, const std::filesystem::path& file, const std::
 // Counters (tests: which path a read took). Chunks decoded by read_chunked_box; reads it declined.
 int64_t own_chunks_decoded();
 int64_t own_chunk_reads_declined();
+// Adds the counts of a read the probe helper made for this process (hdf5_read.hpp).
+void count_remote_chunk_reads(int64_t decoded, int64_t declined);
 
 // Turns libhdf5's error printing off for the calling thread, once per thread (Debian's libhdf5 is
 // thread-safe: its error settings are per thread).

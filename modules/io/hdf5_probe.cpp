@@ -9,12 +9,14 @@
 #include <spawn.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
+#include <sys/mman.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -39,6 +41,7 @@
 #endif
 
 #include "io/hdf5_probe_walk.hpp"
+#include "io/hdf5_read.hpp"
 #include "skel/error.hpp"
 
 extern char** environ;
@@ -102,6 +105,7 @@ struct Verdict {
   std::string refusal;          // empty: the file may be read
   std::set<std::string> names;  // dataset names the probes covered
   std::map<std::string, probe::ObjectAttributes> attributes;  // the readers' attributes, per object walked
+  std::map<std::string, std::string> infos;  // the helper's answers to info requests, per dataset
 };
 
 std::mutex g_cache_mutex;
@@ -129,8 +133,12 @@ std::string format_seconds(double s) {
   return o.str();
 }
 
+// What the request that failed was doing: the walk reads the file's structure, the others read
+// what the reader asked for (hdf5_read.hpp).
+thread_local const char* g_doing = "reading its structure";
+
 std::string damaged(const fs::path& file, const std::string& what) {
-  return file.string() + " is damaged: the HDF5 library " + what + " reading its structure in a separate process; not opened";
+  return file.string() + " is damaged: the HDF5 library " + what + " " + g_doing + " in a separate process; not opened";
 }
 
 std::string too_much_memory(const fs::path& file) {
@@ -223,6 +231,11 @@ struct Worker {
   int fd = -1;       // this process's end of the socket
   pid_t owner = -1;  // the process that started it (a forked copy of this process must not use it)
   std::string helper;
+  // The shared memory window of read requests (hdf5_read.hpp): a memfd that is the worker's
+  // descriptor h5::kWindowFd, mapped here read-only; grown when a request needs more.
+  int window_fd = -1;
+  uint64_t window_bytes = 0;
+  void* window = nullptr;
 };
 
 std::mutex g_worker_mutex;
@@ -232,6 +245,8 @@ uint32_t g_request_id = 0;
 
 // Ends the worker (caller holds g_worker_mutex): closing the socket makes it exit; it is reaped.
 void stop_worker(bool kill_it) {
+  if (g_worker.window) munmap(g_worker.window, g_worker.window_bytes);
+  if (g_worker.window_fd >= 0) close(g_worker.window_fd);
   if (g_worker.owner != getpid()) {  // inherited through fork: not this process's child
     if (g_worker.fd >= 0) close(g_worker.fd);
     g_worker = Worker{};
@@ -314,16 +329,31 @@ void start_worker(const std::string& helper, const fs::path& file, double timeou
       fail("fcntl", errno);
     }
   }
+  // The window of read requests becomes the worker's descriptor h5::kWindowFd (3); here it is above
+  // 3, so that the dup2 of the socket onto 0 and of the window onto 3 cannot clobber each other.
+  int window = memfd_create("skelflow-hdf5-window", MFD_CLOEXEC);
+  if (window >= 0 && window <= h5::kWindowFd) {
+    const int moved = fcntl(window, F_DUPFD_CLOEXEC, h5::kWindowFd + 1);
+    close(window);
+    window = moved;
+  }
+  if (window < 0) {
+    const int err = errno;
+    close(sv[0]);
+    close(child_end);
+    fail("memfd_create", err);
+  }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, child_end, STDIN_FILENO);
+  posix_spawn_file_actions_adddup2(&actions, window, h5::kWindowFd);
   // Silent: a sanitizer's report of libhdf5's bug would otherwise reach the user's terminal
   // (`skelflow-hdf5-probe FILE` shows it).
   posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
   posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
   // Nothing else of this process: descriptors opened without close-on-exec (std::ofstream's, a
   // caller's pipe) would stay open as long as the worker lives.
-  posix_spawn_file_actions_addclosefrom_np(&actions, 3);
+  posix_spawn_file_actions_addclosefrom_np(&actions, h5::kWindowFd + 1);
   posix_spawnattr_t attr;
   posix_spawnattr_init(&attr);
   sigset_t none, all;
@@ -350,9 +380,10 @@ void start_worker(const std::string& helper, const fs::path& file, double timeou
   close(child_end);
   if (rc != 0) {
     close(sv[0]);
+    close(window);
     fail("cannot start " + helper, rc);
   }
-  g_worker = Worker{pid, sv[0], getpid(), helper};
+  g_worker = Worker{pid, sv[0], getpid(), helper, window, 0, nullptr};
   ++g_workers_started;
   // Wait until it is ready: a helper that cannot start (a missing shared library such as libasan8,
   // a wrong program) is an error about the helper, not a verdict on the user's file.
@@ -361,6 +392,7 @@ void start_worker(const std::string& helper, const fs::path& file, double timeou
   if (got == Receive::done && ready == probe::kWorkerReady) return;
   kill(-pid, SIGKILL);
   close(g_worker.fd);
+  close(g_worker.window_fd);
   int status = 0;
   reap(pid, &status);
   g_worker = Worker{};
@@ -374,12 +406,31 @@ void start_worker(const std::string& helper, const fs::path& file, double timeou
 }
 
 
-// One request to the worker (caller holds g_worker_mutex); returns the refusal ("" when the file may
-// be read) and the names it covered.
-std::string ask_worker(const std::string& helper, const fs::path& file, const std::string& dataset, double timeout,
-                       probe::WalkResult& result) {
+// Makes the window at least `bytes` long (caller holds g_worker_mutex, a worker runs).
+void grow_window(uint64_t bytes, const fs::path& file) {
+  if (bytes <= g_worker.window_bytes) return;
+  const uint64_t want = (bytes + (uint64_t{1} << 20) - 1) & ~((uint64_t{1} << 20) - 1);
+  if (g_worker.window) munmap(g_worker.window, g_worker.window_bytes);
+  g_worker.window = nullptr;
+  g_worker.window_bytes = 0;
+  if (ftruncate(g_worker.window_fd, static_cast<off_t>(want)) != 0)
+    throw Error("cannot read the HDF5 file " + file.string() + " through the probe helper: the shared window of " +
+                std::to_string(want >> 20) + " MiB: " + std::strerror(errno));
+  void* map = mmap(nullptr, want, PROT_READ, MAP_SHARED, g_worker.window_fd, 0);
+  if (map == MAP_FAILED)
+    throw Error("cannot read the HDF5 file " + file.string() + " through the probe helper: mapping the shared window of " +
+                std::to_string(want >> 20) + " MiB: " + std::strerror(errno));
+  g_worker.window = map;
+  g_worker.window_bytes = want;
+}
+
+// One request of `kind` to the worker (caller holds g_worker_mutex), starting it when none runs.
+// Returns "" when the worker answered (`outcome` and `out` hold its reply), else the refusal: the
+// request ran past the timeout, or the process serving it died (the worker goes on, or is replaced).
+std::string exchange(const std::string& helper, const fs::path& file, const std::string& dataset, h5::Request kind,
+                     const std::string& extra, uint64_t window_bytes, double timeout, uint32_t& outcome, std::string& out) {
   const std::string path = file.string();
-  if (path.size() > (size_t{1} << 20) || dataset.size() > (size_t{1} << 20))
+  if (path.size() > (size_t{1} << 20) || dataset.size() > (size_t{1} << 20) || extra.size() > (size_t{1} << 20))
     throw InputError(path + ": the file or dataset name is too long to be checked");
   for (int attempt = 0;; ++attempt) {
     if (g_worker.owner != getpid() || g_worker.helper != helper) stop_worker(false);
@@ -394,24 +445,26 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
       }
     }
     if (g_worker.pid <= 0) start_worker(helper, file, timeout);
-    {
+    grow_window(window_bytes, file);
+    if (kind == h5::Request::walk) {
       std::lock_guard lock(g_cache_mutex);
       ++g_started;
     }
     const auto deadline = deadline_after(timeout);
     const uint32_t id = ++g_request_id == 0 ? ++g_request_id : g_request_id;
-    const uint32_t head[4] = {static_cast<uint32_t>(path.size()), static_cast<uint32_t>(dataset.size()),
-                              static_cast<uint32_t>(std::ceil(timeout)) + 2, id};
+    const uint32_t head[6] = {static_cast<uint32_t>(path.size()), static_cast<uint32_t>(dataset.size()),
+                              static_cast<uint32_t>(std::ceil(timeout)) + 2, id, static_cast<uint32_t>(kind),
+                              static_cast<uint32_t>(extra.size())};
     const bool sent = send_all(g_worker.fd, head, sizeof head) && send_all(g_worker.fd, path.data(), path.size()) &&
-                      send_all(g_worker.fd, dataset.data(), dataset.size());
+                      send_all(g_worker.fd, dataset.data(), dataset.size()) && send_all(g_worker.fd, extra.data(), extra.size());
     uint32_t reply[3] = {0, 0, 0};
-    std::string out;
+    out.clear();
     Receive got = sent ? Receive::done : Receive::ended;
     // Answers to an earlier request (none is expected: requests are answered in order) are skipped.
     while (got == Receive::done) {
       got = receive(g_worker.fd, reply, sizeof reply, deadline);
       if (got != Receive::done) break;
-      if (reply[2] > probe::kMaxPayloadBytes) {  // not the protocol: a worker gone wrong
+      if (reply[2] > probe::kMaxPayloadBytes + (uint64_t{64} << 20)) {  // not the protocol: a worker gone wrong
         kill(-g_worker.pid, SIGKILL);
         got = Receive::ended;
         break;
@@ -427,22 +480,36 @@ std::string ask_worker(const std::string& helper, const fs::path& file, const st
     if (got == Receive::ended) {
       const pid_t pid = g_worker.pid;
       close(g_worker.fd);
+      g_worker.fd = -1;
+      g_worker.pid = -1;
       int status = 0;
       reap(pid, &status);
-      g_worker = Worker{};
+      stop_worker(false);
       // Killed by a SIGKILL this process did not send before it answered: most likely
       // PR_SET_PDEATHSIG (the thread that started it ended just now). Once more with a new worker.
       if (attempt == 0 && ((WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) || !sent)) continue;
       return ended(file, status);
     }
-    if (reply[1] == probe::kWalkDied) {  // the walker died on this file; the worker goes on
+    if (reply[1] == probe::kWalkDied) {  // the process serving it died on this file; the worker goes on
       int status = 0;
       if (out.size() == sizeof status) std::memcpy(&status, out.data(), sizeof status);
       return ended(file, status);
     }
-    if (reply[1] == probe::kWalkOutOfMemory) return too_much_memory(file);
-    return take_answer(file, out, result);
+    outcome = reply[1];
+    return "";
   }
+}
+
+// The walk of `file` by the worker (caller holds g_worker_mutex); returns the refusal ("" when the
+// file may be read) and the names it covered.
+std::string ask_worker(const std::string& helper, const fs::path& file, const std::string& dataset, double timeout,
+                       probe::WalkResult& result) {
+  uint32_t outcome = 0;
+  std::string out;
+  const std::string refusal = exchange(helper, file, dataset, h5::Request::walk, {}, 0, timeout, outcome, out);
+  if (!refusal.empty()) return refusal;
+  if (outcome == probe::kWalkOutOfMemory) return too_much_memory(file);
+  return take_answer(file, out, result);
 }
 
 // ------------------------------------------------------------------ the forked child (no helper)
@@ -599,7 +666,7 @@ void probe_hdf5_file(const fs::path& file, const std::string& dataset) {
   {
     std::lock_guard lock(g_cache_mutex);
     Verdict& v = g_cache[key];
-    if (!known || !(v.stamp == stamp)) v = Verdict{stamp, {}, {}, {}};
+    if (!known || !(v.stamp == stamp)) v = Verdict{stamp, {}, {}, {}, {}};
     v.refusal = refusal;
     add_names(result.names, v.names);
     for (auto& [object, attributes] : result.attributes) v.attributes[object] = std::move(attributes);
@@ -627,6 +694,72 @@ bool probed_attribute(const fs::path& file, const std::string& object, size_t in
   return true;
 }
 
+bool hdf5_reads_in_helper() { return probe_mode() == Mode::helper && !find_helper().empty(); }
+
+void ask_hdf5_helper(const fs::path& file, const std::string& dataset, uint32_t kind, const std::string& extra,
+                     uint64_t window_bytes, const std::function<void(const std::string&, const void*)>& take) {
+  if (kind == 0 || kind >= h5::kRequestKinds) throw Error("ask_hdf5_helper: no request kind " + std::to_string(kind));
+  // The walk first (its verdict is cached): a file it refuses is not opened again.
+  probe_hdf5_file(file, dataset);
+  std::string key;
+  Stamp stamp;
+  const bool keyed = cache_key(file, key, stamp);
+  // Info answers are cached with the verdict (read_box is asked per block of out-of-core runs).
+  const bool info = kind == static_cast<uint32_t>(h5::Request::info);
+  if (info && keyed) {
+    std::string bytes;
+    {
+      std::lock_guard lock(g_cache_mutex);
+      auto it = g_cache.find(key);
+      if (it != g_cache.end() && it->second.stamp == stamp) {
+        auto found = it->second.infos.find(dataset + '\0' + extra);
+        if (found != it->second.infos.end()) bytes = found->second;
+      }
+    }
+    if (!bytes.empty()) {
+      take(bytes, nullptr);
+      return;
+    }
+  }
+  const double timeout = probe_timeout();
+  uint32_t outcome = 0;
+  std::string out, refusal;
+  {
+    std::lock_guard lock(g_worker_mutex);
+    const std::string helper = find_helper();
+    if (helper.empty()) throw Error("cannot read the HDF5 file " + file.string() + ": the probe helper " + kHelperName + " was not found");
+    struct Doing {
+      const char* before = g_doing;
+      ~Doing() { g_doing = before; }
+    } doing;
+    g_doing = "reading it";
+    refusal = exchange(helper, file, dataset, static_cast<h5::Request>(kind), extra, window_bytes, timeout, outcome, out);
+    if (refusal.empty()) {
+      switch (outcome) {
+        case probe::kWalkOk:
+          take(out, g_worker.window);
+          if (info && keyed && !out.empty()) {
+            std::lock_guard cache_lock(g_cache_mutex);
+            auto it = g_cache.find(key);
+            if (it != g_cache.end() && it->second.stamp == stamp) it->second.infos[dataset + '\0' + extra] = out;
+          }
+          return;
+        case h5::kRefused: throw InputError(out);
+        case h5::kFailed: throw Error(out);
+        case probe::kWalkOutOfMemory: refusal = too_much_memory(file); break;
+        default: refusal = damaged(file, "failed (outcome " + std::to_string(outcome) + ")"); break;
+      }
+    }
+  }
+  // The file crashed, outran or outgrew the helper: refused from now on, as a refusal of the walk is.
+  if (keyed) {
+    std::lock_guard lock(g_cache_mutex);
+    auto it = g_cache.find(key);
+    if (it != g_cache.end() && it->second.stamp == stamp) it->second.refusal = refusal;
+  }
+  throw InputError(refusal);
+}
+
 namespace detail {
 int64_t hdf5_probes_started() {
   std::lock_guard lock(g_cache_mutex);
@@ -644,6 +777,14 @@ std::string hdf5_probe_helper() { return probe_mode() == Mode::helper ? find_hel
 void stop_hdf5_probe_worker() {
   std::lock_guard lock(g_worker_mutex);
   stop_worker(false);
+}
+namespace {
+std::atomic<uint64_t> g_read_window{0};
+}
+void set_hdf5_read_window(uint64_t bytes) { g_read_window = bytes; }
+uint64_t hdf5_read_window() {
+  const uint64_t w = g_read_window.load();
+  return w > 0 ? w : h5::kWindowBytes;
 }
 void forget_hdf5_probes() {
   std::lock_guard lock(g_cache_mutex);

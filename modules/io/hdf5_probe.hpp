@@ -15,8 +15,10 @@
 // worker is killed and the next request starts a new one. It ends when this process closes the
 // socket or dies (EOF, PR_SET_PDEATHSIG).
 // If the helper fails, runs out of its memory or time, the file is refused with an InputError naming
-// it; otherwise the caller reads it in-process, taking the readers' attributes from the walk's answer
-// (probed_attribute below), so that no attribute message is decoded in the caller's process. The verdict is cached per file (path, device, inode,
+// it; otherwise the helper reads it too (hdf5_reads_in_helper, ask_hdf5_helper below; the readers'
+// requests of hdf5_read.hpp, voxels through a shared memory window), so that libhdf5 decodes nothing
+// of a user's file in the caller's process. With the forked fallback the caller reads it in-process,
+// taking the readers' attributes from the walk's answer (probed_attribute below). The verdict is cached per file (path, device, inode,
 // size, modification and change time), so a file is probed once per process while it does not change.
 //
 // Environment: SKEL_HDF5_PROBE=0 turns the probe off (trusted data); SKEL_HDF5_PROBE=fork runs the
@@ -30,6 +32,7 @@
 // lacks it). Files Skelflow writes and reads itself (out-of-core scratch stores) are not probed.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 
 #include "io/hdf5_probe_walk.hpp"
@@ -52,6 +55,20 @@ void probe_hdf5_file(const std::filesystem::path& file, const std::string& datas
 // probe_hdf5_file. The caller holds the process-wide HDF5 mutex.
 bool probed_attribute(const std::filesystem::path& file, const std::string& object, size_t index, probe::Attribute& out);
 
+// True when users' HDF5 files are opened and read in the helper (SKEL_HDF5_PROBE unset or 1 and the
+// helper found): the readers (hdf5_volume.cpp) then ask it with ask_hdf5_helper and make no libhdf5
+// call on a user's file themselves (hdf5_read.hpp says why).
+bool hdf5_reads_in_helper();
+
+// Request `kind` (h5::Request, not the walk) about `dataset` of `file` to the helper, after the walk
+// (probe_hdf5_file); `extra` is the kind's fixed part; a read needs the shared window to hold
+// `window_bytes`. On success calls take(payload, window) while no other request can use the window.
+// Throws InputError for what the helper refused (its message, naming the file) and for a file that
+// crashed, outran or outgrew it (then refused from now on, as the walk's refusals are), Error for other
+// failures. Thread-safe (one request at a time).
+void ask_hdf5_helper(const std::filesystem::path& file, const std::string& dataset, uint32_t kind, const std::string& extra,
+                     uint64_t window_bytes, const std::function<void(const std::string& payload, const void* window)>& take);
+
 namespace detail {
 // Number of walks this process has asked for (tests: a file is probed once).
 int64_t hdf5_probes_started();
@@ -63,6 +80,10 @@ int hdf5_probe_worker_pid();
 std::string hdf5_probe_helper();
 // Ends the worker and reaps it (tests: no process left behind; the next probe starts a new one).
 void stop_hdf5_probe_worker();
+// The bytes one read request of the readers may fill in the shared window (default h5::kWindowBytes,
+// 64 MiB; tests make it small to read a volume in many boxes). 0 restores the default.
+void set_hdf5_read_window(uint64_t bytes);
+uint64_t hdf5_read_window();
 // Forgets every cached verdict (the fuzz harness rewrites one scratch file with new bytes that may
 // have the same size within the same clock tick).
 void forget_hdf5_probes();

@@ -9,10 +9,15 @@
 //                                             report on stderr: to see why a file was refused
 //
 // Worker protocol (native byte order, one request at a time, on the socket that is stdin):
-//   request  u32 path bytes, u32 dataset bytes, u32 seconds for alarm(), u32 request id (> 0), path, dataset
-//   reply    u32 request id, u32 outcome (kWalkOk, kWalkOutOfMemory, kWalkDied), u32 payload bytes,
-//            payload: the encoded WalkResult (the dataset names walked and the readers' attributes,
-//            hdf5_probe_walk.hpp), or for kWalkDied the walker's wait status
+//   request  u32 path bytes, u32 dataset bytes, u32 seconds for alarm(), u32 request id (> 0),
+//            u32 kind (h5::Request: 0 the walk, else the readers' requests of hdf5_read.hpp),
+//            u32 extra bytes, path, dataset, extra (the kind's fixed part)
+//   reply    u32 request id, u32 outcome (kWalkOk, kWalkOutOfMemory, kWalkDied, h5::kRefused,
+//            h5::kFailed), u32 payload bytes, payload: for the walk the encoded WalkResult (the dataset
+//            names walked and the readers' attributes, hdf5_probe_walk.hpp), for the other kinds
+//            their answer or the error's message; for kWalkDied the walker's wait status
+// Descriptor 3 (h5::kWindowFd) is the client's shared memory window: read requests write the voxels
+// of their box there.
 // The worker is a small server that forks a walker from its initialised state; the walker answers
 // requests until it dies or retires. A crash, a sanitizer report (exit status 66) or alarm() ends
 // the walker during a request: the server answers that request with kWalkDied and forks the next
@@ -38,6 +43,7 @@
 #include <vector>
 
 #include "io/hdf5_probe_walk.hpp"
+#include "io/hdf5_read.hpp"
 
 // AddressSanitizer's settings when the helper is built with it (ASAN_OPTIONS adds to them; the
 // client removes the caller's ASAN_OPTIONS and LSAN_OPTIONS from the worker's environment): no leak
@@ -53,6 +59,7 @@ extern "C" const char* __asan_default_options() {
 namespace {
 
 using namespace skel::io::probe;
+namespace h5 = skel::io::h5;
 
 constexpr uint64_t kRetireGrowth = uint64_t{256} << 20;  // growth after which the worker retires
 constexpr uint32_t kMaxRequestBytes = uint32_t{1} << 20;
@@ -125,20 +132,40 @@ constexpr int kRetired = 5;
 // reply). `current` (shared with the server) holds the id of the request being walked, 0 between
 // requests, so that the server knows whether a death ended a request.
 int walk_requests(const MemoryUse& base, volatile uint32_t* current) {
-  std::string path, dataset, payload;
+  std::string path, dataset, extra, payload;
   for (;;) {
-    uint32_t head[4];
+    uint32_t head[6];
     if (!read_all(STDIN_FILENO, head, sizeof head)) return 0;
-    if (head[0] > kMaxRequestBytes || head[1] > kMaxRequestBytes || head[3] == 0) return 2;
+    if (head[0] > kMaxRequestBytes || head[1] > kMaxRequestBytes || head[3] == 0 || head[4] >= h5::kRequestKinds ||
+        head[5] > kMaxRequestBytes)
+      return 2;
     path.assign(head[0], '\0');
     dataset.assign(head[1], '\0');
-    if (!read_all(STDIN_FILENO, path.data(), path.size()) || !read_all(STDIN_FILENO, dataset.data(), dataset.size())) return 0;
+    extra.assign(head[5], '\0');
+    if (!read_all(STDIN_FILENO, path.data(), path.size()) || !read_all(STDIN_FILENO, dataset.data(), dataset.size()) ||
+        !read_all(STDIN_FILENO, extra.data(), extra.size()))
+      return 0;
     *current = head[3];
     alarm(head[2]);  // a second stop, should the client be gone
-    const int outcome = walk_file(path.c_str(), dataset, payload);
+    const auto kind = static_cast<h5::Request>(head[4]);
+    int outcome = kWalkOk;
+    if (kind == h5::Request::walk) {
+      outcome = walk_file(path.c_str(), dataset, payload);
+    } else {
+      forget_out_of_memory();
+      outcome = h5::serve_request(kind, path, dataset, extra, h5::kWindowFd, payload);
+      if (outcome != kWalkOutOfMemory && out_of_memory_noted()) {
+        outcome = kWalkOutOfMemory;
+        payload.clear();
+      }
+      // The chunk decoder turns libhdf5's error printing off per thread; the walk's handler, which
+      // notes failed allocations, comes back for this thread.
+      quiet_hdf5_errors();
+    }
     alarm(0);
     const bool clean = close_leftovers();
-    const bool retire = outcome != kWalkOk || !clean || grown(base);
+    // A refused read (an InputError: a wrong name, a damaged chunk) leaves the walker as it was.
+    const bool retire = (outcome != kWalkOk && outcome != h5::kRefused) || !clean || grown(base);
     const uint32_t reply[3] = {head[3], static_cast<uint32_t>(outcome), static_cast<uint32_t>(payload.size())};
     // stdin is a socket: the reply goes back on it.
     if (!write_all(STDIN_FILENO, reply, sizeof reply) || !write_all(STDIN_FILENO, payload.data(), payload.size())) return 0;

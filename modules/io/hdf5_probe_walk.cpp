@@ -476,6 +476,9 @@ bool decode(const std::string& in, WalkResult& r) {
   return true;
 }
 
+bool out_of_memory_noted() { return g_out_of_memory; }
+void forget_out_of_memory() { g_out_of_memory = false; }
+
 int walk_file(const char* path, const std::string& dataset, std::string& payload) {
   g_out_of_memory = false;
   payload.clear();

@@ -93,6 +93,11 @@ void exit_on_fault_at_the_limit();
 // Installs the quiet HDF5 error handler of the walk (it notes failed allocations, prints nothing).
 void quiet_hdf5_errors();
 
+// Whether libhdf5 failed an allocation since the last walk_file or forget_out_of_memory (the quiet
+// handler notes it): the helper's readers' requests (hdf5_read.hpp) report that as out of memory.
+bool out_of_memory_noted();
+void forget_out_of_memory();
+
 // Walks `path` and the lookup of `dataset` (when it starts with '/'); fills `payload` with the
 // encoded WalkResult. Returns kWalkOk or kWalkOutOfMemory (libhdf5 failed an allocation, or
 // std::bad_alloc).

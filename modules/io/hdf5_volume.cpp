@@ -14,6 +14,7 @@
 
 #include "io/hdf5_chunks.hpp"
 #include "io/hdf5_probe.hpp"
+#include "io/hdf5_read.hpp"
 #include "io/hdf5_write_driver.hpp"
 #include "skel/error.hpp"
 #include "skel/fs.hpp"
@@ -32,57 +33,14 @@ std::mutex& hdf5_mutex() {
   return m;
 }
 
-// Turns off HDF5's own error printing once; we collect the stack ourselves.
 // libhdf5's error printing off for the calling thread (Debian's libhdf5 is built thread-safe: its
 // error settings are per thread, so a once-per-process call left other threads printing stacks).
 void quiet() { detail::quiet_hdf5_errors_on_this_thread(); }
 
-herr_t walk(unsigned n, const H5E_error2_t* e, void* data) {
-  auto* s = static_cast<std::string*>(data);
-  if (n == 0 && e && e->desc) *s = e->desc;  // the innermost problem
-  return 0;
-}
-
-std::string hdf5_reason() {
-  std::string s;
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, walk, &s);
-  H5Eclear2(H5E_DEFAULT);
-  return s.empty() ? std::string() : " (HDF5: " + s + ")";
-}
-
-// RAII handle.
-struct Handle {
-  hid_t id = -1;
-  herr_t (*close)(hid_t) = nullptr;
-  Handle() = default;
-  Handle(hid_t i, herr_t (*c)(hid_t)) : id(i), close(c) {}
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  Handle(Handle&& o) noexcept : id(o.id), close(o.close) { o.id = -1; }
-  Handle& operator=(Handle&& o) noexcept {
-    if (this != &o) {
-      if (id >= 0 && close) close(id);
-      id = o.id;
-      close = o.close;
-      o.id = -1;
-    }
-    return *this;
-  }
-  ~Handle() {
-    if (id >= 0 && close) close(id);
-  }
-  explicit operator bool() const { return id >= 0; }
-  // Closes now and reports whether that worked (the destructor cannot).
-  bool close_now() {
-    const hid_t i = id;
-    id = -1;
-    return i < 0 || !close || close(i) >= 0;
-  }
-};
-
-[[noreturn]] void fail(const fs::path& file, const std::string& what) {
-  throw InputError(display_path(file).string() + ": " + what + hdf5_reason());
-}
+using h5::fail;
+using h5::Handle;
+using h5::hdf5_reason;
+using h5::Opened;
 
 // A failed write: a failure while running (Error), naming the file the user asked for (not the
 // temporary it is written under) and the OS's reason when the driver saw one.
@@ -93,216 +51,33 @@ struct Handle {
               (err != 0 ? std::string(std::strerror(err)) : hdf5.empty() ? std::string("HDF5 error") : hdf5.substr(2, hdf5.size() - 3)));
 }
 
-// Opens `file`. A user's file opened for reading is first walked by the structure probe
-// (hdf5_probe.hpp: libhdf5 crashes on some corrupt files) together with the lookup of `dataset`;
-// files opened for writing are Skelflow's own outputs and are not probed. Caller holds the mutex.
-Handle open_file(const fs::path& file, bool write = false, const std::string& dataset = {}) {
+// A user's file read in this process (the probe off or forked, hdf5_probe.hpp) is first walked by the
+// structure probe together with the lookup of `dataset`, and the readers' attributes come from that
+// walk (h5::set_attribute_source). Caller holds the mutex.
+void probe_before_open(const fs::path& file, const std::string& dataset) {
+  h5::set_attribute_source(&probed_attribute);
   std::error_code ec;
-  if (!fs::exists(file, ec)) throw InputError(file.string() + ": file not found");
-  if (fs::is_directory(file, ec)) throw InputError(file.string() + ": is a folder, not an HDF5 file");
-  if (!write) probe_hdf5_file(file, dataset);
-  const htri_t is = H5Fis_hdf5(file.c_str());
-  if (is <= 0) fail(file, "not an HDF5 file, or the file is truncated or corrupt");
-  Handle fapl(write ? detail::safe_write_fapl() : H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
-  Handle f(H5Fopen(file.c_str(), write ? H5F_ACC_RDWR : H5F_ACC_RDONLY, fapl.id), H5Fclose);
-  if (!f) fail(file, "cannot open as HDF5: the file is truncated or corrupt");
-  return f;
+  if (fs::exists(file, ec) && !fs::is_directory(file, ec)) probe_hdf5_file(file, dataset);
 }
 
-herr_t collect_dataset(hid_t, const char* name, const H5O_info_t* info, void* data) {
-  if (info->type == H5O_TYPE_DATASET) static_cast<std::vector<std::string>*>(data)->push_back(std::string("/") + name);
-  return 0;
-}
-
-std::vector<std::string> list_datasets(hid_t file) {
-  std::vector<std::string> names;
-  H5Ovisit2(file, H5_INDEX_NAME, H5_ITER_NATIVE, collect_dataset, &names, H5O_INFO_BASIC);
-  H5Eclear2(H5E_DEFAULT);
-  return names;
-}
-
-Handle open_dataset(hid_t f, const fs::path& file, const std::string& dataset) {
-  // Check each path component so that a missing group is a clear message, not an HDF5 stack.
-  if (dataset.empty() || dataset[0] != '/') throw InputError(file.string() + ": dataset name '" + dataset + "' must start with '/'");
-  std::string partial;
-  std::stringstream ss(dataset.substr(1));
-  std::string part;
-  bool exists = true;
-  while (std::getline(ss, part, '/')) {
-    partial += "/" + part;
-    if (H5Lexists(f, partial.c_str(), H5P_DEFAULT) <= 0) {
-      exists = false;
-      break;
-    }
+// Opens `file`: for reading after the probe; for writing (Skelflow's own outputs, not probed) with the
+// write driver that reports the OS's reason. Caller holds the mutex.
+Handle open_file(const fs::path& file, bool write = false, const std::string& dataset = {}) {
+  if (!write) {
+    probe_before_open(file, dataset);
+    return h5::open_file(file, false);
   }
-  H5Eclear2(H5E_DEFAULT);
-  if (!exists) {
-    std::string names;
-    for (const auto& n : list_datasets(f)) {
-      if (!names.empty()) names += ", ";
-      names += n;
-    }
-    throw InputError(file.string() + ": no dataset '" + dataset + "' (datasets: " + (names.empty() ? "none" : names) + ")");
-  }
-  Handle dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
-  H5Pset_chunk_cache(dapl.id, 12421, 256u << 20, 1.0);  // 256 MiB chunk cache: whole chunk rows stay cached
-  Handle d(H5Dopen2(f, dataset.c_str(), dapl.id), H5Dclose);
-  if (!d) fail(file, "'" + dataset + "' is not a dataset");
-  return d;
+  Handle fapl(detail::safe_write_fapl(), H5Pclose);
+  return h5::open_file(file, true, fapl.id);
 }
-
-std::string dtype_name(hid_t type) {
-  const H5T_class_t cls = H5Tget_class(type);
-  const size_t size = H5Tget_size(type);
-  if (cls == H5T_FLOAT) return size == 4 ? "float32" : size == 8 ? "float64" : "float" + std::to_string(size * 8);
-  if (cls == H5T_INTEGER) {
-    const bool sign = H5Tget_sign(type) == H5T_SGN_2;
-    return std::string(sign ? "int" : "uint") + std::to_string(size * 8);
-  }
-  return "unsupported";
-}
-
-// "" when the bit fields of `type` (an integer or float of 1-8 bytes) lie inside its bytes: precision
-// at least 1 bit, offset + precision within 8 × size, and for floats the sign, exponent and mantissa
-// within the precision; else what is wrong. libhdf5 1.10.8's conversions trust these fields: a
-// mutated integer type of precision 0 at bit offset 256 in 8 bytes made H5Dread's integer-to-double
-// conversion (H5T__bit_copy) fault with SIGBUS in the reader's process (libFuzzer, session 9).
-// Types with fewer bits than their bytes hold (the n-bit filter's) are valid and read.
-std::string invalid_type_fields(hid_t type) {
-  const H5T_class_t cls = H5Tget_class(type);
-  const size_t bits = 8 * H5Tget_size(type);
-  const size_t precision = H5Tget_precision(type);
-  const int offset = H5Tget_offset(type);
-  H5Eclear2(H5E_DEFAULT);
-  if (precision < 1 || offset < 0 || static_cast<size_t>(offset) + precision > bits)
-    return std::to_string(precision) + " bits of precision at bit offset " + std::to_string(offset) + " in " +
-           std::to_string(bits / 8) + " bytes";
-  if (cls == H5T_FLOAT) {
-    size_t spos = 0, epos = 0, esize = 0, mpos = 0, msize = 0;
-    const bool fields = H5Tget_fields(type, &spos, &epos, &esize, &mpos, &msize) >= 0;
-    H5Eclear2(H5E_DEFAULT);
-    const size_t top = static_cast<size_t>(offset) + precision;
-    if (!fields || esize < 1 || spos >= top || epos + esize > top || mpos + msize > top || mpos < static_cast<size_t>(offset))
-      return "sign, exponent or mantissa outside the float's bits";
-  }
-  return "";
-}
-
-struct Opened {
-  Handle file, dset, space;
-  Dims dims{0, 0, 0};
-  std::string dtype;
-};
 
 Opened open_volume(const fs::path& file, const std::string& dataset, bool write = false) {
-  Opened o;
-  o.file = open_file(file, write, dataset);
-  o.dset = open_dataset(o.file.id, file, dataset);
-  o.space = Handle(H5Dget_space(o.dset.id), H5Sclose);
-  const int rank = H5Sget_simple_extent_ndims(o.space.id);
-  if (rank != 3)
-    throw InputError(file.string() + ": dataset '" + dataset + "' has rank " + std::to_string(rank) +
-                     ", expected 3 (shape [z][y][x])");
-  hsize_t d[3];
-  H5Sget_simple_extent_dims(o.space.id, d, nullptr);
-  o.dims = {static_cast<int64_t>(d[2]), static_cast<int64_t>(d[1]), static_cast<int64_t>(d[0])};
-  Handle t(H5Dget_type(o.dset.id), H5Tclose);
-  o.dtype = dtype_name(t.id);
-  static const std::vector<std::string> ok{"uint8", "uint16", "uint32", "uint64", "int8", "int16",
-                                           "int32", "int64", "float32", "float64"};
-  if (std::find(ok.begin(), ok.end(), o.dtype) == ok.end())
-    throw InputError(file.string() + ": dataset '" + dataset + "' has an unsupported data type (" + o.dtype +
-                     "); integer and float datasets are supported");
-  if (const std::string bad = invalid_type_fields(t.id); !bad.empty())
-    throw InputError(file.string() + ": dataset '" + dataset + "' has a damaged " + o.dtype + " type (" + bad +
-                     "): the file is damaged");
-  return o;
-}
-
-// The attribute probe::kAttributeNames[index] of `object` (open as `obj`): the structure probe's
-// reading when it is on (hdf5_probe.hpp: libhdf5 1.10.8 can read out of bounds while it decodes a
-// damaged attribute message, so that decoding happens in the probe's process, not here), else
-// libhdf5's in this process. Caller holds the mutex.
-probe::Attribute attribute(hid_t obj, const std::string& object, size_t index, const fs::path& file) {
-  probe::Attribute a;
-  if (!probed_attribute(file, object, index, a)) a = probe::read_attribute(obj, index);
-  H5Eclear2(H5E_DEFAULT);
-  const std::string name = probe::kAttributeNames[index];
-  using Kind = probe::Attribute::Kind;
-  switch (a.kind) {
-    case Kind::wrong_count: throw InputError(file.string() + ": attribute '" + name + "' must hold 3 numbers (x, y, z)");
-    case Kind::not_string: throw InputError(file.string() + ": attribute '" + name + "' must be a string");
-    case Kind::unreadable: throw InputError(file.string() + ": cannot read attribute '" + name + "' of '" + object + "'");
-    case Kind::too_long:
-      throw InputError(file.string() + ": attribute '" + name + "' of '" + object + "' is longer than " +
-                       std::to_string(probe::kMaxStringBytes) + " bytes");
-    default: break;
+  if (!write) {
+    probe_before_open(file, dataset);
+    return h5::open_volume(file, dataset);
   }
-  if (probe::is_string_attribute(index) ? a.kind == Kind::numbers : a.kind == Kind::text)  // not from this walk
-    throw InputError(file.string() + ": cannot read attribute '" + name + "' of '" + object + "'");
-  return a;
-}
-
-// Attribute indices in probe::kAttributeNames.
-constexpr size_t kSpacing = 0, kOrigin = 1, kElementSize = 2, kUnit = 3;
-
-bool read_vec3_attr(hid_t obj, const std::string& object, size_t index, Vec3& out, const fs::path& file) {
-  const probe::Attribute a = attribute(obj, object, index, file);
-  if (a.kind != probe::Attribute::Kind::numbers) return false;
-  out = {a.numbers[0], a.numbers[1], a.numbers[2]};
-  return true;
-}
-
-// A string attribute (fixed or variable length); false when absent.
-bool read_string_attr(hid_t obj, const std::string& object, size_t index, std::string& out, const fs::path& file) {
-  const probe::Attribute a = attribute(obj, object, index, file);
-  if (a.kind != probe::Attribute::Kind::text) return false;
-  out = a.text;
-  return true;
-}
-
-// The unit of files written by Fiji, BigDataViewer and ilastik: `element_size_um` is in micrometres
-// by its name.
-constexpr const char* kElementSizeUnit = "\u00b5m";
-
-// Spacing, origin and unit of a dataset: attributes `spacing`, `origin` (x, y, z) and `unit` on the
-// dataset; without `spacing`, `element_size_um` ([z][y][x], µm; Fiji, BigDataViewer, ilastik) on the
-// dataset or its group.
-struct Geometry {
-  Vec3 spacing{1, 1, 1}, origin{0, 0, 0};
-  std::string unit = kDefaultUnit;
-  bool has_spacing = false, has_origin = false, has_unit = false;
-};
-
-Geometry read_geometry(hid_t file_id, hid_t dset, const std::string& dataset, const fs::path& file) {
-  Geometry g;
-  g.has_spacing = read_vec3_attr(dset, dataset, kSpacing, g.spacing, file);
-  g.has_origin = read_vec3_attr(dset, dataset, kOrigin, g.origin, file);
-  g.has_unit = read_string_attr(dset, dataset, kUnit, g.unit, file);
-  if (!g.has_spacing) {
-    Vec3 zyx{1, 1, 1};
-    bool found = read_vec3_attr(dset, dataset, kElementSize, zyx, file);
-    if (!found) {
-      std::string group = dataset.substr(0, dataset.rfind('/'));
-      if (group.empty()) group = "/";
-      Handle grp(H5Oopen(file_id, group.c_str(), H5P_DEFAULT), H5Oclose);
-      H5Eclear2(H5E_DEFAULT);
-      if (grp) found = read_vec3_attr(grp.id, group, kElementSize, zyx, file);
-    }
-    if (found) {
-      g.spacing = {zyx[2], zyx[1], zyx[0]};
-      g.has_spacing = true;
-      if (!g.has_unit) {
-        g.unit = kElementSizeUnit;
-        g.has_unit = true;
-      }
-    }
-  }
-  for (int k = 0; k < 3; ++k)
-    if (!(g.spacing[k] > 0) || !std::isfinite(g.spacing[k]))
-      throw InputError(file.string() + ": dataset '" + dataset + "': the spacing must be > 0 on every axis");
-  if (g.unit.empty()) throw InputError(file.string() + ": dataset '" + dataset + "': attribute 'unit' is empty");
-  return g;
+  Handle fapl(detail::safe_write_fapl(), H5Pclose);
+  return h5::open_volume(file, dataset, true, fapl.id);
 }
 
 template <class T> hid_t native();
@@ -314,152 +89,168 @@ template <> hid_t native<int32_t>() { return H5T_NATIVE_INT32; }
 template <> hid_t native<float>() { return H5T_NATIVE_FLOAT; }
 template <> hid_t native<double>() { return H5T_NATIVE_DOUBLE; }
 
+// The grid of the box [begin, begin + size) of a dataset with `info`'s spacing, origin and unit.
+Grid box_grid(const VolumeInfo& info, Dims begin, Dims size) {
+  Grid g(size);
+  const Vec3& sp = info.spacing;
+  g.spacing = sp;
+  g.unit = info.unit;
+  g.origin = {info.origin[0] + static_cast<double>(begin[0]) * sp[0], info.origin[1] + static_cast<double>(begin[1]) * sp[1],
+              info.origin[2] + static_cast<double>(begin[2]) * sp[2]};
+  return g;
+}
+
 template <class T>
 Volume<T> read_into(Opened& o, const fs::path& file, const std::string& dataset, Dims begin, Dims size, int threads = 0) {
-  Grid g(size);
-  const Geometry geo = read_geometry(o.file.id, o.dset.id, dataset, file);
-  const Vec3& sp = geo.spacing;
-  const Vec3& org = geo.origin;
-  g.spacing = sp;
-  g.unit = geo.unit;
-  g.origin = {org[0] + static_cast<double>(begin[0]) * sp[0], org[1] + static_cast<double>(begin[1]) * sp[1],
-              org[2] + static_cast<double>(begin[2]) * sp[2]};
-  Volume<T> v = Volume<T>::uninitialized(g);
+  Volume<T> v = Volume<T>::uninitialized(box_grid(h5::volume_info(o, file, dataset), begin, size));
   if (v.size() == 0) return v;
-  // Chunked datasets with shuffle / deflate / Fletcher32: our own decoding (hdf5_chunks.hpp), which
-  // refuses a damaged chunk instead of letting libhdf5 overrun a buffer; anything else: H5Dread.
-  if (detail::read_chunked_box<T>(o.dset.id, file, dataset, o.dims, begin, size, v.data(), threads)) return v;
-  hsize_t start[3] = {static_cast<hsize_t>(begin[2]), static_cast<hsize_t>(begin[1]), static_cast<hsize_t>(begin[0])};
-  hsize_t count[3] = {static_cast<hsize_t>(size[2]), static_cast<hsize_t>(size[1]), static_cast<hsize_t>(size[0])};
-  if (H5Sselect_hyperslab(o.space.id, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
-    fail(file, "invalid box for dataset '" + dataset + "'");
-  Handle mem(H5Screate_simple(3, count, nullptr), H5Sclose);
-  if (H5Dread(o.dset.id, native<T>(), mem.id, o.space.id, H5P_DEFAULT, v.data()) < 0)
-    fail(file, "cannot read dataset '" + dataset + "': the file is truncated or corrupt");
+  h5::read_voxels<T>(o, file, dataset, begin, size, v.data(), threads);
   return v;
+}
+
+// ------------------------------------------------------------------ reading in the probe helper
+// With the helper (hdf5_probe.hpp, the default) users' files are opened and read only there
+// (hdf5_read.hpp says why): info and checks by request, the voxels box by box through the shared
+// window, each box at most h5::kWindowBytes and, where a chunk fits the window, aligned to the
+// dataset's chunks (so that no chunk is decoded twice).
+
+// `whole`: the helper makes the checks before a whole read too (h5::check_whole_read), so that a
+// dataset declaring more than its file can hold is refused before this process allocates it.
+VolumeInfo remote_info(const fs::path& file, const std::string& dataset, bool whole = false) {
+  VolumeInfo info;
+  ask_hdf5_helper(file, dataset, static_cast<uint32_t>(h5::Request::info), whole ? "whole" : "", 0,
+                  [&](const std::string& payload, const void*) {
+    if (!h5::decode_info(payload, info)) throw Error("the HDF5 probe helper gave a malformed answer for " + file.string());
+  });
+  return info;
+}
+
+// Box extents (x, y, z) of at most `window` bytes of `elem`-byte values for a read of `size`:
+// multiples of `unit` (the chunk shape, or 1) along the slowest axes first.
+Dims window_box(const Dims& size, const std::array<int64_t, 3>& unit, int64_t elem, int64_t window) {
+  Dims b = size;
+  auto bytes = [&] { return b[0] * b[1] * b[2] * elem; };
+  for (int k = 2; k >= 0 && bytes() > window; --k) {
+    const int64_t rest = bytes() / b[k];  // bytes per unit of length along k
+    b[k] = std::min(size[k], std::max(unit[k], window / (rest * unit[k]) * unit[k]));
+  }
+  return b;
+}
+
+template <class T>
+void remote_read_voxels(const fs::path& file, const std::string& dataset, const VolumeInfo& info, Dims begin, Dims size,
+                        T* out, int threads) {
+  const int64_t elem = sizeof(T);
+  const auto window = static_cast<int64_t>(std::max<uint64_t>(detail::hdf5_read_window(), sizeof(T)));
+  std::array<int64_t, 3> unit{1, 1, 1};
+  if (info.chunks[0] > 0 && info.chunks[1] > 0 && info.chunks[2] > 0) {
+    const Dims c{std::min(info.chunks[0], size[0]), std::min(info.chunks[1], size[1]), std::min(info.chunks[2], size[2])};
+    if (c[0] * c[1] * c[2] * elem <= window) unit = info.chunks;
+  }
+  const Dims box = window_box(size, unit, elem, window);
+  // Box boundaries along one axis: aligned to `unit` in dataset coordinates.
+  auto next = [&](int k, int64_t at) {
+    const int64_t end = begin[k] + size[k];
+    if (box[k] >= size[k]) return end;  // the whole axis in one box
+    return std::min(end, at / unit[k] * unit[k] + box[k]);  // box[k] is a multiple of unit[k]
+  };
+  h5::ReadRequest r;
+  r.memory_type = static_cast<uint32_t>(h5::memory_type_of<T>());
+  r.threads = threads;
+  r.own_chunks = detail::own_chunk_decoding_enabled() ? 1 : 0;
+  for (int64_t z0 = begin[2]; z0 < begin[2] + size[2];) {
+    const int64_t z1 = next(2, z0);
+    for (int64_t y0 = begin[1]; y0 < begin[1] + size[1];) {
+      const int64_t y1 = next(1, y0);
+      for (int64_t x0 = begin[0]; x0 < begin[0] + size[0];) {
+        const int64_t x1 = next(0, x0);
+        r.begin[0] = x0, r.begin[1] = y0, r.begin[2] = z0;
+        r.size[0] = x1 - x0, r.size[1] = y1 - y0, r.size[2] = z1 - z0;
+        std::string extra(sizeof r, '\0');
+        std::memcpy(extra.data(), &r, sizeof r);
+        const uint64_t bytes = static_cast<uint64_t>(r.size[0] * r.size[1] * r.size[2] * elem);
+        ask_hdf5_helper(file, dataset, static_cast<uint32_t>(h5::Request::read), extra, bytes,
+                        [&](const std::string& payload, const void* window_data) {
+                          h5::ReadAnswer a;
+                          if (payload.size() != sizeof a)
+                            throw Error("the HDF5 probe helper gave a malformed answer for " + file.string());
+                          std::memcpy(&a, payload.data(), sizeof a);
+                          detail::count_remote_chunk_reads(a.decoded, a.declined);
+                          const T* src = static_cast<const T*>(window_data);
+                          const int64_t n = r.size[0];
+                          for (int64_t z = z0; z < z1; ++z)
+                            for (int64_t y = y0; y < y1; ++y, src += n)
+                              std::memcpy(out + ((z - begin[2]) * size[1] + (y - begin[1])) * size[0] + (x0 - begin[0]), src,
+                                          static_cast<size_t>(n) * sizeof(T));
+                        });
+        x0 = x1;
+      }
+      y0 = y1;
+    }
+    z0 = z1;
+  }
+}
+
+template <class T>
+Volume<T> remote_read(const fs::path& file, const std::string& dataset, const VolumeInfo& info, Dims begin, Dims size,
+                      int threads) {
+  Volume<T> v = Volume<T>::uninitialized(box_grid(info, begin, size));
+  if (v.size() > 0) remote_read_voxels<T>(file, dataset, info, begin, size, v.data(), threads);
+  return v;
+}
+
+template <class F>
+DataPtr by_dtype(const std::string& t, F&& read) {
+  if (t == "uint8") return std::make_shared<VolumeU8>(read(uint8_t{}));
+  if (t == "uint16") return std::make_shared<VolumeU16>(read(uint16_t{}));
+  if (t == "uint32") return std::make_shared<VolumeU32>(read(uint32_t{}));
+  if (t == "uint64") return std::make_shared<VolumeU64>(read(uint64_t{}));
+  if (t == "int8" || t == "int16" || t == "int32") return std::make_shared<VolumeI32>(read(int32_t{}));
+  if (t == "float32") return std::make_shared<VolumeF32>(read(float{}));
+  return std::make_shared<VolumeF64>(read(double{}));  // float64, int64
 }
 
 }  // namespace
 
 VolumeInfo read_volume_info(const fs::path& file, const std::string& dataset) {
+  if (hdf5_reads_in_helper()) return remote_info(file, dataset);
   std::lock_guard lock(hdf5_mutex());
   quiet();
   Opened o = open_volume(file, dataset);
-  VolumeInfo info;
-  info.dims = o.dims;
-  info.dtype = o.dtype;
-  const Geometry geo = read_geometry(o.file.id, o.dset.id, dataset, file);
-  info.spacing = geo.spacing;
-  info.origin = geo.origin;
-  info.unit = geo.unit;
-  info.has_spacing = geo.has_spacing;
-  info.has_origin = geo.has_origin;
-  info.has_unit = geo.has_unit;
-  Handle plist(H5Dget_create_plist(o.dset.id), H5Pclose);
-  if (H5Pget_layout(plist.id) == H5D_CHUNKED) {
-    hsize_t c[3];
-    H5Pget_chunk(plist.id, 3, c);
-    info.chunks = {static_cast<int64_t>(c[2]), static_cast<int64_t>(c[1]), static_cast<int64_t>(c[0])};
-  }
-  const int nf = H5Pget_nfilters(plist.id);
-  for (int i = 0; i < nf; ++i) {
-    unsigned flags = 0;
-    size_t nelem = 0;
-    char name[64] = {0};
-    unsigned config = 0;
-    const H5Z_filter_t f = H5Pget_filter2(plist.id, static_cast<unsigned>(i), &flags, &nelem, nullptr, sizeof name, name, &config);
-    info.filters.push_back(f == H5Z_FILTER_DEFLATE ? "deflate" : f == H5Z_FILTER_SHUFFLE ? "shuffle" : name);
-  }
-  return info;
+  return h5::volume_info(o, file, dataset);
 }
-
-namespace {
-
-// The data a dataset holds lies in its file (external raw files, H5Pset_external, are left out), so
-// a stored size beyond the file's is a corrupt chunk index or layout message, refused before H5Dread
-// allocates a buffer of that size for one chunk (libFuzzer: a 5 KB file claiming a 4 GB chunk).
-void check_stored_size(const Opened& o, const fs::path& file, const std::string& dataset) {
-  Handle plist(H5Dget_create_plist(o.dset.id), H5Pclose);
-  const double held = static_cast<double>(H5Dget_storage_size(o.dset.id));
-  hsize_t file_size = 0;
-  const bool external = H5Pget_external_count(plist.id) > 0;
-  const bool sized = H5Fget_filesize(o.file.id, &file_size) >= 0;
-  H5Eclear2(H5E_DEFAULT);
-  if (!external && sized && held > static_cast<double>(file_size)) {
-    std::ostringstream s;
-    s << file.string() << ": dataset '" << dataset << "' claims " << std::fixed << std::setprecision(0) << held
-      << " bytes of stored data but the file is only " << file_size << " bytes: the file is truncated or corrupt";
-    throw InputError(s.str());
-  }
-}
-
-// The dims a file declares are checked against the data it holds before the volume is allocated, so
-// a corrupt or hostile 4 KB file cannot make Skelflow allocate terabytes. Unfiltered data must be
-// all there; deflate cannot compress better than 1032:1 (shuffle and fletcher32 add nothing), so a
-// compressed dataset may declare at most ~1100 times what it stores. Filters this HDF5 cannot decode
-// are refused here too, instead of after the allocation.
-void check_declared_size(const Opened& o, const fs::path& file, const std::string& dataset) {
-  Handle t(H5Dget_type(o.dset.id), H5Tclose);
-  const double voxels = static_cast<double>(o.dims[0]) * static_cast<double>(o.dims[1]) * static_cast<double>(o.dims[2]);
-  const double declared = voxels * static_cast<double>(H5Tget_size(t.id));
-  const double held = static_cast<double>(H5Dget_storage_size(o.dset.id));
-  Handle plist(H5Dget_create_plist(o.dset.id), H5Pclose);
-  const int nf = H5Pget_nfilters(plist.id);
-  for (int i = 0; i < nf; ++i) {
-    unsigned flags = 0, config = 0;
-    size_t nelem = 0;
-    char name[64] = {0};
-    const H5Z_filter_t f = H5Pget_filter2(plist.id, static_cast<unsigned>(i), &flags, &nelem, nullptr, sizeof name, name, &config);
-    if (f < 0 || H5Zfilter_avail(f) <= 0) {
-      H5Eclear2(H5E_DEFAULT);
-      throw InputError(file.string() + ": dataset '" + dataset + "' is compressed with HDF5 filter " +
-                       std::to_string(f) + (name[0] ? std::string(" (") + name + ")" : std::string()) +
-                       ", which this HDF5 library cannot decode; rewrite it with gzip/deflate or without compression");
-    }
-  }
-  check_stored_size(o, file, dataset);
-  const double max_ratio = nf > 0 ? 1100.0 : 1.0;
-  if (declared > held * max_ratio) {
-    std::ostringstream s;
-    s << file.string() << ": dataset '" << dataset << "' declares " << o.dims[0] << "x" << o.dims[1] << "x" << o.dims[2]
-      << " voxels (x,y,z) of " << o.dtype << " (" << declared << " bytes) but the file holds only " << held
-      << " bytes of data for it" << (nf > 0 ? " (more than deflate can compress)" : "")
-      << ": the file is truncated or corrupt";
-    throw InputError(s.str());
-  }
-}
-
-}  // namespace
 
 DataPtr read_volume(const fs::path& file, const std::string& dataset, int threads) {
+  if (hdf5_reads_in_helper()) {
+    const VolumeInfo info = remote_info(file, dataset, true);  // refuses an empty or oversized dataset
+    return by_dtype(info.dtype, [&](auto tag) {
+      return remote_read<decltype(tag)>(file, dataset, info, Dims{0, 0, 0}, info.dims, threads);
+    });
+  }
   std::lock_guard lock(hdf5_mutex());
   quiet();
   Opened o = open_volume(file, dataset);
-  if (o.dims[0] == 0 || o.dims[1] == 0 || o.dims[2] == 0)
-    throw InputError(file.string() + ": dataset '" + dataset + "' is empty (" + std::to_string(o.dims[0]) + "x" +
-                     std::to_string(o.dims[1]) + "x" + std::to_string(o.dims[2]) +
-                     " voxels as x,y,z); a volume needs at least one voxel on every axis");
-  check_declared_size(o, file, dataset);
+  h5::check_whole_read(o, file, dataset);
   const Dims z{0, 0, 0};
-  const std::string& t = o.dtype;
-  if (t == "uint8") return std::make_shared<VolumeU8>(read_into<uint8_t>(o, file, dataset, z, o.dims, threads));
-  if (t == "uint16") return std::make_shared<VolumeU16>(read_into<uint16_t>(o, file, dataset, z, o.dims, threads));
-  if (t == "uint32") return std::make_shared<VolumeU32>(read_into<uint32_t>(o, file, dataset, z, o.dims, threads));
-  if (t == "uint64") return std::make_shared<VolumeU64>(read_into<uint64_t>(o, file, dataset, z, o.dims, threads));
-  if (t == "int8" || t == "int16" || t == "int32")
-    return std::make_shared<VolumeI32>(read_into<int32_t>(o, file, dataset, z, o.dims, threads));
-  if (t == "float32") return std::make_shared<VolumeF32>(read_into<float>(o, file, dataset, z, o.dims, threads));
-  return std::make_shared<VolumeF64>(read_into<double>(o, file, dataset, z, o.dims, threads));  // float64, int64
+  return by_dtype(o.dtype, [&](auto tag) { return read_into<decltype(tag)>(o, file, dataset, z, o.dims, threads); });
 }
 
 template <class T>
 Volume<T> read_box(const fs::path& file, const std::string& dataset, Dims begin, Dims size) {
+  auto check = [&](const Dims& dims) {
+    for (int k = 0; k < 3; ++k)
+      if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > dims[k])
+        throw InputError(file.string() + ": box outside dataset '" + dataset + "'");
+  };
+  if (hdf5_reads_in_helper()) {
+    const VolumeInfo info = remote_info(file, dataset);
+    check(info.dims);
+    return remote_read<T>(file, dataset, info, begin, size, 0);
+  }
   std::lock_guard lock(hdf5_mutex());
   quiet();
   Opened o = open_volume(file, dataset);
-  for (int k = 0; k < 3; ++k)
-    if (begin[k] < 0 || size[k] < 0 || begin[k] + size[k] > o.dims[k])
-      throw InputError(file.string() + ": box outside dataset '" + dataset + "'");
+  check(o.dims);
   return read_into<T>(o, file, dataset, begin, size);
 }
 template Volume<uint8_t> read_box(const fs::path&, const std::string&, Dims, Dims);
@@ -742,42 +533,24 @@ template void write_box(const fs::path&, const std::string&, const Volume<float>
 template void write_box(const fs::path&, const std::string&, const Volume<double>&, Dims);
 
 std::string describe_file(const fs::path& file) {
-  std::vector<std::string> names;
-  {
-    std::lock_guard lock(hdf5_mutex());
-    quiet();
-    Handle f = open_file(file);
-    names = list_datasets(f.id);
+  if (hdf5_reads_in_helper()) {
+    std::string text;
+    ask_hdf5_helper(file, "", static_cast<uint32_t>(h5::Request::describe), {}, 0,
+                    [&](const std::string& payload, const void*) { text = payload; });
+    return text;
   }
-  std::ostringstream s;
-  if (names.empty()) s << "  (no datasets)\n";
-  for (const auto& n : names) {
-    try {
-      const VolumeInfo i = read_volume_info(file, n);
-      s << "  " << n << ": " << i.dtype << " " << i.dims[0] << "x" << i.dims[1] << "x" << i.dims[2] << " (x,y,z)";
-      if (i.chunks[0]) s << ", chunks " << i.chunks[0] << "x" << i.chunks[1] << "x" << i.chunks[2];
-      for (const auto& fl : i.filters) s << ", " << fl;
-      s << ", spacing " << i.spacing[0] << " " << i.spacing[1] << " " << i.spacing[2] << " " << i.unit
-        << (i.has_spacing ? "" : " (default)");
-      s << ", origin " << i.origin[0] << " " << i.origin[1] << " " << i.origin[2] << " " << i.unit
-        << (i.has_unit ? "" : " (unit: default)") << "\n";
-      const std::string enc = read_string_attribute(file, n, "encoding");
-      if (!enc.empty()) s << "    encoding: " << enc << "\n";
-    } catch (const InputError& e) {
-      s << "  " << n << ": " << e.what() << "\n";
-    }
-  }
-  return s.str();
+  std::lock_guard lock(hdf5_mutex());
+  quiet();
+  probe_before_open(file, "");
+  return h5::describe(file, [&](const std::string& name) { probe_before_open(file, name); });
 }
-
-
 
 void write_string_attribute(const fs::path& file, const std::string& dataset, const std::string& name,
                             const std::string& value) {
   std::lock_guard lock(hdf5_mutex());
   quiet();
   Handle f = open_file(file, true);
-  Handle d = open_dataset(f.id, file, dataset);
+  Handle d = h5::open_dataset(f.id, file, dataset);
   Handle st(H5Tcopy(H5T_C_S1), H5Tclose);
   H5Tset_size(st.id, std::max<size_t>(value.size(), 1));
   H5Tset_cset(st.id, H5T_CSET_UTF8);
@@ -790,17 +563,16 @@ void write_string_attribute(const fs::path& file, const std::string& dataset, co
 }
 
 std::string read_string_attribute(const fs::path& file, const std::string& dataset, const std::string& name) {
+  if (hdf5_reads_in_helper()) {
+    std::string value;
+    ask_hdf5_helper(file, dataset, static_cast<uint32_t>(h5::Request::string_attribute), name, 0,
+                    [&](const std::string& payload, const void*) { value = payload; });
+    return value;
+  }
   std::lock_guard lock(hdf5_mutex());
   quiet();
-  Handle f = open_file(file, false, dataset);
-  Handle d = open_dataset(f.id, file, dataset);
-  std::string out;
-  const auto* names = std::begin(probe::kAttributeNames);
-  const auto at = std::find_if(names, std::end(probe::kAttributeNames), [&](const char* n) { return name == n; });
-  if (at == std::end(probe::kAttributeNames) || !probe::is_string_attribute(static_cast<size_t>(at - names)))
-    throw Error("read_string_attribute: '" + name + "' is not one of the string attributes the readers read");
-  read_string_attr(d.id, dataset, static_cast<size_t>(at - names), out, file);
-  return out;
+  Opened o = open_volume(file, dataset);
+  return h5::string_attribute(o, file, dataset, name);
 }
 
 // ---------------------------------------------------------------- scratch volumes (out-of-core)

@@ -91,7 +91,9 @@ read once in a separate process (the helper `skelflow-hdf5-probe`, built with Ad
 damaged files; a file that crashes it, makes a memory error or exceeds it is refused naming the file.
 `SKEL_HDF5_PROBE=0` skips this for trusted data, `SKEL_HDF5_PROBE_TIMEOUT` sets the seconds,
 `SKEL_HDF5_PROBE_MEMORY_MB` the memory (MiB), `SKEL_HDF5_PROBE_HELPER` names the helper
-(docs/reliability.md). The spacing, origin and unit attributes are read there too and passed back.
+(docs/reliability.md). The file is then read in that helper too (dataset, attributes and voxels,
+handed over through shared memory 64 MiB at a time), so the HDF5 library never decodes a user's file
+in Skelflow's own process.
 Chunked datasets compressed with deflate (with shuffle and Fletcher32 or not) are decoded by
 Skelflow's own code on the reader's threads, which refuses a damaged chunk naming it (x, y, z index)
 instead of letting the HDF5 library overrun a buffer; `SKEL_HDF5_OWN_CHUNKS=0` reads them through the
