@@ -462,7 +462,7 @@ std::string encode_info(const VolumeInfo& i) {
   return out;
 }
 
-bool decode_info(const std::string& in, VolumeInfo& i) {
+bool decode_info(const std::string& in, VolumeInfo& i, std::string* whole_read_refusal) {
   i = VolumeInfo{};
   size_t at = 0;
   uint32_t nf = 0;
@@ -474,8 +474,10 @@ bool decode_info(const std::string& in, VolumeInfo& i) {
     if (!get_string(in, at, f)) return false;
   uint8_t flags = 0;
   if (!get(in, at, i.spacing.data(), sizeof i.spacing) || !get(in, at, i.origin.data(), sizeof i.origin) ||
-      !get_string(in, at, i.unit) || !get(in, at, &flags, sizeof flags) || at != in.size())
+      !get_string(in, at, i.unit) || !get(in, at, &flags, sizeof flags))
     return false;
+  if (whole_read_refusal && !get_string(in, at, *whole_read_refusal)) return false;
+  if (at != in.size() && whole_read_refusal) return false;
   i.has_spacing = flags & 1;
   i.has_origin = flags & 2;
   i.has_unit = flags & 4;
@@ -534,10 +536,16 @@ int serve_request(Request kind, const std::string& path, const std::string& data
   try {
     const fs::path file(path);
     switch (kind) {
-      case Request::info: {  // extra "whole": the checks before a whole read too
+      case Request::info: {  // the info, then why a whole read would be refused ("" when it would not)
         const Opened o = open_volume(file, dataset);
-        if (extra == "whole") check_whole_read(o, file, dataset);
         payload = encode_info(volume_info(o, file, dataset));
+        std::string refusal;
+        try {
+          check_whole_read(o, file, dataset);
+        } catch (const InputError& e) {
+          refusal = e.what();
+        }
+        put_string(payload, refusal);
         return probe::kWalkOk;
       }
       case Request::read: {

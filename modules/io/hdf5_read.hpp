@@ -145,11 +145,13 @@ struct ReadAnswer {
   int64_t decoded = 0, declined = 0;
 };
 
+// The answer to an info request: encode_info's bytes, then (put by serve_request) why a whole read
+// would be refused, "" when it would not (check_whole_read's message).
 std::string encode_info(const VolumeInfo& info);
-bool decode_info(const std::string& bytes, VolumeInfo& info);
+bool decode_info(const std::string& bytes, VolumeInfo& info, std::string* whole_read_refusal = nullptr);
 
-// Serves one request in the helper: `extra` holds the kind's fixed part (ReadRequest; the attribute
-// name; for info "whole" to make the checks before a whole read, check_whole_read, too). Fills `payload` and returns probe::kWalkOk, kRefused (an InputError: its message),
+// Serves one request in the helper: `extra` holds the kind's fixed part (ReadRequest, or the attribute
+// name). Fills `payload` and returns probe::kWalkOk, kRefused (an InputError: its message),
 // kFailed (another error) or probe::kWalkOutOfMemory. A read writes the box into the window
 // (descriptor `window_fd`, at least size[0]*size[1]*size[2] elements long).
 int serve_request(Request kind, const std::string& path, const std::string& dataset, const std::string& extra,

@@ -114,14 +114,17 @@ Volume<T> read_into(Opened& o, const fs::path& file, const std::string& dataset,
 // window, each box at most h5::kWindowBytes and, where a chunk fits the window, aligned to the
 // dataset's chunks (so that no chunk is decoded twice).
 
-// `whole`: the helper makes the checks before a whole read too (h5::check_whole_read), so that a
-// dataset declaring more than its file can hold is refused before this process allocates it.
+// `whole`: a whole read follows; the helper made the checks before one (h5::check_whole_read), and
+// a dataset that is empty or declares more than its file can hold is refused here, before this
+// process allocates it.
 VolumeInfo remote_info(const fs::path& file, const std::string& dataset, bool whole = false) {
   VolumeInfo info;
-  ask_hdf5_helper(file, dataset, static_cast<uint32_t>(h5::Request::info), whole ? "whole" : "", 0,
-                  [&](const std::string& payload, const void*) {
-    if (!h5::decode_info(payload, info)) throw Error("the HDF5 probe helper gave a malformed answer for " + file.string());
+  std::string refusal;
+  ask_hdf5_helper(file, dataset, static_cast<uint32_t>(h5::Request::info), {}, 0, [&](const std::string& payload, const void*) {
+    if (!h5::decode_info(payload, info, &refusal))
+      throw Error("the HDF5 probe helper gave a malformed answer for " + file.string());
   });
+  if (whole && !refusal.empty()) throw InputError(refusal);
   return info;
 }
 
