@@ -512,15 +512,20 @@ std::string serve_read(const std::string& path, const std::string& dataset, cons
     size_t n;
     ~Unmap() { ::munmap(p, n); }
   } unmap{map, static_cast<size_t>(bytes)};
+  // Threads for the decoding only where they pay: a box under 8 MiB is decoded on this thread (a thread
+  // pool's start and its idle spinning after each request cost the helper more than such a box's
+  // decoding; the fuzz target's boxes made the helper retire its walkers when a new pool's stacks
+  // reached the walk's memory limit).
+  const int threads = bytes >= double(8 << 20) ? r.threads : 1;
   const int64_t decoded = detail::own_chunks_decoded(), declined = detail::own_chunk_reads_declined();
   switch (t) {
-    case MemoryType::u8: read_voxels(o, file, dataset, begin, size, static_cast<uint8_t*>(map), r.threads); break;
-    case MemoryType::u16: read_voxels(o, file, dataset, begin, size, static_cast<uint16_t*>(map), r.threads); break;
-    case MemoryType::u32: read_voxels(o, file, dataset, begin, size, static_cast<uint32_t*>(map), r.threads); break;
-    case MemoryType::u64: read_voxels(o, file, dataset, begin, size, static_cast<uint64_t*>(map), r.threads); break;
-    case MemoryType::i32: read_voxels(o, file, dataset, begin, size, static_cast<int32_t*>(map), r.threads); break;
-    case MemoryType::f32: read_voxels(o, file, dataset, begin, size, static_cast<float*>(map), r.threads); break;
-    case MemoryType::f64: read_voxels(o, file, dataset, begin, size, static_cast<double*>(map), r.threads); break;
+    case MemoryType::u8: read_voxels(o, file, dataset, begin, size, static_cast<uint8_t*>(map), threads); break;
+    case MemoryType::u16: read_voxels(o, file, dataset, begin, size, static_cast<uint16_t*>(map), threads); break;
+    case MemoryType::u32: read_voxels(o, file, dataset, begin, size, static_cast<uint32_t*>(map), threads); break;
+    case MemoryType::u64: read_voxels(o, file, dataset, begin, size, static_cast<uint64_t*>(map), threads); break;
+    case MemoryType::i32: read_voxels(o, file, dataset, begin, size, static_cast<int32_t*>(map), threads); break;
+    case MemoryType::f32: read_voxels(o, file, dataset, begin, size, static_cast<float*>(map), threads); break;
+    case MemoryType::f64: read_voxels(o, file, dataset, begin, size, static_cast<double*>(map), threads); break;
   }
   const ReadAnswer a{detail::own_chunks_decoded() - decoded, detail::own_chunk_reads_declined() - declined};
   std::string out;
