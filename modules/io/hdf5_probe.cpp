@@ -760,6 +760,15 @@ void ask_hdf5_helper(const fs::path& file, const std::string& dataset, uint32_t 
   throw InputError(refusal);
 }
 
+void trim_hdf5_read_window() {
+  std::lock_guard lock(g_worker_mutex);
+  if (g_worker.window_bytes <= (uint64_t{8} << 20) || g_worker.window_fd < 0 || g_worker.owner != getpid()) return;
+  if (g_worker.window) munmap(g_worker.window, g_worker.window_bytes);
+  g_worker.window = nullptr;
+  g_worker.window_bytes = 0;
+  if (ftruncate(g_worker.window_fd, 0) != 0) stop_worker(false);  // its pages are freed either way
+}
+
 namespace detail {
 int64_t hdf5_probes_started() {
   std::lock_guard lock(g_cache_mutex);
