@@ -286,7 +286,6 @@ template <class T, class E>
 int64_t Removal<T, E>::check(const BigVector<E>& tv, const BigVector<uint8_t>& tc, BigVector<uint8_t>& dirs) const {
   const uint8_t* const st = st_;
   const Thinner& th = th_;
-  const DirectionMasks& dm = direction_masks();
   const int64_t nt = static_cast<int64_t>(tv.size());
   const uint8_t* const cached = tc.empty() ? nullptr : tc.data();
   std::atomic<int64_t> fresh{0};
@@ -306,7 +305,7 @@ int64_t Removal<T, E>::check(const BigVector<E>& tv, const BigVector<uint8_t>& t
       ++tested;
       uint32_t nb = 0;
       if (!th.deletable(t, nb)) continue;
-      dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(candidate_directions(nb, dm));
+      dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(candidate_directions(nb));
     }
     fresh.fetch_add(tested, std::memory_order_relaxed);
   };
@@ -602,7 +601,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
 
 }  // namespace
 
-uint32_t thinning_directions(uint32_t nb) { return detail::matched_directions(nb, detail::direction_masks()); }
+uint32_t thinning_directions(uint32_t nb) { return detail::directions_of(nb); }
 
 namespace {
 ThinningResult thin_checked(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,
