@@ -17,6 +17,7 @@
 #include <atomic>
 #include <bit>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <type_traits>
 #include <vector>
@@ -277,11 +278,28 @@ public:
     // off_, the order neighbour_bit uses). Fewer address computations than 26 single offsets.
     const uint8_t* p = st_ + i;
     uint32_t w = 0;
-    for (int r = 0; r < 9; ++r) {
-      const uint8_t* q = p + row_[static_cast<size_t>(r)];
-      const uint32_t bits = static_cast<uint32_t>(q[-1] & kObject) | static_cast<uint32_t>(q[0] & kObject) << 1 |
-                            static_cast<uint32_t>(q[1] & kObject) << 2;
-      w |= bits << (3 * r);
+    if constexpr (std::endian::native == std::endian::little) {
+      // One 4-byte load per row: bytes x-1, x, x+1 (and x+2, unused); kObject is bit 0 of each byte,
+      // and one multiplication moves bits 0, 8, 16 to 16, 17, 18 (the other products land below bit
+      // 16 or above 18). The last row loads x-2..x+1 instead (>> 8): x+2 of the voxel (nx-2, ny-2,
+      // nz-2) is one byte past the array. Every byte read lies in the array for a voxel off the faces.
+      static_assert(kObject == 1);
+      auto row = [&](int r, int skip) {
+        uint32_t v;
+        std::memcpy(&v, p + row_[static_cast<size_t>(r)] - 1 - skip, 4);
+        v = (v >> (8 * skip)) & 0x010101u;
+        return static_cast<uint64_t>(((v * 0x10204u) >> 16) & 7u);
+      };
+      const uint64_t b = row(0, 0) | row(1, 0) << 3 | row(2, 0) << 6 | row(3, 0) << 9 | row(4, 0) << 12 |
+                         row(5, 0) << 15 | row(6, 0) << 18 | row(7, 0) << 21 | row(8, 1) << 24;
+      w = static_cast<uint32_t>(b);
+    } else {
+      for (int r = 0; r < 9; ++r) {
+        const uint8_t* q = p + row_[static_cast<size_t>(r)];
+        const uint32_t bits = static_cast<uint32_t>(q[-1] & kObject) |
+                              static_cast<uint32_t>(q[0] & kObject) << 1 | static_cast<uint32_t>(q[1] & kObject) << 2;
+        w |= bits << (3 * r);
+      }
     }
     return (w & 0x1FFFu) | ((w >> 1) & 0x3FFE000u);
   }
@@ -329,16 +347,28 @@ public:
   // Deletable in the current object: simple and not a kept end point. Returns the neighbourhood
   // word through `nb_out` for callers that need the sub-iteration directions.
   bool deletable(int64_t i, uint32_t& nb_out) const {
+    if (!gather(i, nb_out)) return false;
+    return deletable_with(i, nb_out);
+  }
+  // deletable() in two steps, so that a loop over many voxels can prefetch the simple test's cache
+  // slot (simple_slot) between them. gather: false if i is certainly not deletable (its six face
+  // neighbours are object), else its neighbourhood word in `nb`.
+  bool gather(int64_t i, uint32_t& nb) const {
     if (!(st_[i] & kBorder)) {
       const uint8_t* p = st_ + i;
       if (p[f6_[0]] & p[f6_[1]] & p[f6_[2]] & p[f6_[3]] & p[f6_[4]] & p[f6_[5]] & kObject) return false;
     }
-    const uint32_t nb = neighbourhood(i);
-    nb_out = nb;
+    nb = neighbourhood(i);
+    return true;
+  }
+  // The rest of deletable() for the word `nb` that gather() gave for i.
+  [[nodiscard]] bool deletable_with(int64_t i, uint32_t nb) const {
     if (!simple(nb)) return false;
     if (l_ > 0 && std::popcount(nb) == 1 && importance(i) > l_) return false;
     return true;
   }
+  // The slot of simple()'s cache that configuration nb uses (for a prefetch hint).
+  [[nodiscard]] const void* simple_slot(uint32_t nb) const { return &cache_[(nb * 0x9E3779B1u) >> (32 - kCacheBits)]; }
 
   // The exact simple test behind a small direct-mapped cache of recent answers (thinning meets the
   // same configurations over and over). Each slot packs the 26-bit configuration, a valid bit and
