@@ -231,7 +231,10 @@ inline void Removal<T, E>::remove(int64_t t) {
     const int c = th_.neighbours(t, nbr);
     for (int k = 0; k < c; ++k) touch(nbr[k]);
   } else {
-    for (const int64_t o : th_.off_) touch(t + o);  // same order as neighbours()
+    // The object neighbours only: the bits of the neighbourhood word, in the order of off_ (and of
+    // neighbours()).
+    for (uint32_t nb = th_.neighbourhood(t); nb != 0; nb &= nb - 1)
+      touch(t + th_.off_[static_cast<size_t>(std::countr_zero(nb))]);
   }
 }
 
@@ -286,27 +289,43 @@ template <class T, class E>
 int64_t Removal<T, E>::check(const BigVector<E>& tv, const BigVector<uint8_t>& tc, BigVector<uint8_t>& dirs) const {
   const uint8_t* const st = st_;
   const Thinner& th = th_;
-  const DirectionMasks& dm = direction_masks();
   const int64_t nt = static_cast<int64_t>(tv.size());
   const uint8_t* const cached = tc.empty() ? nullptr : tc.data();
   std::atomic<int64_t> fresh{0};
+  // Blocks of kBlock entries in two passes: the neighbourhood words first (each prefetches the simple
+  // test's cache slot of its word), then the simple tests, so the slots' cache misses overlap.
+  constexpr int64_t kBlock = 32;
   auto check_range = [&](int64_t b, int64_t e) {
     int64_t tested = 0;
-    for (int64_t j = b; j < e; ++j) {
-      if (j + kAhead < e) {  // prefetch: the state of a voxel checked soon, its rows if uncached
-        const int64_t a = static_cast<int64_t>(tv[static_cast<size_t>(j + kAhead)]);
-        if (cached && (cached[j + kAhead] & kCacheValid)) __builtin_prefetch(st + a, 0);  // a voxel index: in range
-        else th.prefetch_state(a);
+    int64_t pending[kBlock];
+    uint32_t words[kBlock];
+    for (int64_t b0 = b; b0 < e; b0 += kBlock) {
+      const int64_t b1 = std::min(e, b0 + kBlock);
+      int np = 0;
+      for (int64_t j = b0; j < b1; ++j) {
+        if (j + kAhead < e) {  // prefetch: the state of a voxel checked soon, its rows if uncached
+          const int64_t a = static_cast<int64_t>(tv[static_cast<size_t>(j + kAhead)]);
+          if (cached && (cached[j + kAhead] & kCacheValid)) __builtin_prefetch(st + a, 0);  // a voxel index: in range
+          else th.prefetch_state(a);
+        }
+        const int64_t t = static_cast<int64_t>(tv[static_cast<size_t>(j)]);
+        if (cached && (cached[j] & kCacheValid) && !(st[t] & kDirty)) {
+          dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(cached[j] & 63u);
+          continue;
+        }
+        ++tested;
+        uint32_t nb = 0;
+        if (!th.gather(t, nb)) continue;
+        __builtin_prefetch(th.simple_slot(nb), 0);
+        pending[np] = j;
+        words[np] = nb;
+        ++np;
       }
-      const int64_t t = static_cast<int64_t>(tv[static_cast<size_t>(j)]);
-      if (cached && (cached[j] & kCacheValid) && !(st[t] & kDirty)) {
-        dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(cached[j] & 63u);
-        continue;
+      for (int k = 0; k < np; ++k) {
+        const int64_t j = pending[k];
+        if (th.deletable_with(static_cast<int64_t>(tv[static_cast<size_t>(j)]), words[k]))
+          dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(candidate_directions(words[k]));
       }
-      ++tested;
-      uint32_t nb = 0;
-      if (!th.deletable(t, nb)) continue;
-      dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(candidate_directions(nb, dm));
     }
     fresh.fetch_add(tested, std::memory_order_relaxed);
   };
@@ -435,8 +454,18 @@ std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int t
   std::vector<std::vector<int64_t>> found(static_cast<size_t>(nz));
   parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z)
-      for (int64_t i = nx * ny * z, e = nx * ny * (z + 1); i < e; ++i)
+      for (int64_t i = nx * ny * z, e = nx * ny * (z + 1); i < e; ++i) {
+        if (i + 8 <= e) {  // skip eight voxels at a time without kObject (bit 0 of each byte)
+          static_assert(kObject == 1);
+          uint64_t w;
+          std::memcpy(&w, st + i, 8);
+          if ((w & 0x0101010101010101ull) == 0) {
+            i += 7;
+            continue;
+          }
+        }
         if (st[i] & kObject) found[static_cast<size_t>(z)].push_back(i);
+      }
   });
   std::vector<int64_t> skel;
   for (auto& f : found) {
@@ -602,7 +631,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
 
 }  // namespace
 
-uint32_t thinning_directions(uint32_t nb) { return detail::matched_directions(nb, detail::direction_masks()); }
+uint32_t thinning_directions(uint32_t nb) { return detail::directions_of(nb); }
 
 namespace {
 ThinningResult thin_checked(const VolumeU8& mask, const DataObject& priority, const VolumeU8* locked,

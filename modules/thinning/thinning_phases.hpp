@@ -17,6 +17,7 @@
 #include <atomic>
 #include <bit>
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <type_traits>
 #include <vector>
@@ -24,6 +25,7 @@
 #include "skel/big_vector.hpp"
 #include "skel/interrupter.hpp"
 #include "skel/volume.hpp"
+#include "thinning/cube_word.hpp"
 #include "thinning/local_topology.hpp"
 #include "thinning/thinning.hpp"
 
@@ -76,7 +78,7 @@ inline int choose_subiteration(uint32_t x, int64_t iteration) {
 }
 
 // thinning_directions(nb) (fig. 2.17): the directions of the strict masks that match, else those
-// of the weak masks.
+// of the weak masks. The reference: one mask at a time (tests; thinning uses directions_of below).
 inline uint32_t matched_directions(uint32_t nb, const DirectionMasks& dm) {
   uint32_t d = 0;
   for (int k = 0; k < 26; ++k)
@@ -89,10 +91,47 @@ inline uint32_t matched_directions(uint32_t nb, const DirectionMasks& dm) {
   return d;
 }
 
+// matched_directions(nb, direction_masks()) for all 26 masks at once on the 27-bit cube word
+// (cube_word.hpp), branch-free: a strict mask of direction v matches iff every neighbour w with
+// w_a in {0, v_a} on each axis a (the closed octant face of v, the centre counted as background) is
+// background and the neighbour at -v is object. "Every w" is three erosions, one per axis: bit v of
+// E_a(S) is S(v) and S(v with v_a = 0). The neighbour at -v is bit 26 - c of the cube word: the
+// word reversed. Equal to matched_directions on all 2^26 configurations (tested).
+inline uint32_t directions_of(uint32_t nb) {
+  constexpr uint32_t x0 = cube::plane_mask(0, 0), x1 = cube::plane_mask(0, 1), x2 = cube::plane_mask(0, 2);
+  constexpr uint32_t y0 = cube::plane_mask(1, 0), y1 = cube::plane_mask(1, 1), y2 = cube::plane_mask(1, 2);
+  constexpr uint32_t z0 = cube::plane_mask(2, 0), z1 = cube::plane_mask(2, 1), z2 = cube::plane_mask(2, 2);
+  const uint32_t obj = (nb & 0x1FFFu) | ((nb >> 13) << 14);  // cube bits, centre clear
+  const uint32_t bg = ~obj & cube::kCube;                      // centre set
+  auto erode = [](uint32_t s, int shift, uint32_t lo, uint32_t mid, uint32_t hi) {
+    return (s & mid) | (s & (s >> shift) & lo) | (s & (s << shift) & hi);
+  };
+  uint32_t faces = erode(bg, 9, z0, z1, z2);
+  faces = erode(faces, 3, y0, y1, y2);
+  faces = erode(faces, 1, x0, x1, x2);
+  uint32_t r = __builtin_bswap32(obj);  // reversed: bit c -> bit 31 - c, then >> 5: bit 26 - c
+  r = ((r & 0x0F0F0F0Fu) << 4) | ((r >> 4) & 0x0F0F0F0Fu);
+  r = ((r & 0x33333333u) << 2) | ((r >> 2) & 0x33333333u);
+  r = ((r & 0x55555555u) << 1) | ((r >> 1) & 0x55555555u);
+  const uint32_t opposite = r >> 5;  // bit v: the neighbour at -v is object (centre: 0)
+  const uint32_t strict = faces & opposite;
+  const uint32_t m = strict != 0 ? strict : bg & opposite;  // else the weak masks: background at v
+  return static_cast<uint32_t>((m & x2) != 0) | static_cast<uint32_t>((m & x0) != 0) << 1 |
+         static_cast<uint32_t>((m & y2) != 0) << 2 | static_cast<uint32_t>((m & y0) != 0) << 3 |
+         static_cast<uint32_t>((m & z2) != 0) << 4 | static_cast<uint32_t>((m & z0) != 0) << 5;
+}
+
 // The sub-iteration directions of a deletable voxel with 26-neighbourhood `nb` as the smooth
 // variant's check stores them: thinning_directions(nb), all six if that is empty (cannot happen for
 // a simple voxel; kept as a guard), and bit 6 for a local end point (exactly one neighbour): end
 // points depend on voxels beyond the 26-neighbourhood, so their check is never cached.
+inline uint32_t candidate_directions(uint32_t nb) {
+  uint32_t d = directions_of(nb);
+  if (d == 0) d = 63u;
+  if (std::popcount(nb) == 1) d |= 64u;
+  return d;
+}
+// The same through the reference matched_directions (tests).
 inline uint32_t candidate_directions(uint32_t nb, const DirectionMasks& dm) {
   uint32_t d = matched_directions(nb, dm);
   if (d == 0) d = 63u;
@@ -239,11 +278,28 @@ public:
     // off_, the order neighbour_bit uses). Fewer address computations than 26 single offsets.
     const uint8_t* p = st_ + i;
     uint32_t w = 0;
-    for (int r = 0; r < 9; ++r) {
-      const uint8_t* q = p + row_[static_cast<size_t>(r)];
-      const uint32_t bits = static_cast<uint32_t>(q[-1] & kObject) | static_cast<uint32_t>(q[0] & kObject) << 1 |
-                            static_cast<uint32_t>(q[1] & kObject) << 2;
-      w |= bits << (3 * r);
+    if constexpr (std::endian::native == std::endian::little) {
+      // One 4-byte load per row: bytes x-1, x, x+1 (and x+2, unused); kObject is bit 0 of each byte,
+      // and one multiplication moves bits 0, 8, 16 to 16, 17, 18 (the other products land below bit
+      // 16 or above 18). The last row loads x-2..x+1 instead (>> 8): x+2 of the voxel (nx-2, ny-2,
+      // nz-2) is one byte past the array. Every byte read lies in the array for a voxel off the faces.
+      static_assert(kObject == 1);
+      auto row = [&](int r, int skip) {
+        uint32_t v;
+        std::memcpy(&v, p + row_[static_cast<size_t>(r)] - 1 - skip, 4);
+        v = (v >> (8 * skip)) & 0x010101u;
+        return static_cast<uint64_t>(((v * 0x10204u) >> 16) & 7u);
+      };
+      const uint64_t b = row(0, 0) | row(1, 0) << 3 | row(2, 0) << 6 | row(3, 0) << 9 | row(4, 0) << 12 |
+                         row(5, 0) << 15 | row(6, 0) << 18 | row(7, 0) << 21 | row(8, 1) << 24;
+      w = static_cast<uint32_t>(b);
+    } else {
+      for (int r = 0; r < 9; ++r) {
+        const uint8_t* q = p + row_[static_cast<size_t>(r)];
+        const uint32_t bits = static_cast<uint32_t>(q[-1] & kObject) |
+                              static_cast<uint32_t>(q[0] & kObject) << 1 | static_cast<uint32_t>(q[1] & kObject) << 2;
+        w |= bits << (3 * r);
+      }
     }
     return (w & 0x1FFFu) | ((w >> 1) & 0x3FFE000u);
   }
@@ -291,16 +347,28 @@ public:
   // Deletable in the current object: simple and not a kept end point. Returns the neighbourhood
   // word through `nb_out` for callers that need the sub-iteration directions.
   bool deletable(int64_t i, uint32_t& nb_out) const {
+    if (!gather(i, nb_out)) return false;
+    return deletable_with(i, nb_out);
+  }
+  // deletable() in two steps, so that a loop over many voxels can prefetch the simple test's cache
+  // slot (simple_slot) between them. gather: false if i is certainly not deletable (its six face
+  // neighbours are object), else its neighbourhood word in `nb`.
+  bool gather(int64_t i, uint32_t& nb) const {
     if (!(st_[i] & kBorder)) {
       const uint8_t* p = st_ + i;
       if (p[f6_[0]] & p[f6_[1]] & p[f6_[2]] & p[f6_[3]] & p[f6_[4]] & p[f6_[5]] & kObject) return false;
     }
-    const uint32_t nb = neighbourhood(i);
-    nb_out = nb;
+    nb = neighbourhood(i);
+    return true;
+  }
+  // The rest of deletable() for the word `nb` that gather() gave for i.
+  [[nodiscard]] bool deletable_with(int64_t i, uint32_t nb) const {
     if (!simple(nb)) return false;
     if (l_ > 0 && std::popcount(nb) == 1 && importance(i) > l_) return false;
     return true;
   }
+  // The slot of simple()'s cache that configuration nb uses (for a prefetch hint).
+  [[nodiscard]] const void* simple_slot(uint32_t nb) const { return &cache_[(nb * 0x9E3779B1u) >> (32 - kCacheBits)]; }
 
   // The exact simple test behind a small direct-mapped cache of recent answers (thinning meets the
   // same configurations over and over). Each slot packs the 26-bit configuration, a valid bit and
