@@ -429,42 +429,68 @@ namespace {
 // 9-18 t the same; reuse distances 2-16 make little difference.
 constexpr uint32_t kLandmarkReuse = 8;
 
+// Breadth-first search over L from scratch index `si` at padded position `src_pos` to the distance
+// `limit`: dist[v] = distance + 1 (entries must be 0 beforehand), `list` and `posq` the visited
+// voxels (scratch indices, positions) in distance order; returns their number. Processed layer by
+// layer (no distance read per voxel) into vectors written by index (grown by doubling, cut to size
+// at the end): the same order as a plain FIFO queue.
+template <bool kBoxed, class T>
+size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, std::vector<uint32_t>& list, std::vector<int64_t>& posq,
+                   uint32_t si, int64_t src_pos, uint32_t limit) {
+  const Domain& D = P.dom;
+  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
+  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
+  // Use the capacity left from earlier searches without reallocating.
+  list.resize(std::max<size_t>(list.capacity(), 64));
+  posq.resize(list.size());
+  uint32_t* lq = list.data();
+  int64_t* pq = posq.data();
+  size_t cap = list.size(), tail = 0;
+  dist[si] = 1;
+  lq[tail] = si;
+  pq[tail++] = src_pos;
+  size_t head = 0;
+  for (uint32_t d = 0; d < limit && head < tail; ++d) {
+    const T next = static_cast<T>(d + 2);  // distance + 1 of the next layer
+    for (const size_t layer_end = tail; head < layer_end; ++head) {
+      if (tail + 6 > cap) {
+        cap *= 2;
+        list.resize(cap);
+        posq.resize(cap);
+        lq = list.data();
+        pq = posq.data();
+      }
+      const uint32_t v = lq[head];
+      const int64_t pos = pq[head];
+      for (int n = 0; n < 6; ++n) {
+        const int64_t q = pos + nb[n];
+        if (!P.layer.test(q)) continue;
+        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
+        if (dist[u]) continue;
+        dist[u] = next;
+        lq[tail] = u;
+        pq[tail++] = q;
+      }
+    }
+  }
+  list.resize(tail);
+  posq.resize(tail);
+  return tail;
+}
+
 // Breadth-first field from the L voxel with scratch index `ci` at padded position `pos` to the
 // radius S.lm_radius, into the next landmark slot. The caller checks that a box holds every voxel
 // within the radius (a 6-path of length R stays within R on every axis), so the field is the true
 // distance within the radius. Returns the voxels visited.
 template <bool kBoxed>
 int64_t landmark_bfs(const Prepared& P, Scratch& S, uint32_t ci, int64_t pos) {
-  const Domain& D = P.dom;
   const int s2 = S.lm_next;
   S.lm_next = (S.lm_next + 1) % Scratch::kLandmarks;
   Scratch::Landmark& L = S.lm[s2];
   const size_t n = S.stamp.size();
   if (L.f.size() != n) L.f.assign(n, 0);
   for (uint32_t v : L.list) L.f[v] = 0;
-  L.list.clear();
-  S.lm_pos.clear();
-  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
-  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};
-  const uint32_t R = S.lm_radius;
-  L.f[ci] = 1;
-  L.list.push_back(ci);
-  S.lm_pos.push_back(pos);
-  for (size_t head = 0; head < L.list.size(); ++head) {
-    const uint32_t v = L.list[head];
-    const uint8_t dv1 = L.f[v];
-    if (static_cast<uint32_t>(dv1) - 1 >= R) continue;
-    const int64_t p = S.lm_pos[head];
-    for (int k2 = 0; k2 < 6; ++k2) {
-      const int64_t q = p + nb[k2];
-      if (!P.layer.test(q)) continue;
-      const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[k2]) : static_cast<uint32_t>(P.layer.rank(q));
-      if (L.f[u]) continue;
-      L.f[u] = static_cast<uint8_t>(dv1 + 1);
-      L.list.push_back(u);
-      S.lm_pos.push_back(q);
-    }
-  }
+  layered_bfs<kBoxed>(P, S, L.f.data(), L.list, S.lm_pos, ci, pos, S.lm_radius);
   L.on = true;
   ++S.lm_built;
   return static_cast<int64_t>(L.list.size());
@@ -661,33 +687,9 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
 
 template <bool kBoxed>
 int64_t pivot_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
-  const Domain& D = P.dom;
-  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
-  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   auto run = [&](auto& pdist) {
-    using T = typename std::decay_t<decltype(pdist)>::value_type;
     for (uint32_t v : S.pqueue) pdist[v] = 0;
-    const uint32_t si = S.index_of(D, src, src_pos);
-    S.pqueue.clear();
-    S.pqueue.push_back(si);
-    S.qpos.clear();
-    S.qpos.push_back(src_pos);
-    pdist[si] = 1;
-    for (size_t head = 0; head < S.pqueue.size(); ++head) {
-      const uint32_t v = S.pqueue[head];
-      const T dv1 = pdist[v];  // distance + 1
-      if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-      const int64_t pos = S.qpos[head];
-      for (int n = 0; n < 6; ++n) {
-        const int64_t q = pos + nb[n];
-        if (!P.layer.test(q)) continue;
-        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
-        if (pdist[u]) continue;
-        pdist[u] = static_cast<T>(dv1 + 1);
-        S.pqueue.push_back(u);
-        S.qpos.push_back(q);
-      }
-    }
+    layered_bfs<kBoxed>(P, S, pdist.data(), S.pqueue, S.qpos, S.index_of(P.dom, src, src_pos), src_pos, limit);
   };
   if (S.pdist8.empty()) run(S.pdist16);
   else run(S.pdist8);
