@@ -591,13 +591,19 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   // Keys never exceed the limit: with a small limit the buckets are allocated once for all searches.
   const bool sized = limit < 65536;
   if (sized && bk.size() < static_cast<size_t>(limit) + 1) bk.resize(static_cast<size_t>(limit) + 1);
+  int64_t nqueued = 0;
   auto push = [&](uint32_t key, const Scratch::Entry& e) {
     if (!sized && key >= bk.size()) bk.resize(static_cast<size_t>(key) + 1);
     bk[key].push_back(e);
+    ++nqueued;
     hi = std::max(hi, key);
   };
   uint16_t gen = 0;  // targets reached so far, mod 2^16 (h changes only then)
   const bool track_gen = want.size() < 0xFFFF;  // else every pop recomputes h
+  // Queued-g marks (Scratch::queued): a voxel is queued again only on a shorter path.
+  const bool dedup = limit < 0xFFFF && S.queued.size() == S.stamp.size();
+  uint32_t* const queued = S.queued.data();
+  const uint32_t tag = static_cast<uint32_t>(st) << 16;
   {
     int32_t x, y, z;
     coords(src_pos, x, y, z);
@@ -607,6 +613,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     if (f <= limit) {
       lo = hi = f;
       push(f, e);
+      if (dedup) queued[si] = tag;
     }
   }
   int64_t visited = 0;
@@ -655,13 +662,20 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
                                 : static_cast<uint32_t>(P.layer.rank(q));
       if (S.stamp[u] == st) continue;
+      if (dedup) {  // queued before on a path at least as short: that entry does the work
+        const uint32_t qv = queued[u];
+        if ((qv & 0xFFFF0000u) == tag && (qv & 0xFFFFu) <= e.g + 1) continue;
+      }
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
       const uint32_t nf = e.g + 1 + h(x, y, z, u);
-      if (nf <= last)
+      if (nf <= last) {
         push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
+        if (dedup) queued[u] = tag | (e.g + 1);
+      }
     }
   }
   for (uint32_t k2 = lo; k2 <= hi && k2 < bk.size(); ++k2) bk[k2].clear();
+  S.last_queued = nqueued;
   // An expensive search (typically across a plate's rim): a landmark field from its far target (the
   // last one reached, or one left open), for the searches of the neighbouring bases, whose targets
   // lie near it. Not where a field already starts next to that target.

@@ -160,6 +160,12 @@ struct Scratch {
     uint16_t x, y, z, gen;  // gen: targets reached when queued (the key is stale once more are)
   };
   std::vector<uint16_t> stamp;   // own search: closed iff == cur
+  // Own search: the smallest g a voxel was queued with in this search, as cur << 16 | g (valid iff
+  // the high half is cur: range encoded like the stamps and cleared with them; used where the limit
+  // is < 65535, i.e. in threshold mode), so a voxel is not queued again on a path that is not shorter
+  // (each queued entry costs a heuristic evaluation and a pop).
+  std::vector<uint32_t> queued;   // (allocated with the pivot distances: threshold mode)
+  int64_t last_queued = 0;       // entries the last own search queued (tests)
   uint16_t cur = 0;
   int64_t stamp_resets = 0;
   std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
@@ -237,6 +243,7 @@ struct Scratch {
   uint16_t next_stamp() {
     if (cur == 0xFFFF) {
       std::fill(stamp.begin(), stamp.end(), uint16_t{0});
+      std::fill(queued.begin(), queued.end(), uint32_t{0});
       cur = 0;
       ++stamp_resets;
     }
@@ -250,7 +257,7 @@ struct Scratch {
     for (const auto& b : buckets) qb += b.capacity() * sizeof(Entry);
     uint64_t lb = lm_pos.capacity() * 8;
     for (const Landmark& L : lm) lb += L.f.size() + L.list.capacity() * 4;
-    return stamp.size() * 2 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
+    return stamp.size() * 2 + queued.size() * 4 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
            buckets.capacity() * sizeof(buckets[0]) + qb + lb;
   }
 
@@ -258,6 +265,7 @@ private:
   void allocate(size_t n, uint32_t pivot_limit) {
     stamp.assign(n, 0);
     if (pivot_limit == 0) return;
+    queued.assign(n, 0);
     if (pivot_limit <= 254) pdist8.assign(n, 0);
     else pdist16.assign(n, 0);
   }
