@@ -661,10 +661,13 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       if (!P.layer.test(q)) continue;
       const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
                                 : static_cast<uint32_t>(P.layer.rank(q));
-      if (S.stamp[u] == st) continue;
-      if (dedup) {  // queued before on a path at least as short: that entry does the work
+      if (dedup) {
+        // Queued before on a path at least as short: that entry does the work. This also skips
+        // closed voxels (a closed voxel was queued with its final g <= e.g + 1), without the stamp.
         const uint32_t qv = queued[u];
         if ((qv & 0xFFFF0000u) == tag && (qv & 0xFFFFu) <= e.g + 1) continue;
+      } else if (S.stamp[u] == st) {
+        continue;
       }
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
       const uint32_t nf = e.g + 1 + h(x, y, z, u);
@@ -740,53 +743,56 @@ void BaseWork::gather(uint32_t base_id, int64_t base_pos) {
   mpos.clear();
   for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m)
     mpos.push_back(sh_.B.member(m, base_pos));
-  for (int64_t pos : mpos)
+  mtarget.clear();
+  mcount.clear();
+  for (int64_t pos : mpos) {
+    uint8_t n = 0;
     for_each_target_at(P, pos, [&](uint32_t c, int64_t cpos) {
-      if (std::find(targets.begin(), targets.end(), c) == targets.end()) {
+      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
+      if (i == targets.size()) {
         targets.push_back(c);
         tpos.push_back(cpos);
       }
+      mtarget.push_back(static_cast<uint32_t>(i));
+      ++n;
     });
+    mcount.push_back(n);
+  }
   tdist.assign(targets.size(), kNone);
 }
 
 void BaseWork::finish() {
-  const Prepared& P = sh_.P;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const float inf = std::numeric_limits<float>::infinity();
-  for (int64_t pos : mpos) {
+  size_t k = 0;
+  for (size_t m = 0; m < mpos.size(); ++m) {
     float v = 0.0f;
-    for_each_target(P, pos, [&](uint32_t c) {
-      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-      const uint32_t d = tdist[i];
+    for (const size_t ke = k + mcount[m]; k < ke; ++k) {
+      const uint32_t d = tdist[mtarget[k]];
       float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
       if (!full) g = std::min(g, static_cast<float>(t));
       v = std::max(v, g);
-    });
-    sh_.importance[sh_.mask_index(pos)] = v;
+    }
+    sh_.importance[sh_.mask_index(mpos[m])] = v;
   }
 }
 
 void BaseWork::mark_needed() {
-  const Prepared& P = sh_.P;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const bool any_saturated =
       !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
   needed.assign(targets.size(), any_saturated ? 0 : 1);
   if (!any_saturated) return;
-  for (int64_t pos : mpos) {
-    size_t idx[6];
-    int n = 0;
+  size_t k = 0;
+  for (size_t m = 0; m < mpos.size(); ++m) {
+    const size_t k0 = k, ke = k + mcount[m];
     bool saturated = false;
-    for_each_target(P, pos, [&](uint32_t c) {
-      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-      idx[n++] = i;
-      if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
-    });
+    for (; k < ke; ++k)
+      if (tdist[mtarget[k]] != kNone && tdist[mtarget[k]] >= t) saturated = true;
     if (!saturated)
-      for (int j = 0; j < n; ++j) needed[idx[j]] = 1;
+      for (size_t j = k0; j < ke; ++j) needed[mtarget[j]] = 1;
   }
 }
 

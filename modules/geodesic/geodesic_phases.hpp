@@ -403,7 +403,7 @@ class BaseWork {
 public:
   BaseWork(SearchShared& sh, Scratch& S) : sh_(sh), S_(S) {}
   // targets = the distinct bases of the considered neighbours of the bucket's voxels; tdist = kNone.
-  // Also lists the bucket's voxels (mpos) for mark_needed and finish.
+  // Also lists the bucket's voxels (mpos) and the targets of each (mtarget, mcount) for mark_needed and finish.
   void gather(uint32_t base_id, int64_t base_pos);
   // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
   // its other targets are searched only if another voxel of the bucket needs them: needed[i].
@@ -418,6 +418,8 @@ public:
   std::vector<uint32_t> targets, tdist;
   std::vector<int64_t> tpos;  // padded positions of the targets
   std::vector<int64_t> mpos;  // padded positions of the bucket's voxels
+  std::vector<uint32_t> mtarget;  // per voxel, in order, the indices in `targets` of its considered neighbours' bases
+  std::vector<uint8_t> mcount;    // per voxel: how many (3 to 6)
   std::vector<uint8_t> needed;
 
 private:
