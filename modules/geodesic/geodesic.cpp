@@ -432,10 +432,11 @@ constexpr uint32_t kLandmarkReuse = 8;
 // Breadth-first search over L from scratch index `si` at padded position `src_pos` to the distance
 // `limit`: dist[v] = distance + 1 (entries must be 0 beforehand), `list` and `posq` the visited
 // voxels (scratch indices, positions) in distance order; returns their number. Processed layer by
-// layer (no distance read per voxel) into vectors written by index (grown by doubling, cut to size
-// at the end): the same order as a plain FIFO queue.
+// layer (no distance read per voxel) into vectors written by index (resized to their capacity
+// without initialising, grown by doubling, cut to size at the end): the same order as a plain FIFO
+// queue.
 template <bool kBoxed, class T>
-size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, std::vector<uint32_t>& list, std::vector<int64_t>& posq,
+size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, QueueVector<uint32_t>& list, QueueVector<int64_t>& posq,
                    uint32_t si, int64_t src_pos, uint32_t limit) {
   const Domain& D = P.dom;
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};

@@ -17,6 +17,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "geodesic/geodesic.hpp"
@@ -26,6 +27,29 @@
 namespace skel::geodesic::detail {
 
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+
+// An allocator whose resize() leaves new elements uninitialised (for queues that are written by
+// index up to their capacity before they are read: no zero fill per search).
+template <class T>
+struct NoInitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = NoInitAllocator<U>;
+  };
+  NoInitAllocator() = default;
+  template <class U>
+  NoInitAllocator(const NoInitAllocator<U>&) noexcept {}  // NOLINT(google-explicit-constructor): rebinding
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... A>
+  void construct(U* p, A&&... a) {
+    ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
+  }
+};
+template <class T>
+using QueueVector = std::vector<T, NoInitAllocator<T>>;
 
 // A bitmap over the padded domain with O(1) rank (number of set bits before a position): the bits
 // (1 per voxel) and, after build_rank(), the set bits before every 64-bit word as 32 bits (object
@@ -171,8 +195,8 @@ struct Scratch {
   std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
   std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
   std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
-  std::vector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
-  std::vector<int64_t> qpos;    // padded positions of the pivot search's queue
+  QueueVector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
+  QueueVector<int64_t> qpos;    // padded positions of the pivot search's queue
   // Box mode (bw > 0): entry of padded (x, y, z) = (x - bx0) + bw * ((y - by0) + bh * (z - bz0)).
   int64_t bw = 0, bh = 0, bd = 0, bx0 = 0, by0 = 0, bz0 = 0;
   // Landmarks (ALT heuristic, see own_bfs): breadth-first distance fields over L from the far
@@ -184,7 +208,7 @@ struct Scratch {
   // depend on which worker ran which block before.
   struct Landmark {
     std::vector<uint8_t> f;      // distance + 1, 0 = beyond the radius (allocated on first use)
-    std::vector<uint32_t> list;  // entries set, in distance order (clearing, and the BFS queue)
+    QueueVector<uint32_t> list;  // entries set, in distance order (clearing, and the BFS queue)
     bool on = false;
   };
   static constexpr int kLandmarks = 2;
@@ -193,7 +217,7 @@ struct Scratch {
   uint32_t lm_radius = 0;
   int64_t lm_min_visited = 0;     // a field after an own search that closed at least this many voxels
   int64_t lm_built = 0;           // fields built (diagnostics)
-  std::vector<int64_t> lm_pos;    // positions of the field BFS queue
+  QueueVector<int64_t> lm_pos;    // positions of the field BFS queue
   [[nodiscard]] uint32_t lm_value(int s, uint32_t v) const {
     const uint8_t f = lm[s].f[v];
     return f ? f - 1u : lm_radius + 1;
