@@ -429,42 +429,69 @@ namespace {
 // 9-18 t the same; reuse distances 2-16 make little difference.
 constexpr uint32_t kLandmarkReuse = 8;
 
+// Breadth-first search over L from scratch index `si` at padded position `src_pos` to the distance
+// `limit`: dist[v] = distance + 1 (entries must be 0 beforehand), `list` and `posq` the visited
+// voxels (scratch indices, positions) in distance order; returns their number. Processed layer by
+// layer (no distance read per voxel) into vectors written by index (resized to their capacity
+// without initialising, grown by doubling, cut to size at the end): the same order as a plain FIFO
+// queue.
+template <bool kBoxed, class T>
+size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, QueueVector<uint32_t>& list, QueueVector<int64_t>& posq,
+                   uint32_t si, int64_t src_pos, uint32_t limit) {
+  const Domain& D = P.dom;
+  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
+  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
+  // Use the capacity left from earlier searches without reallocating.
+  list.resize(std::max<size_t>(list.capacity(), 64));
+  posq.resize(list.size());
+  uint32_t* lq = list.data();
+  int64_t* pq = posq.data();
+  size_t cap = list.size(), tail = 0;
+  dist[si] = 1;
+  lq[tail] = si;
+  pq[tail++] = src_pos;
+  size_t head = 0;
+  for (uint32_t d = 0; d < limit && head < tail; ++d) {
+    const T next = static_cast<T>(d + 2);  // distance + 1 of the next layer
+    for (const size_t layer_end = tail; head < layer_end; ++head) {
+      if (tail + 6 > cap) {
+        cap *= 2;
+        list.resize(cap);
+        posq.resize(cap);
+        lq = list.data();
+        pq = posq.data();
+      }
+      const uint32_t v = lq[head];
+      const int64_t pos = pq[head];
+      for (int n = 0; n < 6; ++n) {
+        const int64_t q = pos + nb[n];
+        if (!P.layer.test(q)) continue;
+        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
+        if (dist[u]) continue;
+        dist[u] = next;
+        lq[tail] = u;
+        pq[tail++] = q;
+      }
+    }
+  }
+  list.resize(tail);
+  posq.resize(tail);
+  return tail;
+}
+
 // Breadth-first field from the L voxel with scratch index `ci` at padded position `pos` to the
 // radius S.lm_radius, into the next landmark slot. The caller checks that a box holds every voxel
 // within the radius (a 6-path of length R stays within R on every axis), so the field is the true
 // distance within the radius. Returns the voxels visited.
 template <bool kBoxed>
 int64_t landmark_bfs(const Prepared& P, Scratch& S, uint32_t ci, int64_t pos) {
-  const Domain& D = P.dom;
   const int s2 = S.lm_next;
   S.lm_next = (S.lm_next + 1) % Scratch::kLandmarks;
   Scratch::Landmark& L = S.lm[s2];
   const size_t n = S.stamp.size();
   if (L.f.size() != n) L.f.assign(n, 0);
   for (uint32_t v : L.list) L.f[v] = 0;
-  L.list.clear();
-  S.lm_pos.clear();
-  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
-  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};
-  const uint32_t R = S.lm_radius;
-  L.f[ci] = 1;
-  L.list.push_back(ci);
-  S.lm_pos.push_back(pos);
-  for (size_t head = 0; head < L.list.size(); ++head) {
-    const uint32_t v = L.list[head];
-    const uint8_t dv1 = L.f[v];
-    if (static_cast<uint32_t>(dv1) - 1 >= R) continue;
-    const int64_t p = S.lm_pos[head];
-    for (int k2 = 0; k2 < 6; ++k2) {
-      const int64_t q = p + nb[k2];
-      if (!P.layer.test(q)) continue;
-      const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[k2]) : static_cast<uint32_t>(P.layer.rank(q));
-      if (L.f[u]) continue;
-      L.f[u] = static_cast<uint8_t>(dv1 + 1);
-      L.list.push_back(u);
-      S.lm_pos.push_back(q);
-    }
-  }
+  layered_bfs<kBoxed>(P, S, L.f.data(), L.list, S.lm_pos, ci, pos, S.lm_radius);
   L.on = true;
   ++S.lm_built;
   return static_cast<int64_t>(L.list.size());
@@ -565,13 +592,19 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   // Keys never exceed the limit: with a small limit the buckets are allocated once for all searches.
   const bool sized = limit < 65536;
   if (sized && bk.size() < static_cast<size_t>(limit) + 1) bk.resize(static_cast<size_t>(limit) + 1);
+  int64_t nqueued = 0;
   auto push = [&](uint32_t key, const Scratch::Entry& e) {
     if (!sized && key >= bk.size()) bk.resize(static_cast<size_t>(key) + 1);
     bk[key].push_back(e);
+    ++nqueued;
     hi = std::max(hi, key);
   };
   uint16_t gen = 0;  // targets reached so far, mod 2^16 (h changes only then)
   const bool track_gen = want.size() < 0xFFFF;  // else every pop recomputes h
+  // Queued-g marks (Scratch::queued): a voxel is queued again only on a shorter path.
+  const bool dedup = limit < 0xFFFF && S.queued.size() == S.stamp.size();
+  uint32_t* const queued = S.queued.data();
+  const uint32_t tag = static_cast<uint32_t>(st) << 16;
   {
     int32_t x, y, z;
     coords(src_pos, x, y, z);
@@ -581,6 +614,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     if (f <= limit) {
       lo = hi = f;
       push(f, e);
+      if (dedup) queued[si] = tag;
     }
   }
   int64_t visited = 0;
@@ -628,14 +662,24 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       if (!P.layer.test(q)) continue;
       const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
                                 : static_cast<uint32_t>(P.layer.rank(q));
-      if (S.stamp[u] == st) continue;
+      if (dedup) {
+        // Queued before on a path at least as short: that entry does the work. This also skips
+        // closed voxels (a closed voxel was queued with its final g <= e.g + 1), without the stamp.
+        const uint32_t qv = queued[u];
+        if ((qv & 0xFFFF0000u) == tag && (qv & 0xFFFFu) <= e.g + 1) continue;
+      } else if (S.stamp[u] == st) {
+        continue;
+      }
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
       const uint32_t nf = e.g + 1 + h(x, y, z, u);
-      if (nf <= last)
+      if (nf <= last) {
         push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
+        if (dedup) queued[u] = tag | (e.g + 1);
+      }
     }
   }
   for (uint32_t k2 = lo; k2 <= hi && k2 < bk.size(); ++k2) bk[k2].clear();
+  S.last_queued = nqueued;
   // An expensive search (typically across a plate's rim): a landmark field from its far target (the
   // last one reached, or one left open), for the searches of the neighbouring bases, whose targets
   // lie near it. Not where a field already starts next to that target.
@@ -661,33 +705,9 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
 
 template <bool kBoxed>
 int64_t pivot_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit) {
-  const Domain& D = P.dom;
-  const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
-  const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   auto run = [&](auto& pdist) {
-    using T = typename std::decay_t<decltype(pdist)>::value_type;
     for (uint32_t v : S.pqueue) pdist[v] = 0;
-    const uint32_t si = S.index_of(D, src, src_pos);
-    S.pqueue.clear();
-    S.pqueue.push_back(si);
-    S.qpos.clear();
-    S.qpos.push_back(src_pos);
-    pdist[si] = 1;
-    for (size_t head = 0; head < S.pqueue.size(); ++head) {
-      const uint32_t v = S.pqueue[head];
-      const T dv1 = pdist[v];  // distance + 1
-      if (static_cast<uint32_t>(dv1) - 1 >= limit) continue;
-      const int64_t pos = S.qpos[head];
-      for (int n = 0; n < 6; ++n) {
-        const int64_t q = pos + nb[n];
-        if (!P.layer.test(q)) continue;
-        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
-        if (pdist[u]) continue;
-        pdist[u] = static_cast<T>(dv1 + 1);
-        S.pqueue.push_back(u);
-        S.qpos.push_back(q);
-      }
-    }
+    layered_bfs<kBoxed>(P, S, pdist.data(), S.pqueue, S.qpos, S.index_of(P.dom, src, src_pos), src_pos, limit);
   };
   if (S.pdist8.empty()) run(S.pdist16);
   else run(S.pdist8);
@@ -724,53 +744,56 @@ void BaseWork::gather(uint32_t base_id, int64_t base_pos) {
   mpos.clear();
   for (uint32_t m = sh_.B.begin(base_id), me = m + sh_.B.members_of(base_id); m < me; ++m)
     mpos.push_back(sh_.B.member(m, base_pos));
-  for (int64_t pos : mpos)
+  mtarget.clear();
+  mcount.clear();
+  for (int64_t pos : mpos) {
+    uint8_t n = 0;
     for_each_target_at(P, pos, [&](uint32_t c, int64_t cpos) {
-      if (std::find(targets.begin(), targets.end(), c) == targets.end()) {
+      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
+      if (i == targets.size()) {
         targets.push_back(c);
         tpos.push_back(cpos);
       }
+      mtarget.push_back(static_cast<uint32_t>(i));
+      ++n;
     });
+    mcount.push_back(n);
+  }
   tdist.assign(targets.size(), kNone);
 }
 
 void BaseWork::finish() {
-  const Prepared& P = sh_.P;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const float inf = std::numeric_limits<float>::infinity();
-  for (int64_t pos : mpos) {
+  size_t k = 0;
+  for (size_t m = 0; m < mpos.size(); ++m) {
     float v = 0.0f;
-    for_each_target(P, pos, [&](uint32_t c) {
-      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-      const uint32_t d = tdist[i];
+    for (const size_t ke = k + mcount[m]; k < ke; ++k) {
+      const uint32_t d = tdist[mtarget[k]];
       float g = d == kNone ? (full ? inf : static_cast<float>(t)) : static_cast<float>(d);
       if (!full) g = std::min(g, static_cast<float>(t));
       v = std::max(v, g);
-    });
-    sh_.importance[sh_.mask_index(pos)] = v;
+    }
+    sh_.importance[sh_.mask_index(mpos[m])] = v;
   }
 }
 
 void BaseWork::mark_needed() {
-  const Prepared& P = sh_.P;
   const bool full = sh_.full;
   const uint32_t t = sh_.t;
   const bool any_saturated =
       !full && std::any_of(tdist.begin(), tdist.end(), [&](uint32_t d) { return d != kNone && d >= t; });
   needed.assign(targets.size(), any_saturated ? 0 : 1);
   if (!any_saturated) return;
-  for (int64_t pos : mpos) {
-    size_t idx[6];
-    int n = 0;
+  size_t k = 0;
+  for (size_t m = 0; m < mpos.size(); ++m) {
+    const size_t k0 = k, ke = k + mcount[m];
     bool saturated = false;
-    for_each_target(P, pos, [&](uint32_t c) {
-      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-      idx[n++] = i;
-      if (tdist[i] != kNone && tdist[i] >= t) saturated = true;
-    });
+    for (; k < ke; ++k)
+      if (tdist[mtarget[k]] != kNone && tdist[mtarget[k]] >= t) saturated = true;
     if (!saturated)
-      for (int j = 0; j < n; ++j) needed[idx[j]] = 1;
+      for (size_t j = k0; j < ke; ++j) needed[mtarget[j]] = 1;
   }
 }
 

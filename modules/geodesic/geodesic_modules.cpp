@@ -38,7 +38,9 @@ distance to a target not reached yet (a lower bound on any 6-path, and consisten
 distance is final when it is closed). Only voxels with a key <= t are ever queued (threshold mode), and
 a search stops as soon as all its targets are reached or no key <= t is left: a target not reached is
 >= t. Closed voxels are marked by range encoding (thesis §2.3.2): each search takes the next 16-bit
-stamp, so nothing is cleared after a search (the marks once every 65535 searches). When a search ends
+stamp, so nothing is cleared after a search (the marks once every 65535 searches); in threshold mode
+the smallest g each voxel was queued with in the search is kept the same way (search stamp and g in 4
+bytes), so a voxel is queued again only on a shorter path. When a search ends
 with targets left, a breadth-first search to t + t/4 from the same base settles, by the triangle
 inequality, the far targets of every base point within t/4 of it (a pivot), which saves most long
 searches on plates; voxels with a target so proved to saturate need no further search. Landmarks (ALT,
@@ -58,11 +60,13 @@ padded grid (two bitmaps with 32-bit ranks per word, 1.5 bits each) and 3 bytes 
 (b(p) as an offset) throughout; the
 nearest-point transform adds 2 bits per object voxel (this ring and the next); the searches add 3
 bytes per object voxel (bucket members as offsets from their base) and about 1.06 per boundary-layer
-voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 1
-(pivot distance; 2 where t + t/4 > 254) + 2 (two landmark fields) bytes per entry of its scratch: one entry per voxel of a box
+voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 4
+(queued g, threshold mode) + 1 (pivot distance; 2 where t + t/4 > 254) + 2 (two landmark fields)
+bytes per entry of its scratch: one entry per voxel of a box
 around its block (the block plus t + t/4 + 1 on every side, about 2.5 M voxels for t = 40), or one
 per boundary-layer voxel where that is fewer (small volumes, full mode), and the queues. In all
-about 11.1 bytes per object voxel for the 512³ plates phantom, 16.8 for the sparser mixed one.
+about 12.1 bytes per object voxel for the 512³ plates phantom, 19.1 for the sparser mixed one (the
+boxes' share falls with the size: about 9.7 for 1280³ plates).
 
 Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
 with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the

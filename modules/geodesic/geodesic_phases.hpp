@@ -17,6 +17,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "geodesic/geodesic.hpp"
@@ -26,6 +27,29 @@
 namespace skel::geodesic::detail {
 
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+
+// An allocator whose resize() leaves new elements uninitialised (for queues that are written by
+// index up to their capacity before they are read: no zero fill per search).
+template <class T>
+struct NoInitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = NoInitAllocator<U>;
+  };
+  NoInitAllocator() = default;
+  template <class U>
+  NoInitAllocator(const NoInitAllocator<U>&) noexcept {}  // NOLINT(google-explicit-constructor): rebinding
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... A>
+  void construct(U* p, A&&... a) {
+    ::new (static_cast<void*>(p)) U(std::forward<A>(a)...);
+  }
+};
+template <class T>
+using QueueVector = std::vector<T, NoInitAllocator<T>>;
 
 // A bitmap over the padded domain with O(1) rank (number of set bits before a position): the bits
 // (1 per voxel) and, after build_rank(), the set bits before every 64-bit word as 32 bits (object
@@ -160,13 +184,19 @@ struct Scratch {
     uint16_t x, y, z, gen;  // gen: targets reached when queued (the key is stale once more are)
   };
   std::vector<uint16_t> stamp;   // own search: closed iff == cur
+  // Own search: the smallest g a voxel was queued with in this search, as cur << 16 | g (valid iff
+  // the high half is cur: range encoded like the stamps and cleared with them; used where the limit
+  // is < 65535, i.e. in threshold mode), so a voxel is not queued again on a path that is not shorter
+  // (each queued entry costs a heuristic evaluation and a pop).
+  std::vector<uint32_t> queued;   // (allocated with the pivot distances: threshold mode)
+  int64_t last_queued = 0;       // entries the last own search queued (tests)
   uint16_t cur = 0;
   int64_t stamp_resets = 0;
   std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
   std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
   std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
-  std::vector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
-  std::vector<int64_t> qpos;    // padded positions of the pivot search's queue
+  QueueVector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
+  QueueVector<int64_t> qpos;    // padded positions of the pivot search's queue
   // Box mode (bw > 0): entry of padded (x, y, z) = (x - bx0) + bw * ((y - by0) + bh * (z - bz0)).
   int64_t bw = 0, bh = 0, bd = 0, bx0 = 0, by0 = 0, bz0 = 0;
   // Landmarks (ALT heuristic, see own_bfs): breadth-first distance fields over L from the far
@@ -178,7 +208,7 @@ struct Scratch {
   // depend on which worker ran which block before.
   struct Landmark {
     std::vector<uint8_t> f;      // distance + 1, 0 = beyond the radius (allocated on first use)
-    std::vector<uint32_t> list;  // entries set, in distance order (clearing, and the BFS queue)
+    QueueVector<uint32_t> list;  // entries set, in distance order (clearing, and the BFS queue)
     bool on = false;
   };
   static constexpr int kLandmarks = 2;
@@ -187,7 +217,7 @@ struct Scratch {
   uint32_t lm_radius = 0;
   int64_t lm_min_visited = 0;     // a field after an own search that closed at least this many voxels
   int64_t lm_built = 0;           // fields built (diagnostics)
-  std::vector<int64_t> lm_pos;    // positions of the field BFS queue
+  QueueVector<int64_t> lm_pos;    // positions of the field BFS queue
   [[nodiscard]] uint32_t lm_value(int s, uint32_t v) const {
     const uint8_t f = lm[s].f[v];
     return f ? f - 1u : lm_radius + 1;
@@ -237,6 +267,7 @@ struct Scratch {
   uint16_t next_stamp() {
     if (cur == 0xFFFF) {
       std::fill(stamp.begin(), stamp.end(), uint16_t{0});
+      std::fill(queued.begin(), queued.end(), uint32_t{0});
       cur = 0;
       ++stamp_resets;
     }
@@ -250,7 +281,7 @@ struct Scratch {
     for (const auto& b : buckets) qb += b.capacity() * sizeof(Entry);
     uint64_t lb = lm_pos.capacity() * 8;
     for (const Landmark& L : lm) lb += L.f.size() + L.list.capacity() * 4;
-    return stamp.size() * 2 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
+    return stamp.size() * 2 + queued.size() * 4 + pdist8.size() + pdist16.size() * 2 + pqueue.capacity() * 4 + qpos.capacity() * 8 +
            buckets.capacity() * sizeof(buckets[0]) + qb + lb;
   }
 
@@ -258,6 +289,7 @@ private:
   void allocate(size_t n, uint32_t pivot_limit) {
     stamp.assign(n, 0);
     if (pivot_limit == 0) return;
+    queued.assign(n, 0);
     if (pivot_limit <= 254) pdist8.assign(n, 0);
     else pdist16.assign(n, 0);
   }
@@ -395,7 +427,7 @@ class BaseWork {
 public:
   BaseWork(SearchShared& sh, Scratch& S) : sh_(sh), S_(S) {}
   // targets = the distinct bases of the considered neighbours of the bucket's voxels; tdist = kNone.
-  // Also lists the bucket's voxels (mpos) for mark_needed and finish.
+  // Also lists the bucket's voxels (mpos) and the targets of each (mtarget, mcount) for mark_needed and finish.
   void gather(uint32_t base_id, int64_t base_pos);
   // In threshold mode a voxel with a target already proved >= t (by a pivot) has importance t, so
   // its other targets are searched only if another voxel of the bucket needs them: needed[i].
@@ -410,6 +442,8 @@ public:
   std::vector<uint32_t> targets, tdist;
   std::vector<int64_t> tpos;  // padded positions of the targets
   std::vector<int64_t> mpos;  // padded positions of the bucket's voxels
+  std::vector<uint32_t> mtarget;  // per voxel, in order, the indices in `targets` of its considered neighbours' bases
+  std::vector<uint8_t> mcount;    // per voxel: how many (3 to 6)
   std::vector<uint8_t> needed;
 
 private:

@@ -236,6 +236,36 @@ TEST(GeodesicPhases, OwnSearchGoesStraightAlongAFlatSurface) {
   EXPECT_LE(v, 481);
 }
 
+// Queued-g marks (threshold mode: a scratch with pivot distances): on a flat surface every voxel
+// between the source and a diagonal target is reached from two neighbours on paths of the same
+// length; it is queued once (the second path is not shorter), and the distance is the same as
+// without the marks.
+TEST(GeodesicPhases, OwnSearchQueuesAVoxelAgainOnlyOnAShorterPath) {
+  VolumeU8 m(Dims{40, 40, 12}, 0);
+  for (int64_t z = 4; z < 8; ++z)
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 40; ++x) m(x, y, z) = 1;
+  Prepared P(m.dims());
+  prepare(m, P, 1, {}, false);
+  const int64_t src = P.dom.pos(10 + 2, 10 + 2, 8 + 2), far = P.dom.pos(22 + 2, 19 + 2, 8 + 2);
+  const uint32_t sid = static_cast<uint32_t>(P.layer.rank(src));
+  const std::vector<uint32_t> want = {static_cast<uint32_t>(P.layer.rank(far))};
+  std::vector<uint32_t> wd, wd_plain;
+  Scratch plain(static_cast<size_t>(P.nl), 0);  // no pivot distances: no marks
+  Scratch S(static_cast<size_t>(P.nl), 50);
+  ASSERT_EQ(S.queued.size(), S.stamp.size());
+  ASSERT_TRUE(plain.queued.empty());
+  own_bfs(P, plain, sid, src, 40, want, {far}, wd_plain);
+  own_bfs(P, S, sid, src, 40, want, {far}, wd);
+  EXPECT_EQ(wd_plain, (std::vector<uint32_t>{21}));
+  EXPECT_EQ(wd, wd_plain);
+  int64_t distinct = 0;
+  for (uint32_t q : S.queued) distinct += (q >> 16) == S.cur;
+  EXPECT_GT(distinct, 21);
+  EXPECT_EQ(S.last_queued, distinct);                 // each voxel queued once
+  EXPECT_GT(plain.last_queued, S.last_queued);        // without the marks: twice on equal paths
+}
+
 TEST(GeodesicPhases, OwnSearchStampWrapsByClearingOnce) {
   const SingleVoxel s;
   Scratch S(static_cast<size_t>(s.P.nl), 0);
