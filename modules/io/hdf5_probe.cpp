@@ -416,7 +416,9 @@ void grow_window(uint64_t bytes, const fs::path& file) {
   if (ftruncate(g_worker.window_fd, static_cast<off_t>(want)) != 0)
     throw Error("cannot read the HDF5 file " + file.string() + " through the probe helper: the shared window of " +
                 std::to_string(want >> 20) + " MiB: " + std::strerror(errno));
-  void* map = mmap(nullptr, want, PROT_READ, MAP_SHARED, g_worker.window_fd, 0);
+  // Mapped once and populated: a fault per 4 KiB page, a window's worth per read, cost more than
+  // the copy on this kind of virtual machine (shared memory gets no huge pages here).
+  void* map = mmap(nullptr, want, PROT_READ, MAP_SHARED | MAP_POPULATE, g_worker.window_fd, 0);
   if (map == MAP_FAILED)
     throw Error("cannot read the HDF5 file " + file.string() + " through the probe helper: mapping the shared window of " +
                 std::to_string(want >> 20) + " MiB: " + std::strerror(errno));
@@ -758,15 +760,6 @@ void ask_hdf5_helper(const fs::path& file, const std::string& dataset, uint32_t 
     if (it != g_cache.end() && it->second.stamp == stamp) it->second.refusal = refusal;
   }
   throw InputError(refusal);
-}
-
-void trim_hdf5_read_window() {
-  std::lock_guard lock(g_worker_mutex);
-  if (g_worker.window_bytes <= (uint64_t{8} << 20) || g_worker.window_fd < 0 || g_worker.owner != getpid()) return;
-  if (g_worker.window) munmap(g_worker.window, g_worker.window_bytes);
-  g_worker.window = nullptr;
-  g_worker.window_bytes = 0;
-  if (ftruncate(g_worker.window_fd, 0) != 0) stop_worker(false);  // its pages are freed either way
 }
 
 namespace detail {

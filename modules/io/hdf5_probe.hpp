@@ -69,10 +69,6 @@ bool hdf5_reads_in_helper();
 void ask_hdf5_helper(const std::filesystem::path& file, const std::string& dataset, uint32_t kind, const std::string& extra,
                      uint64_t window_bytes, const std::function<void(const std::string& payload, const void* window)>& take);
 
-// Gives the shared window's memory back when it holds more than 8 MiB (after a read of many boxes;
-// small windows stay, for the next block of an out-of-core run).
-void trim_hdf5_read_window();
-
 namespace detail {
 // Number of walks this process has asked for (tests: a file is probed once).
 int64_t hdf5_probes_started();

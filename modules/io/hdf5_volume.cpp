@@ -192,7 +192,6 @@ void remote_read_voxels(const fs::path& file, const std::string& dataset, const 
     }
     z0 = z1;
   }
-  trim_hdf5_read_window();
 }
 
 template <class T>

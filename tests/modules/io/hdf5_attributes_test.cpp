@@ -57,9 +57,11 @@ extern "C" hid_t H5Aopen(hid_t obj, const char* name, hid_t aapl) {
 
 namespace {
 
+// A folder of this test's own (ctest runs the tests of this program in parallel processes).
 fs::path scratch() {
   static fs::path d = [] {
-    fs::path p = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "io" / "Hdf5Attributes";
+    fs::path p = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "io" / "Hdf5Attributes" /
+                 ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::remove_all(p);
     fs::create_directories(p);
     return p;
