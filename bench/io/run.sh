@@ -20,6 +20,7 @@ get() { sed -n "s/^$1=//p" "$2"; }
 "$bin" "$n" "$work" generate
 rows=""
 cmp=""
+helper=""
 row() {  # dtype writer layout chunks write read blocks bytes peak identical
   rows+=$(awk -v n="$n" -v dt="$1" -v who="$2" -v lay="$3" -v ch="$4" -v tw="$5" -v tr="$6" -v tb="$7" -v fb="$8" -v pk="$9" -v same="${10}" 'BEGIN {
     bytes = n * n * n * (dt == "uint8" ? 1 : 4)
@@ -38,6 +39,15 @@ for dt in uint8 float32; do
     if [ "$level" = 1 ]; then lay="auto ~1 MiB chunks, deflate 1$shuf"; fi
     row "$dt" "ours" "$lay" "$(get chunks "$f")" "$(get write "$f")" "$(get read "$f")" "$(get blocks "$f")" \
         "$(get file_bytes "$f")" "$(get peak_rss_mib "$f")" "$(get identical "$f"); h5py reads it: $(get "h5py_reads_ours_$level" "$work/h5py_$dt.txt")"
+  done
+  for level in 0 1; do
+    f="$work/ours_${dt}_$level.txt"
+    lay="auto ~1 MiB chunks"
+    if [ "$level" = 1 ]; then lay="auto ~1 MiB chunks, deflate 1$shuf"; fi
+    helper+=$(awk -v dt="$dt" -v lay="$lay" -v r="$(get read "$f")" -v ri="$(get read_inprocess "$f")" -v b="$(get blocks "$f")" \
+      -v bi="$(get blocks_inprocess "$f")" -v c="$(get read_cpu "$f")" -v ci="$(get read_inprocess_cpu "$f")" \
+      -v h="$(get reads_in_helper "$f")" -v same="$(get identical_inprocess "$f")" 'BEGIN {
+      printf "| %s | %s | %s | %.3f | %.3f | %.2f | %.3f | %.3f | %.3f | %.3f | %.2f | %s |", dt, lay, h, r, ri, r / ri, c, ci, b, bi, b / bi, same }')$'\n'
   done
   f="$work/ours_${dt}_1.txt"
   cmp+=$(awk -v dt="$dt" -v r="$(get read "$f")" -v r5="$(get read_h5dread "$f")" -v c="$(get read_cpu "$f")" \
@@ -81,6 +91,15 @@ echo
 echo "| dtype | read ours (s) | read H5Dread (s) | H5Dread / ours | CPU ours (s) | CPU H5Dread (s) | ${block}³ blocks ours (s) | ${block}³ blocks H5Dread (s) | identical |"
 echo "|---|---|---|---|---|---|---|---|---|"
 printf "%s" "$cmp"
+echo
+echo "Reads in the helper program (the default since issue 22: the file is opened and decoded by"
+echo "\`skelflow-hdf5-probe\`, the voxels come back through shared memory) against the same reads in the"
+echo "reader's own process (\`SKEL_HDF5_PROBE=0\`), same process and file, best of 2; CPU = one whole read, the"
+echo "reader's process only (the helper's CPU is not in it)."
+echo
+echo "| dtype | layout | in helper | read (s) | read in-process (s) | read ratio | CPU (s) | CPU in-process (s) | ${block}³ blocks (s) | ${block}³ blocks in-process (s) | blocks ratio | identical |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+printf "%s" "$helper"
 echo
 echo "HDF5 $(/usr/bin/python3 -c 'import h5py; print(h5py.version.hdf5_version, "(h5py", h5py.__version__ + ")")' 2>/dev/null || echo "?"); ours links the system HDF5"
 echo "$(dpkg-query -W -f='${Version}' libhdf5-dev 2>/dev/null || echo "?"). Machine: $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1); temp dir on"
