@@ -352,10 +352,10 @@ bool read_chunked_box(hid_t dset, const fs::path& file, const std::string& datas
   const std::array<int64_t, 3> chunk{static_cast<int64_t>(hc[2]), static_cast<int64_t>(hc[1]), static_cast<int64_t>(hc[0])};
   for (int64_t c : chunk)
     if (c <= 0) return decline();
-  // Unfiltered chunks have the size of their shape whatever the index says (libhdf5 reads exactly
-  // that): H5Dread reads them straight into the volume, faster than a copy through our buffers.
+  // Unfiltered chunks too: through our kept buffers they read faster than by H5Dread, whose chunk
+  // cache allocates each chunk afresh (256³ float32, 1 MiB chunks: 0.017 s against 0.30 s whole).
   auto filters = filter_pipeline(dcpl);
-  if (!filters || filters->empty()) return decline();
+  if (!filters) return decline();
   const hid_t type = H5Dget_type(dset);
   if (type < 0) return decline();
   Closer type_closer{type, H5Tclose};

@@ -12,8 +12,9 @@
 // parallel (one libhdf5 call at a time, under a lock of the read, while the caller holds the
 // process-wide HDF5 mutex), so a deflated read also gets faster than H5Dread where cores are free.
 //
-// Handled: chunked datasets whose filters are shuffle, deflate (at most one) and Fletcher32, in any
-// order, each honoured or skipped by the chunk's filter mask; stored types the standard little- or
+// Handled: chunked datasets with no filters, or whose filters are shuffle, deflate (at most one) and
+// Fletcher32, in any order, each honoured or skipped by the chunk's filter mask (an unfiltered chunk
+// must be stored in exactly its shape's bytes); stored types the standard little- or
 // big-endian integers of 8..64 bits and IEEE float32/float64, read as a memory type that holds every
 // value exactly (the same type, wider integers, float → double, integers → float64 as H5Dread's cast);
 // chunks never written take the dataset's fill value. Everything else (other filters such as szip,

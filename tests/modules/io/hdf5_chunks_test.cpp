@@ -163,7 +163,7 @@ void expect_volume_paths_agree(const fs::path& file, bool own = true) {
 
 // write_volume's own files (every type, chunk edges not dividing the dims, with and without
 // compression, i.e. deflate + shuffle for multi-byte types) read back identical through our decoding,
-// and identical to H5Dread, whole and by sub-boxes. Chunked unfiltered files are left to H5Dread.
+// and identical to H5Dread, whole and by sub-boxes. Chunked unfiltered files are ours too.
 TEST(Hdf5Chunks, EveryTypeRoundTripsIdenticalToH5Dread) {
   auto one = [](auto tag) {
     using T = decltype(tag);
@@ -174,19 +174,18 @@ TEST(Hdf5Chunks, EveryTypeRoundTripsIdenticalToH5Dread) {
       o.compression = level;
       o.chunks = {5, 4, 3};
       io::write_volume(f, v, "/volume", o);
-      const bool own = level > 0;
-      const int64_t decoded = io::detail::own_chunks_decoded();
+      const int64_t decoded = io::detail::own_chunks_decoded();  // level 0: unfiltered chunks, ours too
       const DataPtr back = io::read_volume(f);
-      EXPECT_EQ(io::detail::own_chunks_decoded() - decoded, own ? 5 * 3 * 3 : 0) << f;
+      EXPECT_EQ(io::detail::own_chunks_decoded() - decoded, 5 * 3 * 3) << f;
       expect_same(dynamic_cast<const Volume<T>&>(*back), v, f.string());
-      expect_volume_paths_agree(f, own);
-      expect_box_paths_agree<T>(f, {3, 2, 1}, {17, 7, 7}, own);
-      expect_box_paths_agree<T>(f, {22, 10, 8}, {1, 1, 1}, own);
-      expect_box_paths_agree<T>(f, {5, 4, 3}, {5, 4, 3}, own);
-      expect_box_paths_agree<double>(f, {0, 0, 0}, {23, 11, 9}, own);  // widened like H5Dread
+      expect_volume_paths_agree(f);
+      expect_box_paths_agree<T>(f, {3, 2, 1}, {17, 7, 7}, true);
+      expect_box_paths_agree<T>(f, {22, 10, 8}, {1, 1, 1}, true);
+      expect_box_paths_agree<T>(f, {5, 4, 3}, {5, 4, 3}, true);
+      expect_box_paths_agree<double>(f, {0, 0, 0}, {23, 11, 9}, true);  // widened like H5Dread
       const int64_t before = io::detail::own_chunks_decoded();
       (void)io::read_box<T>(f, "/volume", {6, 0, 0}, {3, 3, 2});  // touches one chunk only
-      EXPECT_EQ(io::detail::own_chunks_decoded() - before, own ? 1 : 0) << f;
+      EXPECT_EQ(io::detail::own_chunks_decoded() - before, 1) << f;
     }
   };
   one(uint8_t{});
@@ -226,14 +225,14 @@ TEST(Hdf5Chunks, ByteOrdersFiltersAndConversionsMatchH5Dread) {
       const fs::path f = scratch() / ("raw_" + std::to_string(n++) + ".h5");
       write_raw(f, s, pattern(dims, c.is_signed, c.scale, static_cast<uint64_t>(n)));
       SCOPED_TRACE(f.string());
-      const bool filtered = variant != 0;  // unfiltered chunks are left to H5Dread
-      expect_volume_paths_agree(f, filtered);
-      expect_box_paths_agree<double>(f, {1, 3, 2}, {17, 6, 5}, filtered);
+      // Every variant is decoded by us, the unfiltered one (0) too.
+      expect_volume_paths_agree(f);
+      expect_box_paths_agree<double>(f, {1, 3, 2}, {17, 6, 5}, true);
       const size_t size = H5Tget_size(c.type);
       const bool is_float = H5Tget_class(c.type) == H5T_FLOAT;
       // Float to integer and narrowing integer conversions stay with H5Dread.
-      expect_box_paths_agree<uint8_t>(f, {0, 0, 0}, dims, filtered && !is_float && !c.is_signed && size == 1);
-      expect_box_paths_agree<int32_t>(f, {2, 1, 0}, {10, 9, 7}, filtered && !is_float && (c.is_signed ? size <= 4 : size < 4));
+      expect_box_paths_agree<uint8_t>(f, {0, 0, 0}, dims, !is_float && !c.is_signed && size == 1);
+      expect_box_paths_agree<int32_t>(f, {2, 1, 0}, {10, 9, 7}, !is_float && (c.is_signed ? size <= 4 : size < 4));
     }
 }
 
