@@ -169,12 +169,23 @@ TEST(GraphEditor, JournalReplaysToTheLastOperationAfterSigkill) {
   for (int round = 0; round < 100; ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
     const fs::path journal = dir / ("edits_" + std::to_string(round) + ".yaml");
+    // Kill once the child has announced a random number of entries, after a random extra delay of
+    // up to two operations' time (so the kill falls anywhere, also inside a journal write).
+    const int target = static_cast<int>(rng() % (kSessionOps + 1));
+    const auto delay = std::chrono::microseconds(rng() % window_us);
     int fds[2];
     ASSERT_EQ(::pipe(fds), 0);
     const pid_t pid = ::fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {  // child: the editing session; reports each entry once it is on disk
       ::close(fds[0]);
+      // Two entries past the target the child stops and waits: on a loaded machine (CI: 2 cores,
+      // tests in parallel) the parent may not run for milliseconds after the target was announced,
+      // while the child, at ~50 µs per operation, would finish the whole session (CI failed once).
+      // Between the target and the stop the kill still falls anywhere.
+      auto wait_to_be_killed = [] {
+        for (;;) ::pause();
+      };
       try {
         GraphEditor ed(original);
         ed.set_journal(journal, 0.1);
@@ -183,17 +194,14 @@ TEST(GraphEditor, JournalReplaysToTheLastOperationAfterSigkill) {
         run_session(ed, [&](int written) {
           const int32_t w = written;
           if (!write_all(fds[1], &w, sizeof w)) ::_exit(3);
+          if (written >= target + 2) wait_to_be_killed();
         });
       } catch (...) {
         ::_exit(4);
       }
-      for (;;) ::pause();  // wait to be killed
+      wait_to_be_killed();
     }
     ::close(fds[1]);
-    // Kill once the child has announced a random number of entries, after a random extra delay of
-    // up to two operations' time (so the kill falls anywhere, also inside a journal write).
-    const int target = static_cast<int>(rng() % (kSessionOps + 1));
-    const auto delay = std::chrono::microseconds(rng() % window_us);
     int32_t reported = -1, v = 0;
     while (reported < target) {
       const ssize_t r = ::read(fds[0], &v, sizeof v);
