@@ -27,10 +27,26 @@
 
 #include <filesystem>
 #include <string>
+#include <type_traits>
 
 #include "skel/volume.hpp"
 
 namespace skel::io::detail {
+
+// HDF5's native memory type of T (the voxel types of skel::Volume).
+template <class T>
+hid_t native_type() {
+  if constexpr (std::is_same_v<T, uint8_t>) return H5T_NATIVE_UINT8;
+  else if constexpr (std::is_same_v<T, uint16_t>) return H5T_NATIVE_UINT16;
+  else if constexpr (std::is_same_v<T, uint32_t>) return H5T_NATIVE_UINT32;
+  else if constexpr (std::is_same_v<T, uint64_t>) return H5T_NATIVE_UINT64;
+  else if constexpr (std::is_same_v<T, int32_t>) return H5T_NATIVE_INT32;
+  else if constexpr (std::is_same_v<T, float>) return H5T_NATIVE_FLOAT;
+  else {
+    static_assert(std::is_same_v<T, double>, "no HDF5 memory type for this voxel type");
+    return H5T_NATIVE_DOUBLE;
+  }
+}
 
 // False when SKEL_HDF5_OWN_CHUNKS=0 (read each call).
 bool own_chunk_decoding_enabled();

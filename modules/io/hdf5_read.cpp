@@ -256,15 +256,6 @@ void read_geometry(hid_t file_id, hid_t dset, const std::string& dataset, const 
   if (g.unit.empty()) throw InputError(file.string() + ": dataset '" + dataset + "': attribute 'unit' is empty");
 }
 
-template <class T> hid_t native();
-template <> hid_t native<uint8_t>() { return H5T_NATIVE_UINT8; }
-template <> hid_t native<uint16_t>() { return H5T_NATIVE_UINT16; }
-template <> hid_t native<uint32_t>() { return H5T_NATIVE_UINT32; }
-template <> hid_t native<uint64_t>() { return H5T_NATIVE_UINT64; }
-template <> hid_t native<int32_t>() { return H5T_NATIVE_INT32; }
-template <> hid_t native<float>() { return H5T_NATIVE_FLOAT; }
-template <> hid_t native<double>() { return H5T_NATIVE_DOUBLE; }
-
 // The data a dataset holds lies in its file (external raw files, H5Pset_external, are left out), so
 // a stored size beyond the file's is a corrupt chunk index or layout message, refused before H5Dread
 // allocates a buffer of that size for one chunk (libFuzzer: a 5 KB file claiming a 4 GB chunk).
@@ -361,7 +352,7 @@ void read_voxels(const Opened& o, const fs::path& file, const std::string& datas
   if (H5Sselect_hyperslab(o.space.id, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
     fail(file, "invalid box for dataset '" + dataset + "'");
   Handle mem(H5Screate_simple(3, count, nullptr), H5Sclose);
-  if (H5Dread(o.dset.id, native<T>(), mem.id, o.space.id, H5P_DEFAULT, out) < 0)
+  if (H5Dread(o.dset.id, detail::native_type<T>(), mem.id, o.space.id, H5P_DEFAULT, out) < 0)
     fail(file, "cannot read dataset '" + dataset + "': the file is truncated or corrupt");
 }
 template void read_voxels(const Opened&, const fs::path&, const std::string&, const Dims&, const Dims&, uint8_t*, int);

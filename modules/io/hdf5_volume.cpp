@@ -80,15 +80,6 @@ Opened open_volume(const fs::path& file, const std::string& dataset, bool write 
   return h5::open_volume(file, dataset, true, fapl.id);
 }
 
-template <class T> hid_t native();
-template <> hid_t native<uint8_t>() { return H5T_NATIVE_UINT8; }
-template <> hid_t native<uint16_t>() { return H5T_NATIVE_UINT16; }
-template <> hid_t native<uint32_t>() { return H5T_NATIVE_UINT32; }
-template <> hid_t native<uint64_t>() { return H5T_NATIVE_UINT64; }
-template <> hid_t native<int32_t>() { return H5T_NATIVE_INT32; }
-template <> hid_t native<float>() { return H5T_NATIVE_FLOAT; }
-template <> hid_t native<double>() { return H5T_NATIVE_DOUBLE; }
-
 // The grid of the box [begin, begin + size) of a dataset with `info`'s spacing, origin and unit.
 Grid box_grid(const VolumeInfo& info, Dims begin, Dims size) {
   Grid g(size);
@@ -430,10 +421,10 @@ void write_volume(const fs::path& file, const DataObject& volume, const std::str
     write_atomically(file, [&](const fs::path& tmp) {
       std::lock_guard lock(hdf5_mutex());
       quiet();
-      auto [f, d] = create_dataset(tmp, dataset, native<T>(), v.grid(), opt);
+      auto [f, d] = create_dataset(tmp, dataset, detail::native_type<T>(), v.grid(), opt);
       if (v.size() > 0 && opt.compression > 0)
         write_compressed_chunks(d.id, v, opt.compression, opt.threads, file, dataset);
-      else if (v.size() > 0 && H5Dwrite(d.id, native<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0)
+      else if (v.size() > 0 && H5Dwrite(d.id, detail::native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) < 0)
         fail_write(file, "dataset '" + dataset + "'");
       if (H5Fflush(f.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
       // Closed here so that a failure is reported; the flush above leaves close little to write.
@@ -452,7 +443,7 @@ void write_volume_boxes(const fs::path& file, const VolumeBoxSource& source, con
     write_atomically(file, [&](const fs::path& tmp) {
       std::unique_lock lock(hdf5_mutex());  // destroyed after the handles: they close under the lock
       quiet();
-      auto [f, d] = create_dataset(tmp, dataset, native<T>(), source.grid, opt);
+      auto [f, d] = create_dataset(tmp, dataset, detail::native_type<T>(), source.grid, opt);
       if (source.grid.voxel_count() > 0) {
         Handle dcpl(H5Dget_create_plist(d.id), H5Pclose);
         hsize_t hc[3];
@@ -484,7 +475,7 @@ void write_volume_boxes(const fs::path& file, const VolumeBoxSource& source, con
             if (H5Sselect_hyperslab(space.id, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
               fail(file, "invalid box for dataset '" + dataset + "'");
             Handle mem(H5Screate_simple(3, count, nullptr), H5Sclose);
-            if (H5Dwrite(d.id, native<T>(), mem.id, space.id, H5P_DEFAULT, v->data()) < 0)
+            if (H5Dwrite(d.id, detail::native_type<T>(), mem.id, space.id, H5P_DEFAULT, v->data()) < 0)
               fail_write(file, "dataset '" + dataset + "'");
           }
       }
@@ -523,7 +514,7 @@ void write_box(const fs::path& file, const std::string& dataset, const Volume<T>
   if (H5Sselect_hyperslab(o.space.id, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
     fail(file, "invalid box for dataset '" + dataset + "'");
   Handle mem(H5Screate_simple(3, count, nullptr), H5Sclose);
-  if (H5Dwrite(o.dset.id, native<T>(), mem.id, o.space.id, H5P_DEFAULT, block.data()) < 0)
+  if (H5Dwrite(o.dset.id, detail::native_type<T>(), mem.id, o.space.id, H5P_DEFAULT, block.data()) < 0)
     fail_write(file, "dataset '" + dataset + "'");
   if (H5Fflush(o.file.id, H5F_SCOPE_GLOBAL) < 0) fail_write(file, "dataset '" + dataset + "'");
 }

@@ -209,15 +209,23 @@ TEST(GeodesicPhases, OwnSearchMeasuresSixPathsInTheLayer) {
   EXPECT_EQ(wd, (std::vector<uint32_t>{4, 1, 2}));
 }
 
+namespace {
+// A 40 x 40 x 4 slab of object (z = 4..7) in a 40 x 40 x 12 volume.
+VolumeU8 slab_40x40x4() {
+  VolumeU8 m(Dims{40, 40, 12}, 0);
+  for (int64_t z = 4; z < 8; ++z)
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 40; ++x) m(x, y, z) = 1;
+  return m;
+}
+}  // namespace
+
 TEST(GeodesicPhases, OwnSearchGoesStraightAlongAFlatSurface) {
   // A 40 x 40 x 4 slab: from a voxel of L above the slab to one 15 steps away in x, also above it.
   // A* closes the 16 voxels of the straight path and nothing else (a breadth-first search would
   // close the ~2 * 15^2 voxels within 15 steps); across the slab (around the rim) the distance is
   // long, and with limit 20 the search proves "> 20" without closing more than the keys <= 20 allow.
-  VolumeU8 m(Dims{40, 40, 12}, 0);
-  for (int64_t z = 4; z < 8; ++z)
-    for (int64_t y = 0; y < 40; ++y)
-      for (int64_t x = 0; x < 40; ++x) m(x, y, z) = 1;
+  const VolumeU8 m = slab_40x40x4();
   Prepared P(m.dims());
   prepare(m, P, 1, {}, false);
   Scratch S(static_cast<size_t>(P.nl), 0);
@@ -241,10 +249,7 @@ TEST(GeodesicPhases, OwnSearchGoesStraightAlongAFlatSurface) {
 // length; it is queued once (the second path is not shorter), and the distance is the same as
 // without the marks.
 TEST(GeodesicPhases, OwnSearchQueuesAVoxelAgainOnlyOnAShorterPath) {
-  VolumeU8 m(Dims{40, 40, 12}, 0);
-  for (int64_t z = 4; z < 8; ++z)
-    for (int64_t y = 0; y < 40; ++y)
-      for (int64_t x = 0; x < 40; ++x) m(x, y, z) = 1;
+  const VolumeU8 m = slab_40x40x4();
   Prepared P(m.dims());
   prepare(m, P, 1, {}, false);
   const int64_t src = P.dom.pos(10 + 2, 10 + 2, 8 + 2), far = P.dom.pos(22 + 2, 19 + 2, 8 + 2);
