@@ -687,10 +687,12 @@ struct NoIndex {};
 
 // Pass x of squared_edt, one z-plane of a contiguous buffer of dims (nx, ny, nz): per row, the squared
 // distance along x to the nearest site (two scans). is_site(i) takes buffer indices; feat receives
-// them. `left` and `dist_left` are per-thread scratch of nx elements.
+// them. `left` is per-thread scratch of nx elements (feature transforms only). `seg` (distances only;
+// may be null): this plane's segment flags, [y][x / 64], set to 1 where the 64 voxels of the row from
+// x / 64 * 64 hold a non-site (the only voxels with a non-zero value in any pass), else 0.
 template <class Index, class IsSite>
 void edt_plane_x(const Dims& dims, const IsSite& is_site, bool outside_site, double wx, int64_t z,
-                 std::vector<int64_t>& left, std::vector<int32_t>& dist_left, float* sq, Index* feat) {
+                 std::vector<int64_t>& left, float* sq, Index* feat, uint8_t* seg = nullptr) {
   constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
   using Idx = std::conditional_t<with_feat, Index, uint32_t>;
   const Idx OUT = std::numeric_limits<Idx>::max();
@@ -700,24 +702,30 @@ void edt_plane_x(const Dims& dims, const IsSite& is_site, bool outside_site, dou
     const int64_t base = y * nx + z * plane;
     float* r = sq + base;
     if constexpr (!with_feat) {
-      // distances only: two branch-free scans with 32-bit run lengths (kFar = no site on that side)
-      constexpr int32_t kFar = int32_t{1} << 30;
-      int32_t* dl = dist_left.data();
-      int32_t d = outside_site ? 0 : kFar;
-      for (int64_t x = 0; x < nx; ++x) {
-        d = is_site(base + x) ? 0 : d + 1;
-        dl[x] = d;
-      }
-      d = outside_site ? 0 : kFar;
-      for (int64_t x = nx - 1; x >= 0; --x) {
-        d = is_site(base + x) ? 0 : d + 1;
-        dl[x] = std::min(d, dl[x]);
-      }
-      // ascending, vectorisable store (fresh output pages are written front to back)
+      // Distances only: the row is cleared (sites are 0), then each run [a, e) of non-sites gets
+      // min(q - a + 1, e - q) squared: the distance to the site before it (a - 1) and after it (e),
+      // where those exist (a virtual site outside the array with `outside_site`). The same values as
+      // two scans over the row, with no work per site beyond the test.
+      constexpr int64_t kFar = int64_t{1} << 30;
       const float wxf = static_cast<float>(wx);
-      for (int64_t x = 0; x < nx; ++x) {
-        const float fe = static_cast<float>(dl[x]);
-        r[x] = dl[x] >= kFar / 2 ? kInf : wxf * fe * fe;
+      std::memset(r, 0, static_cast<size_t>(nx) * sizeof(float));
+      uint8_t* row_seg = seg ? seg + y * ((nx + 63) / 64) : nullptr;
+      if (row_seg) std::memset(row_seg, 0, static_cast<size_t>((nx + 63) / 64));
+      for (int64_t x = 0; x < nx;) {
+        if (is_site(base + x)) {
+          ++x;
+          continue;
+        }
+        const int64_t a = x;
+        while (x < nx && !is_site(base + x)) ++x;
+        const int64_t e = x;
+        if (row_seg) std::memset(row_seg + a / 64, 1, static_cast<size_t>((e - 1) / 64 - a / 64 + 1));
+        const bool site_before = a > 0 || outside_site, site_after = e < nx || outside_site;
+        for (int64_t q = a; q < e; ++q) {
+          const int64_t d = std::min(site_before ? q - a + 1 : kFar, site_after ? e - q : kFar);
+          const float fe = static_cast<float>(d);
+          r[q] = d >= kFar ? kInf : wxf * fe * fe;
+        }
       }
       continue;
     }
@@ -765,10 +773,9 @@ void edt_pass_x(const Dims& dims, IsSite is_site, bool outside_site, double wx, 
                 const Interrupter& interrupter, float* sq, Index* feat) {
   parallel_for(0, dims[2], threads, [&](int64_t z0, int64_t z1) {
     std::vector<int64_t> left(static_cast<size_t>(dims[0]));
-    std::vector<int32_t> dist_left(static_cast<size_t>(dims[0]));
     for (int64_t z = z0; z < z1; ++z) {
       interrupter.check();
-      edt_plane_x<Index>(dims, is_site, outside_site, wx, z, left, dist_left, sq, feat);
+      edt_plane_x<Index>(dims, is_site, outside_site, wx, z, left, sq, feat);
     }
   });
 }
@@ -810,9 +817,18 @@ struct ColumnScratch {
 // n_line elements `line_stride` apart, starting at o * outer_stride + x; the lower envelope of the
 // parabolas w (x - s)² + f(s) per column. Blocks of kB adjacent columns are gathered into contiguous
 // line buffers. `finish` (when active) converts every value of a block before it is written back.
+// `seg` (may be null): the segment flags of edt_plane_x for the whole buffer; flag of line element t of
+// the block at x0: seg[o * seg_outer + t * seg_line + x0 / 64] (kB divides 64). A row whose flag is 0
+// holds only zeros and is not read.
+struct SegmentFlags {
+  const uint8_t* seg = nullptr;
+  int64_t outer = 0, line = 0;
+};
 template <class Index, int64_t kB, class Fin>
 void edt_column_group(float* sq, Index* feat, int64_t nx, int64_t o, int64_t n_line, int64_t outer_stride,
-                      int64_t line_stride, double w, bool outside_site, ColumnScratch<Index, kB>& s, const Fin& finish) {
+                      int64_t line_stride, double w, bool outside_site, ColumnScratch<Index, kB>& s, const Fin& finish,
+                      const SegmentFlags& sf = {}) {
+  static_assert(64 % kB == 0);
   constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
   using Idx = typename ColumnScratch<Index, kB>::Idx;
   using Bits = typename ColumnScratch<Index, kB>::Bits;
@@ -821,14 +837,30 @@ void edt_column_group(float* sq, Index* feat, int64_t nx, int64_t o, int64_t n_l
   for (int64_t x0 = 0; x0 < nx; x0 += kB) {
     const int64_t nb = std::min(kB, nx - x0);
     const int64_t base = o * outer_stride + x0;
+    // Rows of the block without a non-zero value (all sites: the usual case away from the object)
+    // are found with one OR over their bit patterns and neither copied, converted nor written back:
+    // their values stay 0 (and finish maps 0 to 0). Only rows with a non-zero bit are in s.blk.
     Bits any = 0;
+    const uint8_t* seg = sf.seg ? sf.seg + o * sf.outer + x0 / 64 : nullptr;
     for (int64_t t = 0; t < n_line; ++t) {
+      if (seg && !seg[t * sf.line]) {
+        s.nonzero[static_cast<size_t>(t)] = 0;
+        continue;
+      }
       const float* src = sq + base + t * line_stride;
-      float* dst = s.blk.data() + t * kB;
-      Bits bits = 0;
+      uint32_t acc = 0;
       for (int64_t b = 0; b < nb; ++b) {
-        dst[b] = src[b];
-        bits |= static_cast<Bits>(src[b] != 0.0f) << b;
+        uint32_t u;
+        std::memcpy(&u, src + b, sizeof u);
+        acc |= u;
+      }
+      Bits bits = 0;
+      if (acc != 0) {
+        float* dst = s.blk.data() + t * kB;
+        for (int64_t b = 0; b < nb; ++b) {
+          dst[b] = src[b];
+          bits |= static_cast<Bits>(src[b] != 0.0f) << b;
+        }
       }
       s.nonzero[static_cast<size_t>(t)] = bits;
       any |= bits;
@@ -850,10 +882,11 @@ void edt_column_group(float* sq, Index* feat, int64_t nx, int64_t o, int64_t n_l
           if constexpr (with_feat) {
             for (int64_t x = a; x < e; ++x) {
               const int64_t sx = s.site[static_cast<size_t>(x - a)];
+              // A site of value 0 (its bit clear; its row was not copied into s.blk) is its own feature.
               s.iout[static_cast<size_t>(x - a)] =
-                  (sx < 0 || sx >= n_line) ? OUT
-                  : (f[sx * kB] == 0.0f)   ? static_cast<Idx>(col + sx * line_stride)
-                                           : feat[col + sx * line_stride];
+                  (sx < 0 || sx >= n_line)                         ? OUT
+                  : !((s.nonzero[static_cast<size_t>(sx)] >> b) & 1u) ? static_cast<Idx>(col + sx * line_stride)
+                                                                    : feat[col + sx * line_stride];
             }
             for (int64_t x = a; x < e; ++x) feat[col + x * line_stride] = s.iout[static_cast<size_t>(x - a)];
           }
@@ -863,13 +896,16 @@ void edt_column_group(float* sq, Index* feat, int64_t nx, int64_t o, int64_t n_l
         a = e;
       }
     }
-    if constexpr (Fin::active) {
-      for (size_t k = 0, ke = static_cast<size_t>(kB * n_line); k < ke; ++k) s.blk[k] = finish(s.blk[k]);
-    } else if (!changed) {
-      continue;
+    if constexpr (!Fin::active) {
+      if (!changed) continue;
     }
-    for (int64_t t = 0; t < n_line; ++t)
-      std::memcpy(sq + base + t * line_stride, s.blk.data() + t * kB, static_cast<size_t>(nb) * sizeof(float));
+    for (int64_t t = 0; t < n_line; ++t) {
+      if (!s.nonzero[static_cast<size_t>(t)]) continue;
+      float* row = s.blk.data() + t * kB;
+      if constexpr (Fin::active)
+        for (int64_t b = 0; b < nb; ++b) row[b] = finish(row[b]);
+      std::memcpy(sq + base + t * line_stride, row, static_cast<size_t>(nb) * sizeof(float));
+    }
   }
 }
 
@@ -877,12 +913,12 @@ void edt_column_group(float* sq, Index* feat, int64_t nx, int64_t o, int64_t n_l
 template <class Index, int64_t kB = 16, class Fin = NoFinish>
 void edt_column_pass(float* sq, Index* feat, int64_t nx, int64_t n_outer, int64_t n_line, int64_t outer_stride,
                      int64_t line_stride, double w, bool outside_site, int threads, const Interrupter& interrupter,
-                     const Fin& finish = {}) {
+                     const Fin& finish = {}, const SegmentFlags& sf = {}) {
   parallel_for(0, n_outer, threads, [&](int64_t o0, int64_t o1) {
     ColumnScratch<Index, kB> s(n_line);
     for (int64_t o = o0; o < o1; ++o) {
       interrupter.check();
-      edt_column_group<Index, kB>(sq, feat, nx, o, n_line, outer_stride, line_stride, w, outside_site, s, finish);
+      edt_column_group<Index, kB>(sq, feat, nx, o, n_line, outer_stride, line_stride, w, outside_site, s, finish, sf);
     }
   });
 }
@@ -902,24 +938,31 @@ bool squared_edt(const Grid& grid, IsSite is_site, bool outside_site, bool isotr
   const double wy = isotropic ? 1.0 : grid.spacing[1] * grid.spacing[1];
   const double wz = isotropic ? 1.0 : grid.spacing[2] * grid.spacing[2];
 
-  // ---- passes x and y, plane by plane.
+  // ---- passes x and y, plane by plane. Distances only: the x pass flags the 64-voxel row segments
+  // that hold a non-site (1 byte per 64 voxels), and the y and z passes read no other rows.
   interrupter.check(0.0);
   const bool pass_y = ny > 1 || outside_site;
+  constexpr bool with_feat = !std::is_same_v<Index, NoIndex>;
+  const int64_t nxs = (nx + 63) / 64;
+  std::vector<uint8_t> seg(with_feat ? 0 : static_cast<size_t>(nxs * ny * nz));
+  uint8_t* const segp = with_feat ? nullptr : seg.data();
   parallel_for(0, nz, threads, [&](int64_t z0, int64_t z1) {
     std::vector<int64_t> left(static_cast<size_t>(nx));
-    std::vector<int32_t> dist_left(static_cast<size_t>(nx));
     ColumnScratch<Index, 16> s(pass_y ? ny : 0);
     for (int64_t z = z0; z < z1; ++z) {
       interrupter.check();
-      edt_plane_x<Index>(grid.dims, is_site, outside_site, wx, z, left, dist_left, sq, feat);
-      if (pass_y) edt_column_group<Index, 16>(sq, feat, nx, z, ny, plane, nx, wy, outside_site, s, NoFinish{});
+      edt_plane_x<Index>(grid.dims, is_site, outside_site, wx, z, left, sq, feat, segp ? segp + z * nxs * ny : nullptr);
+      if (pass_y)
+        edt_column_group<Index, 16>(sq, feat, nx, z, ny, plane, nx, wy, outside_site, s, NoFinish{},
+                                    SegmentFlags{segp, nxs * ny, nxs});
     }
   });
   interrupter.check(2.0 / 3.0);
 
   // ---- pass z: blocks of 64 adjacent columns gathered into contiguous line buffers.
   if (nz > 1 || outside_site) {
-    edt_column_pass<Index, 64>(sq, feat, nx, ny, nz, nx, plane, wz, outside_site, threads, interrupter, finish);
+    edt_column_pass<Index, 64>(sq, feat, nx, ny, nz, nx, plane, wz, outside_site, threads, interrupter, finish,
+                               SegmentFlags{segp, nxs, nxs * ny});
     interrupter.check(1.0);
     return true;
   }

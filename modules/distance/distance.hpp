@@ -115,7 +115,8 @@ struct EuclideanOptions : DistanceOptions {
 // Isotropic grids are computed in integer voxel units (exact up to squared distances of 2^24
 // voxels², i.e. any grid up to ~2400³), anisotropic ones in double precision per line.
 // No background at all with border_is_object: +inf everywhere. Empty mask: all zeros.
-// Memory: 4 bytes per voxel (output) plus per-thread line buffers.
+// Memory: 4 bytes per voxel (output), 1 byte per 64 voxels (row segments holding object) and
+// per-thread line buffers.
 VolumeF32 euclidean(const VolumeU8& mask, const EuclideanOptions& options = {});
 
 // Block-wise exact Euclidean DT (out-of-core): the three separable passes of euclidean(), each over

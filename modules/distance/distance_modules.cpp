@@ -118,12 +118,15 @@ public:
         .param("squared", &EuclideanOptions::squared, "output squared distances (spacing unit²)")
         .param("border_is_object", &DistanceOptions::border_is_object, kBorderDoc)
         .details(R"(Exact Euclidean distance transform (thesis §2.3.1 uses it for exact medialness), separable:
-one pass along x (two scans per row), then one pass along y and one along z computing the lower
-envelope of parabolas (Felzenszwalb & Huttenlocher) per column. The x and y passes run plane by
-plane (the y pass reads the plane the x pass has just written, from cache; blocks of 16 adjacent
-columns), the z pass gathers blocks of 64 adjacent columns (256 contiguous bytes per plane) into
-contiguous buffers and takes the square root as it writes them back: two passes over the output's
-memory instead of four. Anisotropic spacing is exact: each axis weighs spacing².
+one pass along x (each run of object voxels in a row gets the distance to its two ends), then one
+pass along y and one along z computing the lower envelope of parabolas (Felzenszwalb & Huttenlocher)
+per column, over the runs of object voxels only. The x and y passes run plane by plane (the y pass
+reads the plane the x pass has just written, from cache; blocks of 16 adjacent columns), the z pass
+gathers blocks of 64 adjacent columns (256 contiguous bytes per plane) into contiguous buffers and
+takes the square root as it writes them back. The x pass flags the 64-voxel row segments that hold
+object; the y and z passes neither read nor write back the others (background stays 0), so on a
+sparse network most of the output's memory is written once and never read again. Anisotropic
+spacing is exact: each axis weighs spacing².
 Isotropic grids are computed in integer voxel units (exact for squared distances below 2^24 voxels²,
 i.e. grids up to ~2400³), anisotropic ones per line in double precision (float between passes).
 Multi-threaded over rows and planes; identical results for any thread count.
@@ -131,8 +134,8 @@ Multi-threaded over rows and planes; identical results for any thread count.
 Voxels outside the array are background by default (the distance never exceeds the distance to the
 array's border); with border_is_object a mask without background gives +inf everywhere. An empty
 mask gives all zeros.
-Memory: the output, 4 bytes per voxel, plus per-thread line buffers (~300 bytes per voxel of one line
-along z: 64 columns of floats and the envelope's sites).
+Memory: the output, 4 bytes per voxel, plus the segment flags (1 byte per 64 voxels) and per-thread
+line buffers (~300 bytes per voxel of one line along z: 64 columns of floats and the envelope's sites).
 
 Block-wise under a memory budget: the same three passes, each over slabs of whole lines along its
 axis (the squared distances on disk between passes), bit-identical to the in-memory result. A slab

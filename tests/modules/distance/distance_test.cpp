@@ -184,6 +184,47 @@ TEST(Euclidean, EqualsBruteForceOnRowsWiderThanTheColumnBlocks) {
   }
 }
 
+// Sparse masks (a few object voxels, many rows of a column block without any, rows of the x pass with
+// one short run or none): the x pass writes runs into a cleared row, the column passes neither copy,
+// convert nor write back rows without a non-zero value. Distances, squared distances and the feature
+// transform against brute force, both border conventions, 1 and 2 threads.
+TEST(Euclidean, EqualsBruteForceOnSparseMasksWithEmptyRows) {
+  std::mt19937 rng(12);
+  std::uniform_int_distribution<int64_t> wide(66, 140), narrow(2, 6);
+  for (int trial = 0; trial < 16; ++trial) {
+    const bool border = trial % 2 == 1;
+    const Vec3 spacing = trial % 4 == 3 ? Vec3{0.8, 1.1, 1.7} : Vec3{1, 1, 1};
+    const Dims dims{wide(rng), narrow(rng), narrow(rng) + 1};
+    VolumeU8 m = random_mask(rng, dims, trial % 3 == 0 ? 0.02 : 0.08, spacing);
+    // and one short object bar along z in the last column block, so that blocks with and without
+    // object rows alternate
+    for (int64_t z = 0; z + 1 < dims[2]; ++z) m(dims[0] - 2, dims[1] / 2, z) = 1;
+    const uint8_t* md = m.data();
+    const BruteResult ref = brute_force(m.grid(), [&](int64_t i) { return md[i] == 0; }, !border);
+    for (int threads : {1, 2}) {
+      EuclideanOptions o;
+      o.border_is_object = border;
+      o.threads = threads;
+      const VolumeF32 d = euclidean(m, o);
+      o.squared = true;
+      const VolumeF32 d2 = euclidean(m, o);
+      DistanceOptions fo;
+      fo.border_is_object = border;
+      fo.threads = threads;
+      const VolumeU32 ft = feature_transform_as<uint32_t>(m, fo);
+      for (int64_t i = 0; i < m.size(); ++i) {
+        expect_close(std::sqrt(ref.sq[static_cast<size_t>(i)]), d[i], "distance", i);
+        expect_close(ref.sq[static_cast<size_t>(i)], d2[i], "squared", i);
+        if (spacing[0] == spacing[2]) {
+          EXPECT_EQ(ref.nearest[static_cast<size_t>(i)], ft[i]) << "trial " << trial << " voxel " << i;
+        } else if (ft[i] != OUT32) {
+          EXPECT_EQ(0, md[ft[i]]) << "trial " << trial << " voxel " << i;
+        }
+      }
+    }
+  }
+}
+
 TEST(Seeded, EqualsBruteForce) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> sp(0.5, 2.0);
