@@ -686,7 +686,8 @@ bool envelope_run(const float* f, int64_t stride, int64_t a, int64_t e, int64_t 
 struct NoIndex {};
 
 // Pass x of squared_edt, one z-plane of a contiguous buffer of dims (nx, ny, nz): per row, the squared
-// distance along x to the nearest site (two scans). is_site(i) takes buffer indices; feat receives
+// distance along x to the nearest site (distances only: per run of non-sites; with features: two
+// scans). is_site(i) takes buffer indices; feat receives
 // them. `left` is per-thread scratch of nx elements (feature transforms only). `seg` (distances only;
 // may be null): this plane's segment flags, [y][x / 64], set to 1 where the 64 voxels of the row from
 // x / 64 * 64 hold a non-site (the only voxels with a non-zero value in any pass), else 0.
@@ -817,9 +818,9 @@ struct ColumnScratch {
 // n_line elements `line_stride` apart, starting at o * outer_stride + x; the lower envelope of the
 // parabolas w (x - s)² + f(s) per column. Blocks of kB adjacent columns are gathered into contiguous
 // line buffers. `finish` (when active) converts every value of a block before it is written back.
-// `seg` (may be null): the segment flags of edt_plane_x for the whole buffer; flag of line element t of
-// the block at x0: seg[o * seg_outer + t * seg_line + x0 / 64] (kB divides 64). A row whose flag is 0
-// holds only zeros and is not read.
+// `sf.seg` (may be null): the segment flags of edt_plane_x for the whole buffer; flag of line element t
+// of the block at x0: sf.seg[o * sf.outer + t * sf.line + x0 / 64] (kB divides 64). A row whose flag is
+// 0 holds only zeros and is not read.
 struct SegmentFlags {
   const uint8_t* seg = nullptr;
   int64_t outer = 0, line = 0;
