@@ -201,8 +201,11 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
   for (;;) {
     // This ring: each voxel's b from its neighbours of earlier rings, written in place (the
     // neighbours in this ring are skipped by their ring bit, so nobody reads a value being written).
+    // The same walk marks the next ring: the unassigned object neighbours of this ring (their
+    // offsets are not written during this walk).
     newfar.clear();
     in_ring = 0;
+    next.clear();
     {
       for_each_in(ring, [&](int64_t pos, uint64_t id, Local& local) {
         ++local.n;
@@ -223,7 +226,10 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
             if (ring.test(qi)) continue;  // this ring: not committed
             const BaseOffset o = P.boff[qi];
             if (o.dx == kFar) {
-              if (o.dy != 0) continue;  // not assigned yet (a later ring)
+              if (o.dy != 0) {  // not assigned yet: in the next ring (ring r+1 = unassigned neighbours of ring r)
+                if (!next.test_shared(qi)) next.set(qi);
+                continue;
+              }
               cpos = far.at(qi);
               if (!have_p) {
                 coords(pos, px, py, pz);
@@ -266,17 +272,6 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
     if (in_ring.load() == 0) break;
     for (const auto& [oid, bp] : newfar) far[oid] = bp;
     assigned += in_ring.load();
-    // Next ring: the unassigned object neighbours of this ring.
-    next.clear();
-    for_each_in(ring, [&](int64_t pos, uint64_t, Local&) {
-      for (const Nb& n : nbs) {
-        const int64_t q = pos + n.off;
-        if (!P.obj.test(q)) continue;
-        const uint64_t qi = P.obj.rank(q);
-        const BaseOffset o = P.boff[qi];  // neighbours of this ring are in it, earlier (assigned) or unset
-        if (o.dx == kFar && o.dy == kUnsetOffset.dy && !next.test_shared(qi)) next.set(qi);
-      }
-    }, [](Local&) {});
     std::swap(ring, next);
     intr.check(0.08 + 0.12 * static_cast<double>(assigned) / static_cast<double>(std::max<int64_t>(P.k, 1)));
   }
@@ -345,16 +340,13 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
 
 namespace {
 
-// Fills the members in raster order without a cursor array: while a bucket of fewer than 255
-// members is being filled, its last slot holds the number placed so far (0 initially) until that
-// slot gets its own member, which is the last one; the few larger buckets keep cursors in a map.
+// Fills the members of the buckets one chunk owns, in raster order, without a cursor array: while
+// a bucket of fewer than 255 members is being filled, its last slot holds the number placed so far
+// (0 initially) until that slot gets its own member, which is the last one; the few larger buckets
+// keep cursors in a map. Members with far offsets go to `far` (slot, position).
 template <class ForEachBase>
-void members_fill(Buckets& bk, const Domain& D, int64_t k, ForEachBase&& for_each_base) {
+void members_fill(Buckets& bk, std::vector<std::pair<uint32_t, int64_t>>& far, ForEachBase&& for_each_base) {
   Members& members = bk.members;
-  members.off.assign(static_cast<size_t>(k), BaseOffset{0, 0, 0});
-  members.far.clear();
-  members.BX = D.BX;
-  members.BY = D.BY;
   std::unordered_map<uint32_t, uint32_t> cursor;  // buckets of 255 members and more
   for_each_base([&](int64_t pos, uint32_t l, BaseOffset o) {
     const uint32_t b = bk.begin(l);
@@ -372,42 +364,75 @@ void members_fill(Buckets& bk, const Domain& D, int64_t k, ForEachBase&& for_eac
       members.off[slot] = BaseOffset{static_cast<int8_t>(-o.dx), static_cast<int8_t>(-o.dy), static_cast<int8_t>(-o.dz)};
     } else {
       members.off[slot] = BaseOffset{kFar, 0, 0};
-      members.far.emplace_back(slot, pos);
+      far.emplace_back(slot, pos);
     }
   });
-  std::sort(members.far.begin(), members.far.end());
 }
 
 }  // namespace
 
-Buckets bucket_by_base(const Prepared& P) {
+Buckets bucket_by_base(const Prepared& P, int threads) {
   Buckets bk;
   const Domain& D = P.dom;
   const size_t nl = static_cast<size_t>(P.nl);
-  // The L-id of every object voxel's base, in object order (one walk; reused by the fill below).
-  auto for_each_base = [&](auto&& f) {
-    const size_t nwords = P.obj.word_count();
-    for (size_t w = 0; w < nwords; ++w) {
+  // Work in chunks of base planes: a chunk owns the buckets of the bases in its planes (a range of
+  // L-ids) and walks the object voxels within R planes of them (R: the largest |dz| of an offset;
+  // every plane where an offset is far), in raster order. Each bucket is counted and filled by its
+  // one owner in raster order, so the buckets are those of one sequential walk for any chunking.
+  int64_t R = 0;
+  if (!P.bfar.empty()) {
+    R = D.BZ;
+  } else {
+    std::vector<int64_t> rmax(64, 0);
+    parallel_chunks(0, P.k, 64, threads, [&](int64_t c, int64_t i0, int64_t i1) {
+      int64_t r = 0;
+      for (int64_t i = i0; i < i1; ++i) r = std::max<int64_t>(r, std::abs(static_cast<int>(P.boff[static_cast<size_t>(i)].dz)));
+      rmax[static_cast<size_t>(c)] = r;
+    });
+    R = *std::max_element(rmax.begin(), rmax.end());
+  }
+  const int64_t plane_words = D.plane / 64;
+  // f(pos, L-id of the base, offset) for the object voxels whose base lies in planes [z0, z1), in raster order.
+  auto for_each_base_in = [&](int64_t z0, int64_t z1, auto&& f) {
+    const size_t w0 = static_cast<size_t>(std::max<int64_t>(0, z0 - R) * plane_words);
+    const size_t w1 = static_cast<size_t>(std::min<int64_t>(D.BZ, z1 + R) * plane_words);
+    const int64_t b0 = z0 * D.plane, b1 = z1 * D.plane;
+    for (size_t w = w0; w < w1; ++w) {
       uint64_t bits = P.obj.word(w);
       uint64_t id = P.obj.prefix(w);
       for (; bits; bits &= bits - 1, ++id) {
         const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
-        f(pos, static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos))), P.boff[id]);
+        const int64_t bp = P.base_pos_of_object(id, pos);
+        if (bp < b0 || bp >= b1) continue;
+        f(pos, static_cast<uint32_t>(P.layer.rank(bp)), P.boff[id]);
       }
     }
   };
+  // Chunks: up to two per thread, at least 8 R planes thick (each walks 2 R planes more than it owns).
+  const int64_t nthreads = effective_threads(threads);
+  const int64_t nchunks = std::clamp<int64_t>(D.BZ / std::max<int64_t>(1, 8 * R), 1, 2 * nthreads);
+  auto chunk_planes = [&](int64_t c, int64_t& z0, int64_t& z1) {
+    z0 = D.BZ * c / nchunks;
+    z1 = D.BZ * (c + 1) / nchunks;
+  };
   bk.count.assign(nl, 0);
-  std::unordered_map<uint32_t, uint32_t> big;  // counts >= 255
-  for_each_base([&](int64_t, uint32_t l, BaseOffset) {
-    if (bk.count[l] < 255) {
-      if (++bk.count[l] == 255) big[l] = 255;
-    } else {
-      ++big[l];
-    }
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> big(static_cast<size_t>(nchunks));  // counts >= 255
+  parallel_chunks(0, nchunks, nchunks, threads, [&](int64_t c, int64_t, int64_t) {
+    int64_t z0, z1;
+    chunk_planes(c, z0, z1);
+    std::unordered_map<uint32_t, uint32_t> local;
+    for_each_base_in(z0, z1, [&](int64_t, uint32_t l, BaseOffset) {
+      if (bk.count[l] < 255) {
+        if (++bk.count[l] == 255) local[l] = 255;
+      } else {
+        ++local[l];
+      }
+    });
+    big[static_cast<size_t>(c)].assign(local.begin(), local.end());
   });
-  bk.big.assign(big.begin(), big.end());
+  for (const auto& b : big) bk.big.insert(bk.big.end(), b.begin(), b.end());
   std::sort(bk.big.begin(), bk.big.end());
-  std::unordered_map<uint32_t, uint32_t>().swap(big);
+  big.clear();
   bk.block.assign((nl + 63) / 64, 0);
   {
     uint32_t s = 0;
@@ -416,7 +441,19 @@ Buckets bucket_by_base(const Prepared& P) {
       s += bk.members_of(static_cast<uint32_t>(l));
     }
   }
-  members_fill(bk, D, P.k, for_each_base);
+  Members& members = bk.members;
+  members.off.assign(static_cast<size_t>(P.k), BaseOffset{0, 0, 0});
+  members.far.clear();
+  members.BX = D.BX;
+  members.BY = D.BY;
+  std::vector<std::vector<std::pair<uint32_t, int64_t>>> far(static_cast<size_t>(nchunks));
+  parallel_chunks(0, nchunks, nchunks, threads, [&](int64_t c, int64_t, int64_t) {
+    int64_t z0, z1;
+    chunk_planes(c, z0, z1);
+    members_fill(bk, far[static_cast<size_t>(c)], [&](auto&& f) { for_each_base_in(z0, z1, f); });
+  });
+  for (const auto& f : far) members.far.insert(members.far.end(), f.begin(), f.end());
+  std::sort(members.far.begin(), members.far.end());
   return bk;
 }
 
@@ -1019,7 +1056,7 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   res.stats.layer_voxels = P.nl;
   if (P.k == 0) return res;
 
-  const Buckets B = bucket_by_base(P);
+  const Buckets B = bucket_by_base(P, opt.threads);
   opt.interrupter.check(0.25);
   const auto t1 = clock::now();
 

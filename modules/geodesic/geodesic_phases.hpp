@@ -361,7 +361,8 @@ struct Buckets {
   [[nodiscard]] int64_t member(uint32_t slot, int64_t base_pos) const { return members.at(slot, base_pos); }
   [[nodiscard]] uint64_t bytes() const { return count.size() + big.size() * 8 + block.size() * 4 + members.bytes(); }
 };
-Buckets bucket_by_base(const Prepared& P);
+// Parallel over chunks of base planes (the result does not depend on the thread count).
+Buckets bucket_by_base(const Prepared& P, int threads = 1);
 
 // The 6-neighbours of the L voxel at padded position `pos` that are in L: f(L-id, position).
 // (Searches queue positions as well as L-ids, so a visit needs no coordinate look-up.)

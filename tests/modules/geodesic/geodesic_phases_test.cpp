@@ -157,6 +157,35 @@ TEST(GeodesicPhases, BucketsGroupObjectVoxelsByBaseInRasterOrder) {
   }
 }
 
+// bucket_by_base works in chunks of base planes (a few per thread, each walking the object voxels
+// within reach of its bases): the buckets are the same for any thread count, in raster order.
+TEST(GeodesicPhases, BucketsAreTheSameForAnyThreadCount) {
+  std::mt19937 rng(5);
+  VolumeU8 mask(Dims{14, 11, 96}, 0);
+  for (int64_t i = 0; i < mask.size(); ++i) mask[i] = rng() % 3 != 0;
+  for (int64_t z = 30; z < 42; ++z)  // a solid part: members up to 6 planes from their base
+    for (int64_t y = 0; y < 11; ++y)
+      for (int64_t x = 0; x < 14; ++x) mask(x, y, z) = 1;
+  Prepared P(mask.dims());
+  prepare(mask, P, 2, {}, true);
+  const Buckets B1 = bucket_by_base(P, 1);
+  std::vector<std::vector<int64_t>> expect(static_cast<size_t>(P.nl));
+  for (int64_t pos = 0; pos < P.dom.bits(); ++pos)
+    if (P.obj.test(pos)) expect[P.b[P.obj.rank(pos)]].push_back(pos);
+  for (int threads : {2, 3, 4, 8}) {
+    const Buckets B = bucket_by_base(P, threads);
+    ASSERT_EQ(B.count, B1.count) << threads;
+    ASSERT_EQ(B.big, B1.big) << threads;
+    ASSERT_EQ(B.block, B1.block) << threads;
+    for (int64_t l = 0; l < P.nl; ++l) {
+      std::vector<int64_t> got;
+      for (uint32_t m = B.begin(static_cast<uint32_t>(l)); m < B.end(static_cast<uint32_t>(l)); ++m)
+        got.push_back(B.member(m, P.lpos(static_cast<uint32_t>(l))));
+      ASSERT_EQ(got, expect[static_cast<size_t>(l)]) << "threads " << threads << ", L-id " << l;
+    }
+  }
+}
+
 TEST(GeodesicPhases, TargetsAreTheLowerNeighboursAndTheBackgroundUpperOnes) {
   const SingleVoxel s;
   std::vector<uint32_t> t;
