@@ -179,22 +179,88 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
       flush(local);
     }, 2048);
   };
-  // Ring 1: object voxels with any background 26-neighbour (= adjacent to L).
-  parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
-    for (int64_t w = w0; w < w1; ++w) {
-      uint64_t ob = P.obj.word(static_cast<size_t>(w));
-      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
-      for (; ob; ob &= ob - 1, ++id) {
-        const int64_t pos = w * 64 + std::countr_zero(ob);
-        for (const Nb& n : nbs)
-          if (P.layer.test(pos + n.off)) {
-            ring.set(id);
-            break;
-          }
+  // Ring 1 (object voxels with a background 26-neighbour, i.e. one in L), 64 voxels at a time: the
+  // ring is obj & dilate26(L); a ring-1 voxel's candidates are its L neighbours only (its object
+  // neighbours are in ring 1 or unassigned), so its nearest point is the first L neighbour in the
+  // order of (physical distance, offset), the order the per-voxel rule below picks by (ties: the
+  // lower position). Ring 2 = obj & ~ring1 & dilate26(ring1). ring1 is a bitmap over the padded
+  // grid (1 bit per voxel), freed before the later rings.
+  const int64_t rw = D.row_words();
+  // OR of the 3x3x3 neighbourhood of the 64 voxels of word i of row (y, z) in the bitmap `src`.
+  auto dilated = [&](const uint64_t* src, int64_t y, int64_t z, int64_t i) {
+    uint64_t r = 0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy) {
+        const uint64_t* row = src + ((y + dy) + D.BY * (z + dz)) * rw;
+        const uint64_t c = row[i], prev = i > 0 ? row[i - 1] : 0, next = i + 1 < rw ? row[i + 1] : 0;
+        r |= c | (c << 1) | (prev >> 63) | (c >> 1) | (next << 63);
       }
+    return r;
+  };
+  // Object voxels live in rows y = 2 .. ny + 1 of planes z = 2 .. nz + 1.
+  auto for_object_rows = [&](auto&& f) {
+    parallel_for(2, D.nz + 2, threads, [&](int64_t z0, int64_t z1) {
+      for (int64_t z = z0; z < z1; ++z)
+        for (int64_t y = 2; y < D.ny + 2; ++y)
+          for (int64_t i = 0; i < rw; ++i) f(y, z, i, (y + D.BY * z) * rw + i);
+    });
+  };
+  std::vector<uint64_t> ring1(static_cast<size_t>(nwords), 0);
+  for_object_rows([&](int64_t y, int64_t z, int64_t i, int64_t w) {
+    const uint64_t ob = P.obj.word(static_cast<size_t>(w));
+    if (ob) ring1[static_cast<size_t>(w)] = ob & dilated(P.layer.words.data(), y, z, i);
+  });
+  {
+    // The 26 offsets by (physical distance, offset).
+    std::vector<std::pair<double, size_t>> order;
+    for (size_t j = 0; j < nbs.size(); ++j) {
+      const double ex = nbs[j].dx * sp[0], ey = nbs[j].dy * sp[1], ez = nbs[j].dz * sp[2];
+      order.emplace_back(ex * ex + ey * ey + ez * ez, j);
     }
-  }, 2048);
-  int64_t assigned = 0;
+    std::sort(order.begin(), order.end(), [&](const auto& a, const auto& b) {
+      return a.first < b.first || (a.first == b.first && nbs[a.second].off < nbs[b.second].off);
+    });
+    std::vector<Nb> byd;
+    for (const auto& o : order) byd.push_back(nbs[o.second]);
+    const uint64_t* lw = P.layer.words.data();
+    parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+      for (int64_t w = w0; w < w1; ++w) {
+        uint64_t rem = ring1[static_cast<size_t>(w)];
+        if (!rem) continue;
+        const uint64_t ob = P.obj.word(static_cast<size_t>(w));
+        const uint64_t id0 = P.obj.prefix(static_cast<size_t>(w));
+        for (const Nb& n : byd) {
+          // The L bits at offset n of the word's 64 voxels.
+          const int64_t b = w * 64 + n.off;
+          const int sh = static_cast<int>(b & 63);
+          const size_t wi = static_cast<size_t>(b >> 6);
+          const uint64_t l = sh ? (lw[wi] >> sh) | (lw[wi + 1] << (64 - sh)) : lw[wi];
+          for (uint64_t sel = rem & l; sel; sel &= sel - 1) {
+            const uint64_t id = id0 + static_cast<uint64_t>(std::popcount(ob & ((uint64_t{1} << std::countr_zero(sel)) - 1)));
+            P.boff[id] = BaseOffset{static_cast<int8_t>(n.dx), static_cast<int8_t>(n.dy), static_cast<int8_t>(n.dz)};
+          }
+          rem &= ~l;
+          if (!rem) break;
+        }
+      }
+    }, 2048);
+  }
+  std::atomic<int64_t> in_ring1{0};
+  for_object_rows([&](int64_t y, int64_t z, int64_t i, int64_t w) {
+    const uint64_t ob = P.obj.word(static_cast<size_t>(w));
+    if (!ob) return;
+    const uint64_t r1 = ring1[static_cast<size_t>(w)];
+    if (r1) in_ring1.fetch_add(std::popcount(r1), std::memory_order_relaxed);
+    const uint64_t r2 = ob & ~r1 & dilated(ring1.data(), y, z, i);
+    const uint64_t id0 = P.obj.prefix(static_cast<size_t>(w));
+    for (uint64_t sel = r2; sel; sel &= sel - 1)
+      ring.set(id0 + static_cast<uint64_t>(std::popcount(ob & ((uint64_t{1} << std::countr_zero(sel)) - 1))));
+  });
+  P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.base_bytes() + ring.bytes() +
+                                                  next.bytes() + ring1.size() * 8);
+  std::vector<uint64_t>().swap(ring1);
+  intr.check(0.1);
+  int64_t assigned = in_ring1.load();
   std::mutex far_mutex;
   std::vector<std::pair<uint64_t, int64_t>> newfar;
   std::atomic<int64_t> in_ring{0};

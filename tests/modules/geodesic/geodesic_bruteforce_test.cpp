@@ -222,6 +222,30 @@ TEST(GeodesicBruteForce, NearestBackgroundPointEqualsTheDocumentedRule) {
   EXPECT_GT(deeper, 200);  // the rule is exercised beyond the first ring
 }
 
+// The first ring is found 64 voxels at a time (dilations across the words of a row, the L bits at
+// each offset extracted across word boundaries): rows of several words, both spacings.
+TEST(GeodesicBruteForce, NearestBackgroundPointInRowsOfSeveralWords) {
+  for (uint64_t seed = 21; seed <= 24; ++seed) {
+    const Dims d{131 + static_cast<int64_t>(seed % 3), 7, 6};
+    VolumeU8 m = blobs(d, seed, 0.6, 2);
+    if (seed % 2 == 0) m.set_spacing({0.8, 1.0, 1.7});
+    const Brute br(m);
+    for (int threads : {1, 2}) {
+      detail::Prepared P(m.dims());
+      detail::prepare(m, P, threads, {}, false);
+      for (int64_t z = 0; z < d[2]; ++z)
+        for (int64_t y = 0; y < d[1]; ++y)
+          for (int64_t x = 0; x < d[0]; ++x) {
+            if (!m(x, y, z)) continue;
+            const int64_t bp = P.base_pos(P.dom.pos(x + 2, y + 2, z + 2));
+            const int64_t bz = bp / P.dom.plane, rem = bp % P.dom.plane;
+            const std::array<int64_t, 3> got{rem % P.dom.BX - 2, rem / P.dom.BX - 2, bz - 2};
+            ASSERT_EQ(got, br.base[br.idx(x, y, z)]) << "seed " << seed << ", threads " << threads << " at " << x << "," << y << "," << z;
+          }
+    }
+  }
+}
+
 // Offsets beyond +-127 (objects more than 254 voxels thick all round) go to the side table; such an
 // object is too slow for a unit test, so one offset is moved there by hand: the accessors must give
 // the same position and L-id as the offset did.
