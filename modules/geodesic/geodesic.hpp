@@ -37,7 +37,8 @@ struct Statistics {
   int64_t object_voxels = 0;
   int64_t layer_voxels = 0;       // |L|
   int64_t base_points = 0;        // distinct b(p) with work to do
-  int64_t searches = 0;           // searches run: own A* searches (one per base with targets left) + pivots
+  int64_t searches = 0;           // searches run: own A* searches (one per base with targets left that no
+                                  // monotone path of at most 4 steps in L settles) + pivots
   int64_t pivots = 0;             // searches extended to t + t/4 to settle neighbouring bases
   int64_t long_searches = 0;      // own searches that ran to t with targets left
   int64_t saturated_by_pivot = 0; // targets proved >= t by a neighbouring base's search
