@@ -33,7 +33,9 @@ background. Voxels outside the array count as background: the one-voxel ring aro
 to L where it touches the object.
 
 Implementation: object voxels are grouped by base point b(p); one search per base point serves all
-its voxels. Searches are A* over L: the key of a voxel v is g(b, v) + h(v), h = the smallest 1-norm
+its voxels. A target at most 4 steps away needs no search where a monotone 6-path (every step towards
+it) lies in L: its length is the 1-norm, a lower bound on every path (this settles most targets inside
+thick parts; at 512³ plates 61 % of the searches). Searches are A* over L: the key of a voxel v is g(b, v) + h(v), h = the smallest 1-norm
 distance to a target not reached yet (a lower bound on any 6-path, and consistent, so a voxel's
 distance is final when it is closed). Only voxels with a key <= t are ever queued (threshold mode), and
 a search stops as soon as all its targets are reached or no key <= t is left: a target not reached is
@@ -58,7 +60,8 @@ same base.
 Memory (beyond the input mask and the two outputs; the larger of two phases): 3 bits per voxel of the
 padded grid (two bitmaps with 32-bit ranks per word, 1.5 bits each) and 3 bytes per object voxel
 (b(p) as an offset) throughout; the
-nearest-point transform adds 2 bits per object voxel (this ring and the next); the searches add 3
+nearest-point transform adds 2 bits per object voxel (this ring and the next) and, while it finds the
+first ring 64 voxels at a time, 1 bit per voxel of the padded grid; the searches add 3
 bytes per object voxel (bucket members as offsets from their base) and about 1.06 per boundary-layer
 voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 4
 (queued g, threshold mode) + 1 (pivot distance; 2 where t + t/4 > 254) + 2 (two landmark fields)
