@@ -173,6 +173,13 @@ VolumeU8 blobs(Dims d, uint64_t seed, double fill, int smooth) {
   return v;
 }
 
+// Mask coordinates of the nearest background point b(p) that `P` holds for the object voxel (x, y, z).
+std::array<int64_t, 3> base_coords(const detail::Prepared& P, int64_t x, int64_t y, int64_t z) {
+  const int64_t bp = P.base_pos(P.dom.pos(x + 2, y + 2, z + 2));
+  const int64_t bz = bp / P.dom.plane, rem = bp % P.dom.plane;
+  return {rem % P.dom.BX - 2, rem / P.dom.BX - 2, bz - 2};
+}
+
 }  // namespace
 
 // b(p) of the module (kept as offsets, detail::Prepared::base_pos) equals the brute force for every
@@ -191,11 +198,8 @@ TEST(GeodesicBruteForce, NearestBackgroundPointEqualsTheDocumentedRule) {
       for (int64_t y = 0; y < d[1]; ++y)
         for (int64_t x = 0; x < d[0]; ++x) {
           if (!m(x, y, z)) continue;
-          const int64_t bp = P.base_pos(P.dom.pos(x + 2, y + 2, z + 2));
-          const int64_t bz = bp / P.dom.plane, rem = bp % P.dom.plane;
-          const std::array<int64_t, 3> got{rem % P.dom.BX - 2, rem / P.dom.BX - 2, bz - 2};
           const auto& want = br.base[br.idx(x, y, z)];
-          ASSERT_EQ(got, want) << "seed " << seed << " at " << x << "," << y << "," << z;
+          ASSERT_EQ(base_coords(P, x, y, z), want) << "seed " << seed << " at " << x << "," << y << "," << z;
           ++compared;
           // Against the exact nearest L voxel (minimum over all of L).
           double exact = std::numeric_limits<double>::infinity();
@@ -237,10 +241,8 @@ TEST(GeodesicBruteForce, NearestBackgroundPointInRowsOfSeveralWords) {
         for (int64_t y = 0; y < d[1]; ++y)
           for (int64_t x = 0; x < d[0]; ++x) {
             if (!m(x, y, z)) continue;
-            const int64_t bp = P.base_pos(P.dom.pos(x + 2, y + 2, z + 2));
-            const int64_t bz = bp / P.dom.plane, rem = bp % P.dom.plane;
-            const std::array<int64_t, 3> got{rem % P.dom.BX - 2, rem / P.dom.BX - 2, bz - 2};
-            ASSERT_EQ(got, br.base[br.idx(x, y, z)]) << "seed " << seed << ", threads " << threads << " at " << x << "," << y << "," << z;
+            ASSERT_EQ(base_coords(P, x, y, z), br.base[br.idx(x, y, z)])
+                << "seed " << seed << ", threads " << threads << " at " << x << "," << y << "," << z;
           }
     }
   }
