@@ -29,6 +29,29 @@ std::vector<int64_t> offsets26(const Domain& d) {
   return o;
 }
 
+namespace {
+
+// The 26-dilation of the bitmap `src` over the padded domain at word i of row (y, z): the OR of the
+// 3x3x3 neighbourhood of each of its 64 voxels (rows y - 1 .. y + 1 and planes z - 1 .. z + 1 must exist).
+uint64_t dilated_word(const uint64_t* src, const Domain& D, int64_t y, int64_t z, int64_t i) {
+  const int64_t rw = D.row_words();
+  uint64_t r = 0;
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy) {
+      const uint64_t* row = src + ((y + dy) + D.BY * (z + dz)) * rw;
+      const uint64_t c = row[i], prev = i > 0 ? row[i - 1] : 0, next = i + 1 < rw ? row[i + 1] : 0;
+      r |= c | (c << 1) | (prev >> 63) | (c >> 1) | (next << 63);
+    }
+  return r;
+}
+
+// Object id of the voxel at bit `bit` of a word whose object bits are `ob` and whose first object id is `id0`.
+uint64_t id_at_bit(uint64_t ob, uint64_t id0, int bit) {
+  return id0 + static_cast<uint64_t>(std::popcount(ob & ((uint64_t{1} << bit) - 1)));
+}
+
+}  // namespace
+
 void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& intr) {
   const Domain& D = P.dom;
   if (D.nx > 65000 || D.ny > 65000 || D.nz > 65000)
@@ -47,34 +70,16 @@ void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interru
       }
   });
   intr.check(0.02);
-  // L = dilate26(O) minus O: x-dilation per row, then OR of the 3x3 neighbouring rows.
-  {
-    std::vector<uint64_t> xd(nwords, 0);
-    parallel_for(0, D.BY * D.BZ, threads, [&](int64_t r0, int64_t r1) {
-      for (int64_t r = r0; r < r1; ++r) {
-        const uint64_t* o = &P.obj.words[static_cast<size_t>(r * rw)];
-        uint64_t* w = &xd[static_cast<size_t>(r * rw)];
+  // L = dilate26(O) minus O, over every row but the outermost guard rows.
+  P.layer.words.assign(nwords, 0);
+  parallel_for(1, D.BZ - 1, threads, [&](int64_t z0, int64_t z1) {
+    for (int64_t z = z0; z < z1; ++z)
+      for (int64_t y = 1; y < D.BY - 1; ++y)
         for (int64_t i = 0; i < rw; ++i) {
-          const uint64_t prev = i > 0 ? o[i - 1] : 0, next = i + 1 < rw ? o[i + 1] : 0;
-          w[i] = o[i] | (o[i] << 1) | (prev >> 63) | (o[i] >> 1) | (next << 63);
+          const size_t w = static_cast<size_t>((y + D.BY * z) * rw + i);
+          P.layer.words[w] = dilated_word(P.obj.words.data(), D, y, z, i) & ~P.obj.words[w];
         }
-      }
-    });
-    P.layer.words.assign(nwords, 0);
-    parallel_for(1, D.BZ - 1, threads, [&](int64_t z0, int64_t z1) {
-      for (int64_t z = z0; z < z1; ++z)
-        for (int64_t y = 1; y < D.BY - 1; ++y) {
-          uint64_t* out = &P.layer.words[static_cast<size_t>((y + D.BY * z) * rw)];
-          const uint64_t* o = &P.obj.words[static_cast<size_t>((y + D.BY * z) * rw)];
-          for (int dz = -1; dz <= 1; ++dz)
-            for (int dy = -1; dy <= 1; ++dy) {
-              const uint64_t* src = &xd[static_cast<size_t>(((y + dy) + D.BY * (z + dz)) * rw)];
-              for (int64_t i = 0; i < rw; ++i) out[i] |= src[i];
-            }
-          for (int64_t i = 0; i < rw; ++i) out[i] &= ~o[i];
-        }
-    });
-  }
+  });
   P.k = static_cast<int64_t>(P.obj.build_rank());
   P.nl = static_cast<int64_t>(P.layer.build_rank());
   if (P.nl >= static_cast<int64_t>(kNone) || P.k >= static_cast<int64_t>(kNone))
@@ -186,17 +191,6 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
   // lower position). Ring 2 = obj & ~ring1 & dilate26(ring1). ring1 is a bitmap over the padded
   // grid (1 bit per voxel), freed before the later rings.
   const int64_t rw = D.row_words();
-  // OR of the 3x3x3 neighbourhood of the 64 voxels of word i of row (y, z) in the bitmap `src`.
-  auto dilated = [&](const uint64_t* src, int64_t y, int64_t z, int64_t i) {
-    uint64_t r = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy) {
-        const uint64_t* row = src + ((y + dy) + D.BY * (z + dz)) * rw;
-        const uint64_t c = row[i], prev = i > 0 ? row[i - 1] : 0, next = i + 1 < rw ? row[i + 1] : 0;
-        r |= c | (c << 1) | (prev >> 63) | (c >> 1) | (next << 63);
-      }
-    return r;
-  };
   // Object voxels live in rows y = 2 .. ny + 1 of planes z = 2 .. nz + 1.
   auto for_object_rows = [&](auto&& f) {
     parallel_for(2, D.nz + 2, threads, [&](int64_t z0, int64_t z1) {
@@ -208,7 +202,7 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
   std::vector<uint64_t> ring1(static_cast<size_t>(nwords), 0);
   for_object_rows([&](int64_t y, int64_t z, int64_t i, int64_t w) {
     const uint64_t ob = P.obj.word(static_cast<size_t>(w));
-    if (ob) ring1[static_cast<size_t>(w)] = ob & dilated(P.layer.words.data(), y, z, i);
+    if (ob) ring1[static_cast<size_t>(w)] = ob & dilated_word(P.layer.words.data(), D, y, z, i);
   });
   {
     // The 26 offsets by (physical distance, offset).
@@ -235,10 +229,9 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
           const int sh = static_cast<int>(b & 63);
           const size_t wi = static_cast<size_t>(b >> 6);
           const uint64_t l = sh ? (lw[wi] >> sh) | (lw[wi + 1] << (64 - sh)) : lw[wi];
-          for (uint64_t sel = rem & l; sel; sel &= sel - 1) {
-            const uint64_t id = id0 + static_cast<uint64_t>(std::popcount(ob & ((uint64_t{1} << std::countr_zero(sel)) - 1)));
-            P.boff[id] = BaseOffset{static_cast<int8_t>(n.dx), static_cast<int8_t>(n.dy), static_cast<int8_t>(n.dz)};
-          }
+          for (uint64_t sel = rem & l; sel; sel &= sel - 1)
+            P.boff[id_at_bit(ob, id0, std::countr_zero(sel))] =
+                BaseOffset{static_cast<int8_t>(n.dx), static_cast<int8_t>(n.dy), static_cast<int8_t>(n.dz)};
           rem &= ~l;
           if (!rem) break;
         }
@@ -251,10 +244,9 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
     if (!ob) return;
     const uint64_t r1 = ring1[static_cast<size_t>(w)];
     if (r1) in_ring1.fetch_add(std::popcount(r1), std::memory_order_relaxed);
-    const uint64_t r2 = ob & ~r1 & dilated(ring1.data(), y, z, i);
+    const uint64_t r2 = ob & ~r1 & dilated_word(ring1.data(), D, y, z, i);
     const uint64_t id0 = P.obj.prefix(static_cast<size_t>(w));
-    for (uint64_t sel = r2; sel; sel &= sel - 1)
-      ring.set(id0 + static_cast<uint64_t>(std::popcount(ob & ((uint64_t{1} << std::countr_zero(sel)) - 1))));
+    for (uint64_t sel = r2; sel; sel &= sel - 1) ring.set(id_at_bit(ob, id0, std::countr_zero(sel)));
   });
   P.prepare_bytes = std::max(P.prepare_bytes, P.obj.bytes() + P.layer.bytes() + P.base_bytes() + ring.bytes() +
                                                   next.bytes() + ring1.size() * 8);
