@@ -592,6 +592,8 @@ int64_t landmark_bfs(const Prepared& P, Scratch& S, uint32_t ci, int64_t pos) {
   return static_cast<int64_t>(L.list.size());
 }
 
+constexpr uint32_t kClosedBit = 0x8000;  // in Scratch::queued: the voxel is closed in the search of the tag
+
 template <bool kBoxed>
 int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_pos, uint32_t limit,
                      const std::vector<uint32_t>& want, const std::vector<int64_t>& want_pos, std::vector<uint32_t>& wd) {
@@ -696,10 +698,12 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   };
   uint16_t gen = 0;  // targets reached so far, mod 2^16 (h changes only then)
   const bool track_gen = want.size() < 0xFFFF;  // else every pop recomputes h
-  // Queued-g marks (Scratch::queued): a voxel is queued again only on a shorter path.
-  const bool dedup = limit < 0xFFFF && S.queued.size() == S.stamp.size();
+  // Queued-g marks (Scratch::queued): a voxel is queued again only on a shorter path. With them,
+  // bit 15 marks a closed voxel (g < 2^15), so a pop and an expansion read one array, not two.
+  const bool dedup = limit < kClosedBit && S.queued.size() == S.stamp.size();
   uint32_t* const queued = S.queued.data();
   const uint32_t tag = static_cast<uint32_t>(st) << 16;
+  const uint32_t closed_tag = tag | kClosedBit;
   {
     int32_t x, y, z;
     coords(src_pos, x, y, z);
@@ -727,7 +731,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     }
     Scratch::Entry e = bk[key].back();  // last in, first out: the deepest voxel of the key first
     bk[key].pop_back();
-    if (S.stamp[e.id] == st) continue;  // closed already
+    if (dedup ? (queued[e.id] & ~uint32_t{kClosedBit - 1}) == closed_tag : S.stamp[e.id] == st) continue;  // closed already
     uint32_t hv = key - e.g;
     if (!track_gen || e.gen != gen) {  // h grew since the voxel was queued (a target was reached): requeue by its key
       hv = h(e.x, e.y, e.z, e.id);
@@ -737,7 +741,8 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
         continue;
       }
     }
-    S.stamp[e.id] = st;
+    if (dedup) queued[e.id] = closed_tag | e.g;
+    else S.stamp[e.id] = st;
     ++visited;
     if (hv == 0) {  // a target (exact: g is final when a voxel is closed with a consistent h)
       for (size_t j = 0; j < nrem; ++j)
@@ -761,7 +766,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
         // Queued before on a path at least as short: that entry does the work. This also skips
         // closed voxels (a closed voxel was queued with its final g <= e.g + 1), without the stamp.
         const uint32_t qv = queued[u];
-        if ((qv & 0xFFFF0000u) == tag && (qv & 0xFFFFu) <= e.g + 1) continue;
+        if ((qv & 0xFFFF0000u) == tag && (qv & (kClosedBit - 1)) <= e.g + 1) continue;
       } else if (S.stamp[u] == st) {
         continue;
       }

@@ -186,8 +186,9 @@ struct Scratch {
   std::vector<uint16_t> stamp;   // own search: closed iff == cur
   // Own search: the smallest g a voxel was queued with in this search, as cur << 16 | g (valid iff
   // the high half is cur: range encoded like the stamps and cleared with them; used where the limit
-  // is < 65535, i.e. in threshold mode), so a voxel is not queued again on a path that is not shorter
-  // (each queued entry costs a heuristic evaluation and a pop).
+  // is < 32767, i.e. in threshold mode), so a voxel is not queued again on a path that is not shorter
+  // (each queued entry costs a heuristic evaluation and a pop). Bit 15 marks the voxel closed: the
+  // stamps are not used then (a pop and an expansion read one array, not two).
   std::vector<uint32_t> queued;   // (allocated with the pivot distances: threshold mode)
   int64_t last_queued = 0;       // entries the last own search queued (tests)
   uint16_t cur = 0;
