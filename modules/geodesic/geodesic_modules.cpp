@@ -42,7 +42,8 @@ a search stops as soon as all its targets are reached or no key <= t is left: a 
 >= t. Closed voxels are marked by range encoding (thesis §2.3.2): each search takes the next 16-bit
 stamp, so nothing is cleared after a search (the marks once every 65535 searches); in threshold mode
 the smallest g each voxel was queued with in the search is kept the same way (search stamp and g in 4
-bytes), so a voxel is queued again only on a shorter path. When a search ends
+bytes, t < 32767; one bit of g marks the voxel closed, so the stamps are not read then), so a voxel is
+queued again only on a shorter path. When a search ends
 with targets left, a breadth-first search to t + t/4 from the same base settles, by the triangle
 inequality, the far targets of every base point within t/4 of it (a pivot), which saves most long
 searches on plates; voxels with a target so proved to saturate need no further search. Landmarks (ALT,
