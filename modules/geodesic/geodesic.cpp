@@ -704,6 +704,9 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   uint32_t* const queued = S.queued.data();
   const uint32_t tag = static_cast<uint32_t>(st) << 16;
   const uint32_t closed_tag = tag | kClosedBit;
+  auto is_closed = [&](uint32_t id) {
+    return dedup ? (queued[id] & ~uint32_t{kClosedBit - 1}) == closed_tag : S.stamp[id] == st;
+  };
   {
     int32_t x, y, z;
     coords(src_pos, x, y, z);
@@ -731,7 +734,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     }
     Scratch::Entry e = bk[key].back();  // last in, first out: the deepest voxel of the key first
     bk[key].pop_back();
-    if (dedup ? (queued[e.id] & ~uint32_t{kClosedBit - 1}) == closed_tag : S.stamp[e.id] == st) continue;  // closed already
+    if (is_closed(e.id)) continue;
     uint32_t hv = key - e.g;
     if (!track_gen || e.gen != gen) {  // h grew since the voxel was queued (a target was reached): requeue by its key
       hv = h(e.x, e.y, e.z, e.id);
