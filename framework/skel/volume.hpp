@@ -20,6 +20,9 @@ namespace skel {
 // interior) before its first touch: otherwise the first write to every 4 KiB page costs a page
 // fault, a large part of any memory-bound pass over a new volume (worse in virtual machines).
 void advise_huge_pages(void* data, size_t bytes);
+// Gives the whole 4 KiB pages inside [data, data + bytes) back to the kernel: their contents are
+// lost, the range stays owned and reads as zeros when touched again. Returns the bytes released.
+size_t release_pages(void* data, size_t bytes);
 
 using Dims = std::array<int64_t, 3>;   // (nx, ny, nz)
 using Vec3 = std::array<double, 3>;    // (x, y, z) in physical units

@@ -38,6 +38,14 @@ void advise_huge_pages(void* data, size_t bytes) {
   if (e > b) (void)madvise(reinterpret_cast<void*>(b), e - b, MADV_HUGEPAGE);
 }
 
+size_t release_pages(void* data, size_t bytes) {
+  constexpr uintptr_t kPage = 4096;
+  const uintptr_t b = (reinterpret_cast<uintptr_t>(data) + kPage - 1) & ~(kPage - 1);
+  const uintptr_t e = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kPage - 1);
+  if (e <= b) return 0;
+  return madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED) == 0 ? e - b : 0;
+}
+
 std::string location_prefix(const std::string& file, int line, int column) {
   std::string s = file;
   if (line > 0) {

@@ -398,8 +398,12 @@ void Removal<T, E>::recheck(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t 
   // re-queued ones.
   const int64_t w = requeue_w_, f = static_cast<int64_t>(fresh_pos_.size());
   auto& bucket = q.bucket[lv];
+  grow_releasing(tv, static_cast<size_t>(w + f));
   tv.resize(static_cast<size_t>(w + f));
-  if (cached) dirs.resize(static_cast<size_t>(w + f));
+  if (cached) {
+    grow_releasing(dirs, static_cast<size_t>(w + f));
+    dirs.resize(static_cast<size_t>(w + f));
+  }
   int64_t i = w - 1, out = w + f - 1;
   for (int64_t k = f - 1; k >= 0; --k) {
     const int64_t pos = static_cast<int64_t>(fresh_pos_[static_cast<size_t>(k)]);

@@ -79,7 +79,9 @@ Memory: the skeleton output (1 byte per voxel) doubles as the state array; the q
 per queued voxel (8 in volumes above 2^32 voxels), 1 more per entry of the level being processed and
 of a level holding re-queued smooth-variant candidates (their cached directions): at most the object
 voxels, typically the boundary layer (0.3 bytes per voxel on 512³ rods, 0.9 on 512³ plates); levels are ranked from the
-priority values on the fly (no per-voxel array). A uint8 priority (distance.chamfer with `narrow`)
+priority values on the fly (no per-voxel array). A large bucket grows without holding its old and new
+buffers at once (the old pages are given back behind the copy), so the peak stays near the entries
+queued. A uint8 priority (distance.chamfer with `narrow`)
 costs 1 byte per voxel instead of 2 and gives the same skeleton. The input mask and priority are read only,
 except in a headless in-memory run where this node is the mask's last reader: the executor then hands
 the mask over and the skeleton is thinned in its buffer (1 byte per voxel less; the same skeleton).

@@ -448,9 +448,21 @@ struct BucketQueue {
   int64_t taken_peak = 0;  // smooth variant: the largest level taken out of its bucket at once
   explicit BucketQueue(int64_t levels)
       : bucket(static_cast<size_t>(levels)), cache(static_cast<size_t>(levels)), head(static_cast<size_t>(levels), 0) {}
+  // A large full buffer grows by grow_releasing: a plain reallocation would hold the old and the new
+  // buffer at once (the removal's memory peak on dense objects, where one level's bucket grows to
+  // hundreds of MiB).
+  template <class T>
+  static void make_room(BigVector<T>& v) {
+    if (v.size() == v.capacity() && v.capacity() * sizeof(T) >= (size_t{4} << 20)) grow_releasing(v, v.size() + 1);
+  }
   void push(uint32_t level, int64_t i) {
-    bucket[level].push_back(static_cast<E>(i));
-    if (!cache[level].empty()) cache[level].push_back(0);
+    auto& b = bucket[level];
+    make_room(b);
+    b.push_back(static_cast<E>(i));
+    if (!cache[level].empty()) {
+      make_room(cache[level]);
+      cache[level].push_back(0);
+    }
     if (static_cast<int64_t>(level) < lowest) lowest = level;
     peak = std::max(peak, ++size);
   }
@@ -459,7 +471,9 @@ struct BucketQueue {
     auto& b = bucket[level];
     auto& k = cache[level];
     if (k.size() < b.size()) k.resize(b.size(), 0);
+    make_room(b);
     b.push_back(static_cast<E>(i));
+    make_room(k);
     k.push_back(c);
     if (static_cast<int64_t>(level) < lowest) lowest = level;
     peak = std::max(peak, ++size);

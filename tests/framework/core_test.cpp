@@ -1,12 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <numeric>
 #include <vector>
 
+#include "skel/big_vector.hpp"
 #include "skel/fs.hpp"
 #include "skel/module.hpp"
 #include "skel/parallel.hpp"
@@ -73,6 +76,41 @@ TEST(Volume, VisitAndConvert) {
   EXPECT_EQ(volume_grid(f, "x").dims[0], 2);
   Table t;
   EXPECT_THROW((void)volume_grid(t, "input 'mask'"), InputError);
+}
+
+TEST(BigVector, ReleasePagesGivesBackWholePagesOnly) {
+  // 4 KiB-aligned buffer of 5 pages: a range inside one page releases nothing; a range over pages
+  // 1..3 releases exactly those, which then read as zeros, and leaves pages 0 and 4 as they were.
+  constexpr size_t kPage = 4096;
+  auto* raw = static_cast<unsigned char*>(std::aligned_alloc(kPage, 5 * kPage));
+  ASSERT_NE(raw, nullptr);
+  std::fill(raw, raw + 5 * kPage, static_cast<unsigned char>(7));
+  EXPECT_EQ(release_pages(raw + 10, 100), 0u);
+  EXPECT_EQ(release_pages(raw + kPage - 1, 3 * kPage + 2), 3 * kPage);
+  EXPECT_EQ(raw[kPage - 1], 7);
+  for (size_t i = kPage; i < 4 * kPage; i += 97) ASSERT_EQ(raw[i], 0) << i;
+  EXPECT_EQ(raw[4 * kPage], 7);
+  EXPECT_EQ(raw[5 * kPage - 1], 7);
+  std::free(raw);
+}
+
+TEST(BigVector, GrowReleasingKeepsTheElements) {
+  // Several 2 MiB chunks plus a partial one, from a buffer that is not page aligned (the vector's
+  // own allocation): every element survives, in order, and the capacity at least doubles.
+  for (const size_t n : {size_t{0}, size_t{1}, size_t{1000}, (size_t{5} << 20) / sizeof(uint32_t) + 13}) {
+    BigVector<uint32_t> v;
+    v.reserve(n);
+    for (size_t i = 0; i < n; ++i) v.push_back(static_cast<uint32_t>(i * 2654435761u));
+    const size_t cap = v.capacity();
+    grow_releasing(v, n + 1);
+    ASSERT_EQ(v.size(), n);
+    EXPECT_GE(v.capacity(), std::max<size_t>(n + 1, 2 * cap));
+    for (size_t i = 0; i < n; ++i) ASSERT_EQ(v[i], static_cast<uint32_t>(i * 2654435761u)) << i;
+    v.push_back(5);
+    EXPECT_EQ(v.back(), 5u);
+    grow_releasing(v, 1);  // fits: nothing changes
+    EXPECT_EQ(v.size(), n + 1);
+  }
 }
 
 TEST(Table, CsvAndTypes) {

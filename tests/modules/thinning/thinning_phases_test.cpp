@@ -442,6 +442,27 @@ TEST(ThinningPhases, CachedDirectionsStayAlignedWithTheirEntries) {
   EXPECT_EQ(dirs[3], 32);
 }
 
+TEST(ThinningPhases, LargeBucketsGrowWithoutLosingOrderOrCachedDirections) {
+  // Past 4 MiB a full bucket (and its cache bytes) grows by grow_releasing instead of a plain
+  // reallocation: 3 M entries in bucket 1 (several growths of the 4-byte entries, two of the cache
+  // bytes), every seventh with cached directions, come back in push order with their bytes aligned.
+  BucketQueue<uint32_t> q(2);
+  constexpr uint32_t n = 3u << 20;
+  for (uint32_t i = 0; i < n; ++i) {
+    if (i % 7 == 3) q.push_cached(1, i * 3, static_cast<uint8_t>(kCacheValid | (i % 63)));
+    else q.push(1, i * 3);
+  }
+  ASSERT_EQ(q.bucket[1].size(), n);
+  ASSERT_EQ(q.cache[1].size(), n);
+  EXPECT_EQ(q.size, static_cast<int64_t>(n));
+  for (uint32_t i = 0; i < n; ++i) {
+    ASSERT_EQ(q.bucket[1][i], i * 3) << i;
+    const uint8_t want = i % 7 == 3 ? static_cast<uint8_t>(kCacheValid | (i % 63)) : uint8_t{0};
+    ASSERT_EQ(q.cache[1][i], want) << i;
+  }
+  EXPECT_TRUE(q.bucket[0].empty());
+}
+
 TEST(ThinningPhases, FourAndEightByteQueueEntriesGiveTheSameSkeleton) {
   // Volumes above 2^32 voxels use 8-byte entries: forced here on small volumes, the same skeleton
   // and statistics as the 4-byte entries, for masks touching the array faces (border voxels) and
