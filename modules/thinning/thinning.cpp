@@ -76,6 +76,9 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
     for (int64_t z = z0; z < z1; ++z) {
       PlaneScan& pl = planes[static_cast<size_t>(z)];
       pl.base = nx * ny * z;
+      // uint8 priorities (distance.chamfer with `narrow`): the plane's distinct values as 256 bits,
+      // into the key set once per plane instead of a hash probe per voxel.
+      [[maybe_unused]] uint64_t seen8[4] = {0, 0, 0, 0};
       for (int64_t y = 0; y < ny; ++y) {
         const int64_t row = nx * (y + ny * z);
         const bool edge_row = y == 0 || z == 0 || y == ny - 1 || z == nz - 1;
@@ -105,7 +108,8 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
               continue;
             }
           }
-          pl.keys.insert(order_key(v));
+          if constexpr (std::is_same_v<T, uint8_t>) seen8[v >> 6] |= uint64_t{1} << (v & 63);
+          else pl.keys.insert(order_key(v));
           if (s & kLocked) continue;
           const bool boundary = edge || !(m[i - 1] && m[i + 1] && m[i - nx] && m[i + nx] && m[i - nx * ny] && m[i + nx * ny]);
           if (boundary) pl.boundary.push_back(static_cast<uint32_t>(i - pl.base));
@@ -118,6 +122,10 @@ std::vector<PlaneScan> scan_planes(const VolumeU8& mask, const T* pv, const Volu
           sr[nx - 1] |= kBorder;
         }
       }
+      if constexpr (std::is_same_v<T, uint8_t>)
+        for (int w = 0; w < 4; ++w)
+          for (uint64_t b = seen8[w]; b != 0; b &= b - 1)
+            pl.keys.insert(order_key(static_cast<T>(64 * w + std::countr_zero(b))));
     }
   });
   if (in_place) {
@@ -459,8 +467,16 @@ std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int t
   parallel_chunks(0, nz, nz, threads, [&](int64_t, int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z)
       for (int64_t i = nx * ny * z, e = nx * ny * (z + 1); i < e; ++i) {
-        if (i + 8 <= e) {  // skip eight voxels at a time without kObject (bit 0 of each byte)
-          static_assert(kObject == 1);
+        static_assert(kObject == 1);  // bit 0 of each byte
+        if (i + 32 <= e) {  // skip 32 voxels at a time without kObject
+          uint64_t w[4];
+          std::memcpy(w, st + i, 32);
+          if (((w[0] | w[1] | w[2] | w[3]) & 0x0101010101010101ull) == 0) {
+            i += 31;
+            continue;
+          }
+        }
+        if (i + 8 <= e) {  // then eight
           uint64_t w;
           std::memcpy(&w, st + i, 8);
           if ((w & 0x0101010101010101ull) == 0) {
@@ -479,29 +495,15 @@ std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int t
   return skel;
 }
 
-void count_skeleton(const Thinner& th, const uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
-                    ThinningStatistics& stats) {
-  const int64_t nx = dims[0], ny = dims[1];
-  for (int64_t i : skel) {
-    ++stats.skeleton_voxels;
-    if (st[i] & kLocked) {
-      ++stats.locked_voxels;
-      continue;
-    }
-    const uint32_t nb = th.neighbourhood(i);
-    if (std::popcount(nb) == 1 && is_simple_direct(nb)) ++stats.kept_end_points;
-    if (!(st[i] & kBorder)) {
-      const uint8_t* p = st + i;
-      if (p[1] & p[-1] & p[nx] & p[-nx] & p[nx * ny] & p[-nx * ny] & kObject) ++stats.interior_voxels;
-    }
-  }
-}
-
-void count_stuck(const Thinner& th, uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
-                 int end_point_length, ThinningStatistics& stats) {
+void count_skeleton(const Thinner& th, uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
+                    int end_point_length, ThinningStatistics& stats) {
   const int64_t nx = dims[0], ny = dims[1], nz = dims[2];
-  int64_t nbr[26];
+  constexpr uint32_t kFace6 = (1u << neighbour_bit(1, 0, 0)) | (1u << neighbour_bit(-1, 0, 0)) |
+                              (1u << neighbour_bit(0, 1, 0)) | (1u << neighbour_bit(0, -1, 0)) |
+                              (1u << neighbour_bit(0, 0, 1)) | (1u << neighbour_bit(0, 0, -1));
   std::vector<int64_t> comp, stack;
+  // One depth-first walk per 26-component; each voxel's neighbourhood word gives its counts and the
+  // walk's next voxels (bit k: neighbour k of off_).
   for (int64_t s0 : skel) {
     if (st[s0] & kVisited) continue;
     comp.clear();
@@ -512,14 +514,25 @@ void count_stuck(const Thinner& th, uint8_t* st, const std::vector<int64_t>& ske
       const int64_t i = stack.back();
       stack.pop_back();
       comp.push_back(i);
-      if (st[i] & kLocked) anchored = true;
-      const int c = th.neighbours(i, nbr);
+      const uint8_t si = st[i];
+      const uint32_t nb = th.neighbourhood(i);
+      const int c = std::popcount(nb);
+      ++stats.skeleton_voxels;
+      if (si & kLocked) {
+        ++stats.locked_voxels;
+        anchored = true;
+      } else {
+        if (c == 1 && is_simple_direct(nb)) ++stats.kept_end_points;
+        if (!(si & kBorder) && (nb & kFace6) == kFace6) ++stats.interior_voxels;
+      }
       if (c == 1 && end_point_length > 0) anchored = true;
-      for (int k = 0; k < c; ++k)
-        if (!(st[nbr[k]] & kVisited)) {
-          st[nbr[k]] |= kVisited;
-          stack.push_back(nbr[k]);
+      for (uint32_t m = nb; m != 0; m &= m - 1) {
+        const int64_t j = i + th.off_[static_cast<size_t>(std::countr_zero(m))];
+        if (!(st[j] & kVisited)) {
+          st[j] |= kVisited;
+          stack.push_back(j);
         }
+      }
     }
     if (anchored || comp.size() < 2) continue;
     int64_t lo[3] = {nx, ny, nz}, hi[3] = {-1, -1, -1};
@@ -625,8 +638,7 @@ ThinningResult thin_impl(const VolumeU8& mask, const Volume<T>& priority, const 
     irq.check(0.9);
 
     skel = collect_skeleton(st, mask.dims(), threads);
-    count_skeleton(th, st, skel, mask.dims(), stats);
-    count_stuck(th, st, skel, mask.dims(), opt.end_point_length, stats);
+    count_skeleton(th, st, skel, mask.dims(), opt.end_point_length, stats);
   }
   finish_state(st, skel, mask.dims(), threads);
   irq.check(1.0);

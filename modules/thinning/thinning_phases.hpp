@@ -8,8 +8,8 @@
 //   3. fill_initial_queue: the boundary voxels in raster order within each level;
 //   4. Removal::run_basic (Algorithm 1) or Removal::run_smooth (Algorithm 2: per level, a parallel
 //      check, the choice of a sub-iteration direction and a sequential recheck);
-//   5. collect_skeleton, count_skeleton (kept end points, locked and interior voxels),
-//      count_stuck (fig. 2.23 components), finish_state (flags back to 0/1).
+//   5. collect_skeleton, count_skeleton (kept end points, locked and interior voxels, and the
+//      fig. 2.23 components, in one walk), finish_state (flags back to 0/1).
 // The per-voxel steps (Thinner, Levels::level, candidate_directions, Removal::remove) are inline so
 // that the loops of the phases keep them inlined.
 #include <algorithm>
@@ -601,14 +601,12 @@ ThinningResult thin_doht_with_entries(const VolumeU8& mask, const DataObject& pr
 
 // Phase 5: the object voxels of `st` in raster order.
 std::vector<int64_t> collect_skeleton(const uint8_t* st, const Dims& dims, int threads);
-// Phase 5: skeleton_voxels, locked_voxels, kept_end_points, interior_voxels of the skeleton `skel`.
-void count_skeleton(const Thinner& th, const uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
-                    ThinningStatistics& stats);
-// Phase 5: stuck_components and stuck_voxels (fig. 2.23): 26-components of `skel` with more than
+// Phase 5, one walk over the skeleton `skel`: skeleton_voxels, locked_voxels, kept_end_points,
+// interior_voxels, and stuck_components and stuck_voxels (fig. 2.23): 26-components with more than
 // one voxel, no locked voxel and (end_point_length > 0) no end point, that are contractible. Uses and
 // leaves kVisited on the skeleton voxels.
-void count_stuck(const Thinner& th, uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
-                 int end_point_length, ThinningStatistics& stats);
+void count_skeleton(const Thinner& th, uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims,
+                    int end_point_length, ThinningStatistics& stats);
 // Phase 5: the state back to the 0/1 skeleton: skeleton voxels to 1, flags on the array faces cleared.
 void finish_state(uint8_t* st, const std::vector<int64_t>& skel, const Dims& dims, int threads);
 

@@ -350,7 +350,7 @@ TEST(ThinningPhases, SkeletonStatistics) {
     if (mask[i]) expect.push_back(i);
   EXPECT_EQ(skel, expect);
   ThinningStatistics stats;
-  count_skeleton(Thinner(s.st.data(), mask.dims(), 2), s.st.data(), skel, mask.dims(), stats);
+  count_skeleton(Thinner(s.st.data(), mask.dims(), 2), s.st.data(), skel, mask.dims(), 2, stats);
   EXPECT_EQ(stats.skeleton_voxels, 30);
   EXPECT_EQ(stats.locked_voxels, 1);
   EXPECT_EQ(stats.kept_end_points, 2);
@@ -374,7 +374,7 @@ TEST(ThinningPhases, StuckComponentsAreContractibleAndUnanchored) {
     Scanned s = scan(mask, VolumeF32(mask.grid(), 0.0f), &locked);
     const std::vector<int64_t> skel = collect_skeleton(s.st.data(), mask.dims(), 1);
     ThinningStatistics stats;
-    count_stuck(Thinner(s.st.data(), mask.dims(), l), s.st.data(), skel, mask.dims(), l, stats);
+    count_skeleton(Thinner(s.st.data(), mask.dims(), l), s.st.data(), skel, mask.dims(), l, stats);
     // l = 0 keeps no end points, so only the free two-voxel line is stuck; with l > 0 its end points
     // anchor it.
     EXPECT_EQ(stats.stuck_components, l == 0 ? 1 : 0) << l;
