@@ -92,9 +92,9 @@ void layer_coordinates(Prepared& P, int threads) {
   const size_t nwords = static_cast<size_t>(D.bits() / 64);
   P.lcoord.resize(static_cast<size_t>(P.nl));
   parallel_for(0, static_cast<int64_t>(nwords), threads, [&](int64_t w0, int64_t w1) {
+    uint64_t id = P.layer.prefix(static_cast<size_t>(w0));  // then counted along
     for (int64_t w = w0; w < w1; ++w) {
       uint64_t bits = P.layer.word(static_cast<size_t>(w));
-      uint64_t id = P.layer.prefix(static_cast<size_t>(w));
       while (bits) {
         const int64_t pos = w * 64 + std::countr_zero(bits);
         bits &= bits - 1;
@@ -173,10 +173,12 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
   auto for_each_in = [&](const IdBits& bits, auto&& f, auto&& flush) {
     parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
       Local local;
+      uint64_t next_id = P.obj.prefix(static_cast<size_t>(w0));  // object id of word w's first bit
       for (int64_t w = w0; w < w1; ++w) {
         uint64_t ob = P.obj.word(static_cast<size_t>(w));
+        uint64_t id = next_id;
+        next_id += static_cast<uint64_t>(std::popcount(ob));
         if (!ob) continue;
-        uint64_t id = P.obj.prefix(static_cast<size_t>(w));
         uint64_t rb = bits.get(id, std::popcount(ob));
         for (; ob; ob &= ob - 1, rb >>= 1, ++id)
           if (rb & 1) f(w * 64 + std::countr_zero(ob), id, local);
@@ -343,9 +345,9 @@ void base_ids(Prepared& P, int threads) {
   P.b.assign(static_cast<size_t>(P.k), kNone);
   const int64_t nwords = static_cast<int64_t>(P.obj.word_count());
   parallel_for(0, nwords, threads, [&](int64_t w0, int64_t w1) {
+    uint64_t id = P.obj.prefix(static_cast<size_t>(w0));  // then counted along
     for (int64_t w = w0; w < w1; ++w) {
       uint64_t bits = P.obj.word(static_cast<size_t>(w));
-      uint64_t id = P.obj.prefix(static_cast<size_t>(w));
       for (; bits; bits &= bits - 1, ++id) {
         const int64_t pos = w * 64 + std::countr_zero(bits);
         P.b[id] = static_cast<uint32_t>(P.layer.rank(P.base_pos_of_object(id, pos)));
@@ -366,9 +368,9 @@ void layer_components(Prepared& P) {
     }
     return a;
   };
+  uint32_t i = 0;  // L-id, counted along
   for (size_t w = 0; w < P.layer.word_count(); ++w) {
     uint64_t bits = P.layer.word(w);
-    uint32_t i = static_cast<uint32_t>(P.layer.prefix(w));
     for (; bits; bits &= bits - 1, ++i) {
       const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
       for (int64_t o : {int64_t{1}, D.BX, D.plane}) {
@@ -385,7 +387,11 @@ void prepare(const VolumeU8& mask, Prepared& P, int threads, const Interrupter& 
              bool components) {
   build_bitmaps(mask, P, threads, intr);
   intr.check(0.08);
+  // The rings rank object neighbours many times per voxel: word prefixes while they run (counted in
+  // their bytes; the searches need less memory than this phase's peak and go without them).
+  P.obj.build_word_prefixes();
   nearest_points(mask.spacing(), P, threads, intr);
+  P.obj.drop_word_prefixes();
   if (keep_coords) {
     layer_coordinates(P, threads);
     base_ids(P, threads);
@@ -455,9 +461,9 @@ Buckets bucket_by_base(const Prepared& P, int threads) {
     const size_t w0 = static_cast<size_t>(std::max<int64_t>(0, z0 - R) * plane_words);
     const size_t w1 = static_cast<size_t>(std::min<int64_t>(D.BZ, z1 + R) * plane_words);
     const int64_t b0 = z0 * D.plane, b1 = z1 * D.plane;
+    uint64_t id = P.obj.prefix(w0);  // then counted along
     for (size_t w = w0; w < w1; ++w) {
       uint64_t bits = P.obj.word(w);
-      uint64_t id = P.obj.prefix(w);
       for (; bits; bits &= bits - 1, ++id) {
         const int64_t pos = static_cast<int64_t>(w) * 64 + std::countr_zero(bits);
         const int64_t bp = P.base_pos_of_object(id, pos);
@@ -518,10 +524,13 @@ Buckets bucket_by_base(const Prepared& P, int threads) {
 namespace {
 
 // Landmark policy: a field (about 2 t^2 voxels on a flat surface, both sides of a thin plate) is
-// built after an own search that closed at least S.lm_min_visited voxels (12 t by default: rim
+// built after an own search that closed at least S.lm_min_visited voxels (8 t by default: rim
 // crossings), unless a field already starts within kLandmarkReuse steps of its far target. Measured
-// on 256³ plates, t = 40 (bench/RESULTS.md): t and 4 t cost more than they save, 6 t is worse,
-// 9-18 t the same; reuse distances 2-16 make little difference.
+// on 256³ plates, t = 40 (bench/RESULTS.md, session 9): t and 4 t cost more than they save, 9-18 t
+// the same; reuse distances 2-16 make little difference. Measured again with the code of session 19
+// (instructions at 192³, wall time at 512³, t = 40): 6-8 t 4-6 % fewer instructions than 12 t on
+// plates and mixed (24-50 t: 27-29 % more on mixed); the search's wall time about 10 % shorter on
+// mixed (the bone phantom), unchanged on plates.
 constexpr uint32_t kLandmarkReuse = 8;
 
 // Breadth-first search over L from scratch index `si` at padded position `src_pos` to the distance
@@ -536,6 +545,7 @@ size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, QueueVector<uin
   const Domain& D = P.dom;
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
   const int64_t lb[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
+  const DenseRanks lrank(P.layer);
   // Use the capacity left from earlier searches without reallocating.
   list.resize(std::max<size_t>(list.capacity(), 64));
   posq.resize(list.size());
@@ -560,8 +570,8 @@ size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, QueueVector<uin
       const int64_t pos = pq[head];
       for (int n = 0; n < 6; ++n) {
         const int64_t q = pos + nb[n];
-        if (!P.layer.test(q)) continue;
-        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : static_cast<uint32_t>(P.layer.rank(q));
+        if (!lrank.test(q)) continue;
+        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : lrank(q);
         if (dist[u]) continue;
         dist[u] = next;
         lq[tail] = u;
@@ -725,6 +735,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
   const int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
   const int64_t lstep[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
+  const DenseRanks lrank(P.layer);
   uint32_t key = lo;
   const uint32_t last = std::min(limit, std::numeric_limits<uint32_t>::max() - 8);
   while (nrem > 0 && key <= hi && key <= last) {
@@ -762,9 +773,9 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
     const int64_t pos = e.x + D.BX * (e.y + D.BY * static_cast<int64_t>(e.z));
     for (int n = 0; n < 6; ++n) {
       const int64_t q = pos + nb[n];
-      if (!P.layer.test(q)) continue;
+      if (!lrank.test(q)) continue;
       const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
-                                : static_cast<uint32_t>(P.layer.rank(q));
+                                : lrank(q);
       if (dedup) {
         // Queued before on a path at least as short: that entry does the work. This also skips
         // closed voxels (a closed voxel was queued with its final g <= e.g + 1), without the stamp.
@@ -849,18 +860,23 @@ void BaseWork::gather(uint32_t base_id, int64_t base_pos) {
     mpos.push_back(sh_.B.member(m, base_pos));
   mtarget.clear();
   mcount.clear();
+  // Targets are told apart by position (as by L-id: one L voxel per position). Their L-ids are
+  // needed only with dense scratch (indexed by L-id) and L's components; a box is indexed by
+  // position, so with one the rank per target is skipped (kNone: never read).
   for (int64_t pos : mpos) {
     uint8_t n = 0;
-    for_each_target_at(P, pos, [&](uint32_t c, int64_t cpos) {
-      const size_t i = static_cast<size_t>(std::find(targets.begin(), targets.end(), c) - targets.begin());
-      if (i == targets.size()) {
-        targets.push_back(c);
-        tpos.push_back(cpos);
-      }
+    for_each_target_pos(P, pos, [&](int64_t cpos) {
+      const size_t i = static_cast<size_t>(std::find(tpos.begin(), tpos.end(), cpos) - tpos.begin());
+      if (i == tpos.size()) tpos.push_back(cpos);
       mtarget.push_back(static_cast<uint32_t>(i));
       ++n;
     });
     mcount.push_back(n);
+  }
+  if (S_.boxed() && P.lcomp.empty()) {
+    targets.assign(tpos.size(), kNone);
+  } else {
+    for (int64_t cpos : tpos) targets.push_back(static_cast<uint32_t>(P.layer.rank(cpos)));
   }
   tdist.assign(targets.size(), kNone);
 }
@@ -1008,6 +1024,29 @@ void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t
   }
 }
 
+SearchLayout search_layout(const SearchShared& sh) {
+  const Prepared& P = sh.P;
+  const Domain& D = P.dom;
+  const int64_t t = sh.t, pivot_margin = sh.pivot_margin;
+  SearchLayout L;
+  const int64_t extent = std::max<int64_t>(2 * pivot_margin + 2, 8);
+  const int64_t rw = D.row_words();
+  L.nbx = std::max<int64_t>(1, rw / ((extent + 63) / 64));
+  L.nby = std::max<int64_t>(1, D.BY / extent);
+  L.nbz = std::max<int64_t>(1, D.BZ / extent);
+  // Scratch box: the largest block plus everything its searches reach (own searches to t from bases
+  // within `margin` of the block, pivots to t + margin from the block's bases, and one neighbour
+  // more), clipped to the domain; dense (one entry per L voxel) where that is smaller, in full mode
+  // (unbounded searches) and where the box index would not fit in 32 bits.
+  L.halo = t + pivot_margin + 1;
+  L.bw = std::min(D.BX, 64 * ((rw + L.nbx - 1) / L.nbx) + 2 * L.halo);
+  L.bh = std::min(D.BY, (D.BY + L.nby - 1) / L.nby + 2 * L.halo);
+  L.bd = std::min(D.BZ, (D.BZ + L.nbz - 1) / L.nbz + 2 * L.halo);
+  const int64_t box = L.bw * L.bh * L.bd;
+  L.boxed = !sh.full && (sh.force_box || box < P.nl) && box < static_cast<int64_t>(std::numeric_limits<uint32_t>::max());
+  return L;
+}
+
 uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_progress) {
   const Prepared& P = sh.P;
   const Domain& D = P.dom;
@@ -1030,21 +1069,10 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
     for (int64_t l = 0; l < P.nl; ++l) nb += sh.B.has_work(static_cast<uint32_t>(l));
     sh.n_bases = nb;
   }
-  const int64_t extent = std::max<int64_t>(2 * static_cast<int64_t>(pivot_margin) + 2, 8);
-  const int64_t rw = D.row_words();
-  const int64_t nbx = std::max<int64_t>(1, rw / ((extent + 63) / 64));
-  const int64_t nby = std::max<int64_t>(1, D.BY / extent);
-  const int64_t nbz = std::max<int64_t>(1, D.BZ / extent);
-  // Scratch box: the largest block plus everything its searches reach (own searches to t from bases
-  // within `margin` of the block, pivots to t + margin from the block's bases, and one neighbour
-  // more), clipped to the domain; dense (one entry per L voxel) where that is smaller, in full mode
-  // (unbounded searches) and where the box index would not fit in 32 bits.
-  const int64_t halo = static_cast<int64_t>(t) + pivot_margin + 1;
-  const int64_t bw = std::min(D.BX, 64 * ((rw + nbx - 1) / nbx) + 2 * halo);
-  const int64_t bh = std::min(D.BY, (D.BY + nby - 1) / nby + 2 * halo);
-  const int64_t bd = std::min(D.BZ, (D.BZ + nbz - 1) / nbz + 2 * halo);
-  const bool boxed = !sh.full && (sh.force_box || bw * bh * bd < P.nl) &&
-                     bw * bh * bd < static_cast<int64_t>(std::numeric_limits<uint32_t>::max());
+  const SearchLayout lay = search_layout(sh);
+  const int64_t rw = D.row_words(), nbx = lay.nbx, nby = lay.nby, nbz = lay.nbz, halo = lay.halo;
+  const int64_t bw = lay.bw, bh = lay.bh, bd = lay.bd;
+  const bool boxed = lay.boxed;
 
   std::mutex scratch_mutex;
   std::vector<std::unique_ptr<Scratch>> pool;
@@ -1062,7 +1090,7 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
     // margin + 1 voxels beyond the block.
     s->fields = sh.landmarks && !sh.full;
     s->lm_radius = s->fields && t <= 253 ? t : 0;
-    s->lm_min_visited = sh.landmark_min_visited >= 0 ? sh.landmark_min_visited : 12 * static_cast<int64_t>(t);
+    s->lm_min_visited = sh.landmark_min_visited >= 0 ? sh.landmark_min_visited : 8 * static_cast<int64_t>(t);
     if (s->lm_radius > 0)  // allocated up front, so the bytes do not depend on which worker built fields
       for (Scratch::Landmark& L : s->lm) L.f.assign(s->stamp.size(), 0);
     return s;
@@ -1094,9 +1122,9 @@ uint64_t search_bases(SearchShared& sh, int threads, const Interrupter& search_p
         for (int64_t z = z0; z < z1; ++z) {
           for (int64_t y = y0; y < y1; ++y) {
             const int64_t row = (z * D.BY + y) * rw;
+            uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(row + w0)));  // counted along
             for (int64_t w = row + w0; w < row + w1; ++w) {
               uint64_t bits = P.layer.word(static_cast<size_t>(w));
-              uint32_t a = static_cast<uint32_t>(P.layer.prefix(static_cast<size_t>(w)));
               for (; bits; bits &= bits - 1, ++a) {
                 if (!sh.B.has_work(a) || !sh.claim(a)) continue;
                 process_base(sh, *S, work, a, w * 64 + std::countr_zero(bits));
@@ -1168,6 +1196,13 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   // bucket, so threads never write the same element).
   SearchShared sh(P, B, mask, res.importance.data(), t, full);
   sh.landmarks = opt.landmarks;
+  // Dense scratch (full mode, and volumes so small that a box would hold more voxels than L): the
+  // searches rank every neighbour they visit, so the bitmaps get a prefix per word as well (+0.5
+  // bits per voxel each, counted in the bytes).
+  if (!search_layout(sh).boxed) {
+    P.layer.build_word_prefixes();
+    P.obj.build_word_prefixes();
+  }
   const uint64_t scratch_bytes = search_bases(sh, opt.threads, opt.interrupter.sub(0.25, 0.97));
   threshold_surface(res.importance, res.surface_skeleton, t, opt.threads);
   res.stats.seconds_prepare = std::chrono::duration<double>(t1 - t0).count();

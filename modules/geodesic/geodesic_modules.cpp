@@ -58,19 +58,21 @@ count: the grid is cut into blocks (64-voxel x-ranges x y-bands x z-slabs, each 
 voxels thick) run in eight passes by the parity of their (x, y, z) index, so no two workers reach the
 same base.
 
-Memory (beyond the input mask and the two outputs; the larger of two phases): 3 bits per voxel of the
-padded grid (two bitmaps with 32-bit ranks per word, 1.5 bits each) and 3 bytes per object voxel
-(b(p) as an offset) throughout; the
-nearest-point transform adds 2 bits per object voxel (this ring and the next) and, while it finds the
-first ring 64 voxels at a time, 1 bit per voxel of the padded grid; the searches add 3
+Memory (beyond the input mask and the two outputs; the larger of two phases): 2.1 bits per voxel of the
+padded grid (two bitmaps with a 32-bit rank per 512 bits, 1.06 bits each) and 3 bytes per object
+voxel (b(p) as an offset) throughout; the
+nearest-point transform adds 2 bits per object voxel (this ring and the next), 0.5 bits per voxel of
+the padded grid (a rank per word of the object bitmap) and, while it finds the first ring 64 voxels
+at a time, 1 bit per voxel of the padded grid; the searches add 3
 bytes per object voxel (bucket members as offsets from their base) and about 1.06 per boundary-layer
 voxel (bucket sizes; + 4 for L's components in full mode), plus per worker thread 2 (stamp) + 4
 (queued g, threshold mode) + 1 (pivot distance; 2 where t + t/4 > 254) + 2 (two landmark fields)
 bytes per entry of its scratch: one entry per voxel of a box
 around its block (the block plus t + t/4 + 1 on every side, about 2.5 M voxels for t = 40), or one
-per boundary-layer voxel where that is fewer (small volumes, full mode), and the queues. In all
-about 12.1 bytes per object voxel for the 512³ plates phantom, 19.1 for the sparser mixed one (the
-boxes' share falls with the size: about 9.7 for 1280³ plates).
+per boundary-layer voxel where that is fewer (small volumes, full mode; then both bitmaps also keep
+a rank per word, +0.5 bits per voxel each), and the queues. In all about 11.3 bytes per object voxel
+for the 512³ plates phantom, 17.2 for the sparser mixed one (the boxes' share falls with the size:
+11.5 for 1280³ mixed, about 9 for 1280³ plates).
 
 Block-wise under a memory budget (thesis §5.3), threshold mode: each block is computed on the block
 with a margin of d_max + t/2 + 3 voxels (d_max: the largest chessboard distance of its voxels to the

@@ -52,34 +52,86 @@ template <class T>
 using QueueVector = std::vector<T, NoInitAllocator<T>>;
 
 // A bitmap over the padded domain with O(1) rank (number of set bits before a position): the bits
-// (1 per voxel) and, after build_rank(), the set bits before every 64-bit word as 32 bits (object
-// and layer voxels are < 2^32, checked in build_bitmaps): 1.5 bits per voxel. A test touches the
-// bits only; a rank one more cache line.
+// (1 per voxel) and, after build_rank(), the set bits before every group of 8 words (512 bits) as
+// 32 bits (object and layer voxels are < 2^32, checked in build_bitmaps): 1.0625 bits per voxel (a
+// prefix per word took 1.5 bits: 1.6 bytes per object voxel more on the 7 %-object bone phantom at
+// 1280³). A test touches the bits only; a rank adds four popcounts in the word's half-group and a
+// prefix load.
 struct RankBits {
+  static constexpr size_t kGroup = 8;  // words per stored prefix
   std::vector<uint64_t> words;
   std::vector<uint32_t> pre;
+  std::vector<uint32_t> wpre;  // optional: the prefix of every word (build_word_prefixes)
   [[nodiscard]] uint64_t word(size_t w) const { return words[w]; }
-  [[nodiscard]] uint64_t prefix(size_t w) const { return pre[w]; }
+  // Set bits before word w: from the group's prefix forward over words 0 .. 3 of the group, or from
+  // the next group's prefix backward over words 4 .. 7 (pre has one entry more), four popcounts
+  // either way, branch-free (a loop to w mispredicts on its varying count).
+  [[nodiscard]] uint64_t prefix(size_t w) const {
+    if (!wpre.empty()) return wpre[w];
+    const size_t hi = (w >> 2) & 1, k = (w & 3);  // the half of the group, w's place in it
+    const uint64_t* h = words.data() + (w & ~size_t{3});
+    uint64_t sum = 0;
+    for (size_t j = 0; j < 4; ++j)
+      sum += static_cast<uint64_t>(std::popcount(h[j])) & (uint64_t{0} - static_cast<uint64_t>((j < k) != (hi != 0)));
+    const uint64_t base = pre[w / kGroup + hi];
+    return hi ? base - sum : base + sum;
+  }
   [[nodiscard]] bool test(int64_t pos) const { return (words[static_cast<size_t>(pos >> 6)] >> (pos & 63)) & 1u; }
   [[nodiscard]] uint64_t rank(int64_t pos) const {
     const size_t w = static_cast<size_t>(pos >> 6);
     const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
-    return pre[w] + static_cast<uint64_t>(std::popcount(below));
+    return prefix(w) + static_cast<uint64_t>(std::popcount(below));
   }
   // Builds the prefixes; returns the number of set bits (prefixes saturate where it is >= 2^32,
   // which the caller refuses).
+  // The words are padded with zeros to whole groups (prefix() reads a whole group).
   uint64_t build_rank() {
     const size_t n = words.size();
-    pre.resize(n);
+    nw = n;
+    words.resize((n + kGroup - 1) / kGroup * kGroup, 0);
+    pre.resize((n + kGroup - 1) / kGroup + 1);
     uint64_t s = 0;
-    for (size_t i = 0; i < n; ++i) {
-      pre[i] = static_cast<uint32_t>(std::min<uint64_t>(s, 0xFFFFFFFFu));
+    for (size_t i = 0; i < words.size(); ++i) {
+      if (i % kGroup == 0) pre[i / kGroup] = static_cast<uint32_t>(std::min<uint64_t>(s, 0xFFFFFFFFu));
       s += static_cast<uint64_t>(std::popcount(words[i]));
     }
+    pre.back() = static_cast<uint32_t>(std::min<uint64_t>(s, 0xFFFFFFFFu));
     return s;
   }
-  [[nodiscard]] size_t word_count() const { return words.size(); }
-  [[nodiscard]] uint64_t bytes() const { return words.size() * 8 + pre.size() * 4; }
+  // A prefix per word as well (+0.5 bits per voxel): a rank is then one load and one popcount. For
+  // the phases that rank most (the nearest points; searches whose scratch is indexed by L-id).
+  void build_word_prefixes() {
+    std::vector<uint32_t> wp(words.size());
+    for (size_t w = 0; w < wp.size(); ++w) wp[w] = static_cast<uint32_t>(prefix(w));
+    wpre = std::move(wp);
+  }
+  void drop_word_prefixes() { std::vector<uint32_t>().swap(wpre); }
+  [[nodiscard]] size_t word_count() const { return nw ? nw : words.size(); }
+  [[nodiscard]] uint64_t bytes() const { return words.size() * 8 + pre.size() * 4 + wpre.size() * 4; }
+
+private:
+  size_t nw = 0;  // words before the padding (after build_rank)
+};
+
+// Ranks for the searches over dense scratch (indexed by L-id), which rank every neighbour they
+// visit: one load and one popcount where the word prefixes are built, else RankBits::rank. A local
+// copy of the pointers, so that a loop keeps them in registers.
+class DenseRanks {
+public:
+  explicit DenseRanks(const RankBits& r) : rb_(&r), words_(r.words.data()), wpre_(r.wpre.empty() ? nullptr : r.wpre.data()) {}
+  [[nodiscard]] bool test(int64_t pos) const { return (words_[static_cast<size_t>(pos >> 6)] >> (pos & 63)) & 1u; }
+  [[nodiscard]] uint32_t operator()(int64_t pos) const {
+    if (!wpre_) [[unlikely]]
+      return slow(pos);
+    const size_t w = static_cast<size_t>(pos >> 6);
+    return wpre_[w] + static_cast<uint32_t>(std::popcount(words_[w] & ((uint64_t{1} << (pos & 63)) - 1)));
+  }
+
+private:
+  [[gnu::noinline]] uint32_t slow(int64_t pos) const { return static_cast<uint32_t>(rb_->rank(pos)); }
+  const RankBits* rb_;
+  const uint64_t* words_;
+  const uint32_t* wpre_;
 };
 
 struct Coord {
@@ -313,17 +365,21 @@ struct Members {
   [[nodiscard]] uint64_t bytes() const { return off.size() * sizeof(BaseOffset) + far.size() * 16; }
 };
 
-// The considered neighbours of object voxel `pos` and their base points: f(L-id, padded position).
+// The considered neighbours of object voxel `pos` and their base points: f(padded position).
 template <class F>
-void for_each_target_at(const Prepared& P, int64_t pos, F&& f) {
+void for_each_target_pos(const Prepared& P, int64_t pos, F&& f) {
   const int64_t offs[3] = {1, P.dom.BX, P.dom.plane};
   for (int64_t o : offs) {
     // Lower neighbour: always (object or layer).
-    const int64_t bp = P.base_pos(pos - o);
-    f(static_cast<uint32_t>(P.layer.rank(bp)), bp);
+    f(P.base_pos(pos - o));
     // Upper neighbour: only if background (then it is in L).
-    if (!P.obj.test(pos + o)) f(static_cast<uint32_t>(P.layer.rank(pos + o)), pos + o);
+    if (!P.obj.test(pos + o)) f(pos + o);
   }
+}
+// The same with L-ids: f(L-id, padded position).
+template <class F>
+void for_each_target_at(const Prepared& P, int64_t pos, F&& f) {
+  for_each_target_pos(P, pos, [&](int64_t bp) { f(static_cast<uint32_t>(P.layer.rank(bp)), bp); });
 }
 // The same, L-ids only.
 template <class F>
@@ -406,7 +462,7 @@ struct SearchShared {
   uint32_t pivot_margin = 0;  // 0 = no pivots
   bool force_box = false;     // tests: box scratch even where dense would be smaller
   bool landmarks = true;      // tests and benchmarks: landmark fields for the A* (same results)
-  int64_t landmark_min_visited = -1;  // tests: a field after searches this large (-1: 12 t)
+  int64_t landmark_min_visited = -1;  // tests: a field after searches this large (-1: 8 t)
   // Bases are claimed once: by their own search or by a neighbouring pivot.
   std::vector<std::atomic<uint64_t>> claimed;
   std::atomic<int64_t> n_landmarks{0}, n_pivots{0}, n_long{0}, n_search{0}, n_saturated{0}, n_visited{0}, n_bases{0}, done_bases{0};
@@ -461,6 +517,14 @@ private:
 // inequality: g(a', c) >= g(a, c) - g(a, a') >= t).
 // `w` is the worker's (its vectors are reused from base to base).
 void process_base(SearchShared& sh, Scratch& S, BaseWork& w, uint32_t a, int64_t apos);
+
+// How search_bases cuts the work: blocks of bases (nbx x nby x nbz, x in whole words) and the
+// workers' scratch: a box of bw x bh x bd voxels around a block, or dense (one entry per L voxel).
+struct SearchLayout {
+  int64_t nbx = 1, nby = 1, nbz = 1, halo = 0, bw = 0, bh = 0, bd = 0;
+  bool boxed = false;
+};
+SearchLayout search_layout(const SearchShared& sh);
 
 // Phase 3: every base with work, claimed once, on `threads` workers; returns the bytes of the
 // workers' scratch. The importance does not depend on the thread count.

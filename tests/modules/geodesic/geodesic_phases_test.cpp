@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <random>
 #include <set>
 #include <vector>
@@ -31,6 +32,47 @@ struct SingleVoxel {
 };
 
 }  // namespace
+
+// Ranks from one prefix per 8 words (four popcounts forward or backward in the half group), with
+// and without the optional prefix per word, against a plain count; 61 words: the last group is
+// padded, and densities from empty to full words.
+TEST(GeodesicPhases, RankBitsCountTheSetBitsBeforeEveryPosition) {
+  std::mt19937_64 rng(7);
+  RankBits rb;
+  const size_t n = 61;
+  for (size_t w = 0; w < n; ++w) {
+    const int kind = static_cast<int>(w % 5);
+    const uint64_t r = rng();
+    rb.words.push_back(kind == 0 ? 0 : kind == 1 ? ~uint64_t{0} : kind == 2 ? r & rng() & rng() : r);
+  }
+  const std::vector<uint64_t> bits = rb.words;
+  uint64_t total = 0;
+  for (uint64_t b : bits) total += static_cast<uint64_t>(std::popcount(b));
+  EXPECT_EQ(rb.build_rank(), total);
+  EXPECT_EQ(rb.word_count(), n);
+  EXPECT_EQ(rb.words.size() % RankBits::kGroup, 0u);
+  auto check = [&](const char* what) {
+    uint64_t before = 0;
+    for (size_t w = 0; w < n; ++w) {
+      ASSERT_EQ(rb.prefix(w), before) << what << " word " << w;
+      for (int b = 0; b < 64; ++b) {
+        const int64_t pos = static_cast<int64_t>(w) * 64 + b;
+        ASSERT_EQ(rb.rank(pos), before) << what << " position " << pos;
+        ASSERT_EQ(DenseRanks(rb)(pos), before) << what << " position " << pos;
+        ASSERT_EQ(rb.test(pos), ((bits[w] >> b) & 1u) != 0) << what << " position " << pos;
+        before += (bits[w] >> b) & 1u;
+      }
+    }
+  };
+  check("group prefixes");
+  const uint64_t group_bytes = rb.bytes();
+  rb.build_word_prefixes();
+  EXPECT_EQ(rb.bytes(), group_bytes + rb.words.size() * 4);
+  check("word prefixes");
+  rb.drop_word_prefixes();
+  EXPECT_EQ(rb.bytes(), group_bytes);
+  check("dropped word prefixes");
+}
 
 TEST(GeodesicPhases, PrepareFindsTheLayerAndTheNearestBackgroundPoint) {
   const SingleVoxel s;
