@@ -636,10 +636,11 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   }
   size_t nrem = 0;
   auto coords = [&](int64_t pos, int32_t& x, int32_t& y, int32_t& z) {
-    z = static_cast<int32_t>(pos / D.plane);
-    const int64_t r = pos % D.plane;
-    y = static_cast<int32_t>(r / D.BX);
-    x = static_cast<int32_t>(r % D.BX);
+    int64_t x64 = 0, y64 = 0, z64 = 0;
+    D.coords(pos, x64, y64, z64);
+    x = static_cast<int32_t>(x64);
+    y = static_cast<int32_t>(y64);
+    z = static_cast<int32_t>(z64);
   };
   // Scratch index of the L voxel at padded (x, y, z) with L-id l, or kNone where a box does not
   // hold it.
@@ -931,7 +932,8 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
   // is the distance (0 and 1 always: both ends are in L). At 128³ plates this spares 58 % of the own
   // searches and 10 % of the instructions; the distances are the same.
   const Domain& D = P.dom;
-  const int64_t az = base_pos / D.plane, ar = base_pos % D.plane, ay = ar / D.BX, ax = ar % D.BX;
+  int64_t ax = 0, ay = 0, az = 0;
+  D.coords(base_pos, ax, ay, az);
   for (size_t i = 0; i < targets.size(); ++i) {
     if (tdist[i] != kNone || !needed[i]) continue;
     const int64_t c = tpos[i];
@@ -939,8 +941,9 @@ bool BaseWork::own_search(uint32_t base_id, int64_t base_pos) {
       tdist[i] = 0;
       continue;
     }
-    const int64_t cz = c / D.plane, cr = c % D.plane;
-    const int64_t dx = cr % D.BX - ax, dy = cr / D.BX - ay, dz = cz - az;
+    int64_t cx = 0, cy = 0, cz = 0;
+    D.coords(c, cx, cy, cz);
+    const int64_t dx = cx - ax, dy = cy - ay, dz = cz - az;
     const int64_t n1 = std::abs(dx) + std::abs(dy) + std::abs(dz);
     if (n1 == 1) {
       tdist[i] = 1;
