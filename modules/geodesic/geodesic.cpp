@@ -58,7 +58,7 @@ void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interru
     throw InputError("geodesic: volumes up to 65000 voxels per axis are supported");
   const size_t nwords = static_cast<size_t>(D.bits() / 64);
   const int64_t rw = D.row_words();
-  P.obj.words.assign(nwords, 0);
+  P.obj.assign_zero(nwords);
   // Object bits, parallel over z (rows are word-aligned, so slices never share a word).
   parallel_for(0, D.nz, threads, [&](int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z)
@@ -71,7 +71,7 @@ void build_bitmaps(const VolumeU8& mask, Prepared& P, int threads, const Interru
   });
   intr.check(0.02);
   // L = dilate26(O) minus O, over every row but the outermost guard rows.
-  P.layer.words.assign(nwords, 0);
+  P.layer.assign_zero(nwords);
   parallel_for(1, D.BZ - 1, threads, [&](int64_t z0, int64_t z1) {
     for (int64_t z = z0; z < z1; ++z)
       for (int64_t y = 1; y < D.BY - 1; ++y)
@@ -153,6 +153,7 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
       for (int dx = -1; dx <= 1; ++dx)
         if (dx || dy || dz) nbs.push_back(Nb{dx + D.BX * (dy + D.BY * dz), dx, dy, dz});
   P.boff.assign(static_cast<size_t>(P.k), kUnsetOffset);
+  const DenseRanks orank(P.obj);  // object ids of neighbours (through the word prefixes prepare() builds)
   // Object id -> padded position of b(p) where the offset does not fit in 8 bits (rare: objects
   // more than 127 voxels thick); read during a ring, written between rings.
   std::unordered_map<uint64_t, int64_t> far;
@@ -282,7 +283,7 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
             cx = n.dx, cy = n.dy, cz = n.dz;
             cpos = q;
           } else if (P.obj.test(q)) {
-            const uint64_t qi = P.obj.rank(q);
+            const uint64_t qi = orank(q);
             if (ring.test(qi)) continue;  // this ring: not committed
             const BaseOffset o = P.boff[qi];
             if (o.dx == kFar) {

@@ -84,11 +84,16 @@ struct RankBits {
   }
   // Builds the prefixes; returns the number of set bits (prefixes saturate where it is >= 2^32,
   // which the caller refuses).
-  // The words are padded with zeros to whole groups (prefix() reads a whole group).
+  // Words for n bits, zero, padded to whole groups (prefix() reads a whole group).
+  void assign_zero(size_t n_words) {
+    nw = n_words;
+    words.assign(padded(n_words), 0);
+  }
+  // The words beyond word_count() must be zero (assign_zero; else they are added here).
   uint64_t build_rank() {
-    const size_t n = words.size();
-    nw = n;
-    words.resize((n + kGroup - 1) / kGroup * kGroup, 0);
+    if (nw == 0) nw = words.size();
+    const size_t n = nw;
+    words.resize(padded(n), 0);
     pre.resize((n + kGroup - 1) / kGroup + 1);
     uint64_t s = 0;
     for (size_t i = 0; i < words.size(); ++i) {
@@ -101,8 +106,13 @@ struct RankBits {
   // A prefix per word as well (+0.5 bits per voxel): a rank is then one load and one popcount. For
   // the phases that rank most (the nearest points; searches whose scratch is indexed by L-id).
   void build_word_prefixes() {
-    std::vector<uint32_t> wp(words.size());
-    for (size_t w = 0; w < wp.size(); ++w) wp[w] = static_cast<uint32_t>(prefix(w));
+    std::vector<uint32_t> wp;
+    wp.reserve(words.size());
+    uint64_t s = 0;
+    for (uint64_t word : words) {
+      wp.push_back(static_cast<uint32_t>(std::min<uint64_t>(s, 0xFFFFFFFFu)));
+      s += static_cast<uint64_t>(std::popcount(word));
+    }
     wpre = std::move(wp);
   }
   void drop_word_prefixes() { std::vector<uint32_t>().swap(wpre); }
@@ -110,12 +120,13 @@ struct RankBits {
   [[nodiscard]] uint64_t bytes() const { return words.size() * 8 + pre.size() * 4 + wpre.size() * 4; }
 
 private:
-  size_t nw = 0;  // words before the padding (after build_rank)
+  static size_t padded(size_t n) { return (n + kGroup - 1) / kGroup * kGroup; }
+  size_t nw = 0;  // words before the padding (assign_zero or build_rank)
 };
 
-// Ranks for the searches over dense scratch (indexed by L-id), which rank every neighbour they
-// visit: one load and one popcount where the word prefixes are built, else RankBits::rank. A local
-// copy of the pointers, so that a loop keeps them in registers.
+// Ranks for the loops that rank every neighbour they visit (searches over dense scratch, indexed by
+// L-id; the nearest points): one load and one popcount where the word prefixes are built, else
+// RankBits::rank. A local copy of the pointers, so that a loop keeps them in registers.
 class DenseRanks {
 public:
   explicit DenseRanks(const RankBits& r) : rb_(&r), words_(r.words.data()), wpre_(r.wpre.empty() ? nullptr : r.wpre.data()) {}
