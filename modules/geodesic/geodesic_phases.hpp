@@ -82,14 +82,14 @@ struct RankBits {
     const uint64_t below = words[w] & ((uint64_t{1} << (pos & 63)) - 1);
     return prefix(w) + static_cast<uint64_t>(std::popcount(below));
   }
-  // Builds the prefixes; returns the number of set bits (prefixes saturate where it is >= 2^32,
-  // which the caller refuses).
   // Words for n bits, zero, padded to whole groups (prefix() reads a whole group).
   void assign_zero(size_t n_words) {
     nw = n_words;
     words.assign(padded(n_words), 0);
   }
-  // The words beyond word_count() must be zero (assign_zero; else they are added here).
+  // Builds the prefixes; returns the number of set bits (prefixes saturate where it is >= 2^32,
+  // which the caller refuses). The words beyond word_count() must be zero (assign_zero; else they
+  // are added here).
   uint64_t build_rank() {
     if (nw == 0) nw = words.size();
     const size_t n = nw;
