@@ -418,15 +418,10 @@ void for_each_target_pos(const Prepared& P, int64_t pos, F&& f) {
     if (!P.obj.test(pos + o)) f(pos + o);
   }
 }
-// The same with L-ids: f(L-id, padded position).
-template <class F>
-void for_each_target_at(const Prepared& P, int64_t pos, F&& f) {
-  for_each_target_pos(P, pos, [&](int64_t bp) { f(static_cast<uint32_t>(P.layer.rank(bp)), bp); });
-}
 // The same, L-ids only.
 template <class F>
 void for_each_target(const Prepared& P, int64_t pos, F&& f) {
-  for_each_target_at(P, pos, [&](uint32_t c, int64_t) { f(c); });
+  for_each_target_pos(P, pos, [&](int64_t bp) { f(static_cast<uint32_t>(P.layer.rank(bp))); });
 }
 
 // Phase 2: object voxels grouped by base point b(p) (counting sort): the voxels of base l are
