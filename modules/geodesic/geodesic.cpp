@@ -275,15 +275,18 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
         int64_t bpos = std::numeric_limits<int64_t>::max();
         int32_t bx = 0, by = 0, bz = 0;
         double bd = std::numeric_limits<double>::infinity();
+        uint64_t row_id = 0;  // object id of the row's dx = -1 neighbour
+        // Rings from 2 on have no L voxel among their 26 neighbours (ring 1 holds every object voxel
+        // that has one), and every background 26-neighbour of an object voxel is in L: so all 26
+        // neighbours are object voxels, and the three of a row have consecutive object ids (one
+        // rank per row instead of one per neighbour; nbs runs dx = -1, 0, 1 within each row).
         for (const Nb& n : nbs) {
           const int64_t q = pos + n.off;
           int32_t cx, cy, cz;  // offset from p to the candidate
           int64_t cpos;
-          if (P.layer.test(q)) {
-            cx = n.dx, cy = n.dy, cz = n.dz;
-            cpos = q;
-          } else if (P.obj.test(q)) {
-            const uint64_t qi = orank(q);
+          {
+            if (n.dx == -1) row_id = orank(q);
+            const uint64_t qi = row_id + static_cast<uint64_t>(n.dx + 1);
             if (ring.test(qi)) continue;  // this ring: not committed
             const BaseOffset o = P.boff[qi];
             if (o.dx == kFar) {
@@ -303,8 +306,6 @@ void nearest_points(const Vec3& sp, Prepared& P, int threads, const Interrupter&
               cx = n.dx + o.dx, cy = n.dy + o.dy, cz = n.dz + o.dz;
               cpos = q + o.dx + D.BX * (o.dy + D.BY * static_cast<int64_t>(o.dz));
             }
-          } else {
-            continue;
           }
           const double ex = static_cast<double>(cx) * sp[0], ey = static_cast<double>(cy) * sp[1],
                        ez = static_cast<double>(cz) * sp[2];
@@ -569,15 +570,36 @@ size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, QueueVector<uin
       }
       const uint32_t v = lq[head];
       const int64_t pos = pq[head];
-      for (int n = 0; n < 6; ++n) {
+      auto step = [&](auto nc) __attribute__((always_inline)) {  // unrolled: constant steps
+        constexpr int n = decltype(nc)::value;
         const int64_t q = pos + nb[n];
-        if (!lrank.test(q)) continue;
-        const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]) : lrank(q);
-        if (dist[u]) continue;
-        dist[u] = next;
-        lq[tail] = u;
-        pq[tail++] = q;
-      }
+        if constexpr (kBoxed) {
+          // Without branches (whether a neighbour is new is data, and mispredicted about one time in
+          // six): the box holds every neighbour of a voxel closer than the limit, L or not, and
+          // entries off L stay 0, so the entry is read and written either way and the queue's tail
+          // moves only for a new L voxel.
+          const uint32_t u = static_cast<uint32_t>(static_cast<int64_t>(v) + lb[n]);
+          const T du = dist[u];
+          const T fresh = static_cast<T>(static_cast<T>(lrank.test(q)) & static_cast<T>(du == 0));
+          dist[u] = static_cast<T>(du | (next & static_cast<T>(0 - fresh)));
+          lq[tail] = u;
+          pq[tail] = q;
+          tail += fresh;
+        } else {
+          if (!lrank.test(q)) return;
+          const uint32_t u = lrank(q);
+          if (dist[u]) return;
+          dist[u] = next;
+          lq[tail] = u;
+          pq[tail++] = q;
+        }
+      };
+      step(std::integral_constant<int, 0>{});
+      step(std::integral_constant<int, 1>{});
+      step(std::integral_constant<int, 2>{});
+      step(std::integral_constant<int, 3>{});
+      step(std::integral_constant<int, 4>{});
+      step(std::integral_constant<int, 5>{});
     }
   }
   list.resize(tail);
@@ -623,10 +645,23 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   // other: exact to its limit, clipped beyond), while it is there.
   const int nf = S.pivot_field ? K + 1 : K;
   auto f_on = [&](int s2) { return s2 < K ? S.lm[s2].on : S.pivot_field; };
-  auto f_raw = [&](int s2, uint32_t v) -> uint32_t { return s2 < K ? S.lm[s2].f[v] : S.pdist(v); };
+  // The fields' arrays and clipped values (radius + 1), looked up by slot without branching on the
+  // slot: every field is a byte array except 16-bit pivot distances (pivot limits above 254).
+  const uint8_t* fbyte[K + 1];
+  int32_t fclip[K + 1];
+  for (int s2 = 0; s2 < K; ++s2) {
+    fbyte[s2] = S.lm[s2].f.data();
+    fclip[s2] = static_cast<int32_t>(S.lm_radius) + 1;
+  }
+  fbyte[K] = S.pdist8.empty() ? nullptr : S.pdist8.data();
+  fclip[K] = static_cast<int32_t>(S.pivot_limit) + 1;
+  const uint16_t* const fwide = S.pdist8.empty() ? S.pdist16.data() : nullptr;
+  auto f_raw = [&](int s2, uint32_t v) -> uint32_t {
+    return s2 == K && fwide ? fwide[v] : fbyte[s2][v];
+  };
   auto f_val = [&](int s2, uint32_t v) -> int32_t {
     const uint32_t r = f_raw(s2, v);
-    return static_cast<int32_t>(r ? r - 1 : (s2 < K ? S.lm_radius : S.pivot_limit) + 1);
+    return r ? static_cast<int32_t>(r) - 1 : fclip[s2];
   };
   Tgt tg[64];
   std::vector<Tgt> tg_heap;
@@ -653,7 +688,6 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       return l;
     }
   };
-  bool use_lm = false;
   for (size_t i = 0; i < want.size(); ++i) {
     Tgt t{};
     coords(want_pos[i], t.x, t.y, t.z);
@@ -666,15 +700,52 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       t.fc[s2] = f_val(s2, ci);
       t.lmask |= 1u << s2;
     }
-    use_lm |= t.lmask != 0;
     rem[nrem++] = t;
   }
+  // Fields that some remaining target uses (recomputed when a target is reached).
+  uint32_t fields_used = 0;
+  for (size_t j = 0; j < nrem; ++j) fields_used |= rem[j].lmask;
   // h = the smallest lower bound over the remaining targets; each target's bound is the larger of
   // the 1-norm distance and its landmark bounds |f(c) - f(v)| (both consistent, so their max and
   // the min over targets are too: a closed voxel's g is final and the result is that of plain A*).
-  auto h = [&](int32_t x, int32_t y, int32_t z, uint32_t idx) {
-    if (!use_lm) {
-      if (nrem == 1) return static_cast<uint32_t>(std::abs(x - rem[0].x) + std::abs(y - rem[0].y) + std::abs(z - rem[0].z));
+  // One target left (most searches): its fields as a short list of byte arrays (the 16-bit pivot
+  // distances go the general way), no minimum over targets.
+  struct OneField {
+    const uint8_t* f;
+    int32_t fc, clip;
+  };
+  OneField one[K + 1];
+  int n_one = -1;  // -1: the general way
+  auto set_one = [&]() {
+    n_one = -1;
+    if (nrem != 1 || (fwide && (rem[0].lmask >> K & 1u))) return;
+    n_one = 0;
+    for (uint32_t lmk = rem[0].lmask; lmk; lmk &= lmk - 1) {
+      const int s2 = std::countr_zero(lmk);
+      one[n_one++] = OneField{fbyte[s2], rem[0].fc[s2], fclip[s2]};
+    }
+  };
+  set_one();
+  auto h = [&](int32_t x, int32_t y, int32_t z, uint32_t idx) __attribute__((always_inline)) {
+    if (n_one >= 0) {
+      const Tgt& c = rem[0];
+      int32_t d = std::abs(x - c.x) + std::abs(y - c.y) + std::abs(z - c.z);
+      for (int i = 0; i < n_one; ++i) {
+        const uint32_t r = one[i].f[idx];
+        d = std::max(d, std::abs(one[i].fc - (r ? static_cast<int32_t>(r) - 1 : one[i].clip)));
+      }
+      return static_cast<uint32_t>(d);
+    }
+    if (nrem == 1) {
+      const Tgt& c = rem[0];
+      int32_t d = std::abs(x - c.x) + std::abs(y - c.y) + std::abs(z - c.z);
+      for (uint32_t lmk = c.lmask; lmk; lmk &= lmk - 1) {
+        const int s2 = std::countr_zero(lmk);
+        d = std::max(d, std::abs(c.fc[s2] - f_val(s2, idx)));
+      }
+      return static_cast<uint32_t>(d);
+    }
+    if (fields_used == 0) {
       uint32_t m = std::numeric_limits<uint32_t>::max();
       for (size_t j = 0; j < nrem; ++j) {
         const uint32_t d = static_cast<uint32_t>(std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z));
@@ -683,7 +754,10 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       return m;
     }
     int32_t fv[Scratch::kLandmarks + 1];
-    for (int s2 = 0; s2 < nf; ++s2) fv[s2] = f_on(s2) ? f_val(s2, idx) : 0;
+    for (uint32_t fu = fields_used; fu; fu &= fu - 1) {
+      const int s2 = std::countr_zero(fu);
+      fv[s2] = f_val(s2, idx);
+    }
     uint32_t m = std::numeric_limits<uint32_t>::max();
     for (size_t j = 0; j < nrem; ++j) {
       int32_t d = std::abs(x - rem[j].x) + std::abs(y - rem[j].y) + std::abs(z - rem[j].z);
@@ -702,9 +776,9 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   const bool sized = limit < 65536;
   if (sized && bk.size() < static_cast<size_t>(limit) + 1) bk.resize(static_cast<size_t>(limit) + 1);
   int64_t nqueued = 0;
-  auto push = [&](uint32_t key, const Scratch::Entry& e) {
+  auto push = [&](uint32_t key, const Scratch::Entry& e) __attribute__((always_inline)) {
     if (!sized && key >= bk.size()) bk.resize(static_cast<size_t>(key) + 1);
-    bk[key].push_back(e);
+    bk[key].push(e);
     ++nqueued;
     hi = std::max(hi, key);
   };
@@ -735,7 +809,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   Tgt last_reached{};
   last_reached.i = kNone;
   const int64_t nb[6] = {-1, 1, -D.BX, D.BX, -D.plane, D.plane};
-  const int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
+  static constexpr int32_t ndx[6] = {-1, 1, 0, 0, 0, 0}, ndy[6] = {0, 0, -1, 1, 0, 0}, ndz[6] = {0, 0, 0, 0, -1, 1};
   const int64_t lstep[6] = {-1, 1, -S.bw, S.bw, -S.bw * S.bh, S.bw * S.bh};  // the same steps in the box
   const DenseRanks lrank(P.layer);
   uint32_t key = lo;
@@ -745,8 +819,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       ++key;
       continue;
     }
-    Scratch::Entry e = bk[key].back();  // last in, first out: the deepest voxel of the key first
-    bk[key].pop_back();
+    Scratch::Entry e = bk[key].pop();  // last in, first out: the deepest voxel of the key first
     if (is_closed(e.id)) continue;
     uint32_t hv = key - e.g;
     if (!track_gen || e.gen != gen) {  // h grew since the voxel was queued (a target was reached): requeue by its key
@@ -768,31 +841,42 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
           rem[j] = rem[--nrem];
           break;
         }
+      fields_used = 0;
+      for (size_t j = 0; j < nrem; ++j) fields_used |= rem[j].lmask;
+      set_one();
       if (nrem == 0) break;
       ++gen;
       // Expanded now (its g is final; its neighbours are queued by the new h).
     }
     const int64_t pos = e.x + D.BX * (e.y + D.BY * static_cast<int64_t>(e.z));
-    for (int n = 0; n < 6; ++n) {
+    // The six neighbours, unrolled (the steps are constants of each copy).
+    auto expand = [&](auto nc) __attribute__((always_inline)) {
+      constexpr int n = decltype(nc)::value;
       const int64_t q = pos + nb[n];
-      if (!lrank.test(q)) continue;
+      if (!lrank.test(q)) return;
       const uint32_t u = kBoxed ? static_cast<uint32_t>(static_cast<int64_t>(e.id) + lstep[n])
                                 : lrank(q);
       if (dedup) {
         // Queued before on a path at least as short: that entry does the work. This also skips
         // closed voxels (a closed voxel was queued with its final g <= e.g + 1), without the stamp.
-        const uint32_t qv = queued[u];
-        if ((qv & 0xFFFF0000u) == tag && (qv & (kClosedBit - 1)) <= e.g + 1) continue;
+        // One comparison: a mark of another search leaves high bits in the difference.
+        if (((queued[u] - tag) & ~kClosedBit) <= e.g + 1) return;
       } else if (S.stamp[u] == st) {
-        continue;
+        return;
       }
       const int32_t x = e.x + ndx[n], y = e.y + ndy[n], z = e.z + ndz[n];
-      const uint32_t nf = e.g + 1 + h(x, y, z, u);
-      if (nf <= last) {
-        push(nf, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
+      const uint32_t fn = e.g + 1 + h(x, y, z, u);
+      if (fn <= last) {
+        push(fn, Scratch::Entry{u, e.g + 1, static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z), gen});
         if (dedup) queued[u] = tag | (e.g + 1);
       }
-    }
+    };
+    expand(std::integral_constant<int, 0>{});
+    expand(std::integral_constant<int, 1>{});
+    expand(std::integral_constant<int, 2>{});
+    expand(std::integral_constant<int, 3>{});
+    expand(std::integral_constant<int, 4>{});
+    expand(std::integral_constant<int, 5>{});
   }
   for (uint32_t k2 = lo; k2 <= hi && k2 < bk.size(); ++k2) bk[k2].clear();
   S.last_queued = nqueued;
@@ -1179,9 +1263,17 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   if (opt.threshold > 1000000) throw InputError("geodesic: threshold must be <= 10^6");
   const bool full = opt.mode == Mode::Full;
   const uint32_t t = static_cast<uint32_t>(opt.threshold);
-  Result res = empty_result(mask);
-  if (mask.size() == 0) return res;
+  if (mask.size() == 0) return empty_result(mask);
 
+  // The outputs: the importance is 0 off the object (zeroed here by all threads: 4 bytes per voxel,
+  // 8 GiB at 1280³, first touched here); the surface is written whole by threshold_surface, so it is
+  // not filled first.
+  Result res;
+  res.importance = VolumeF32::uninitialized(mask.grid());
+  res.surface_skeleton = VolumeU8::uninitialized(mask.grid());
+  parallel_for(0, static_cast<int64_t>(res.importance.size()), opt.threads, [&](int64_t i0, int64_t i1) {
+    std::fill(res.importance.data() + i0, res.importance.data() + i1, 0.0f);
+  }, 1 << 20);
   using clock = std::chrono::steady_clock;
   const auto t0 = clock::now();
   Prepared P(mask.dims());
@@ -1190,7 +1282,10 @@ Result boundary_distance(const VolumeU8& mask, const Options& opt) {
   prepare(mask, P, opt.threads, opt.interrupter.sub(0.0, 1.0), false, full);
   res.stats.object_voxels = P.k;
   res.stats.layer_voxels = P.nl;
-  if (P.k == 0) return res;
+  if (P.k == 0) {
+    std::fill(res.surface_skeleton.data(), res.surface_skeleton.data() + res.surface_skeleton.size(), uint8_t{0});
+    return res;
+  }
 
   const Buckets B = bucket_by_base(P, opt.threads);
   opt.interrupter.check(0.25);

@@ -286,7 +286,22 @@ struct Scratch {
   int64_t last_queued = 0;       // entries the last own search queued (tests)
   uint16_t cur = 0;
   int64_t stamp_resets = 0;
-  std::vector<std::vector<Entry>> buckets;  // own search: open voxels by key (empty between searches)
+  // A bucket of the own search's queue: a stack whose push is a store and an increment, the
+  // growth (doubling) out of line, so the search's loop keeps it inline.
+  struct Bucket {
+    std::vector<Entry> v;  // storage: size() is the capacity
+    uint32_t n = 0;        // entries in use
+    void push(const Entry& e) {
+      if (n == v.size()) [[unlikely]] grow();
+      v[n++] = e;
+    }
+    [[nodiscard]] Entry pop() { return v[--n]; }
+    [[nodiscard]] bool empty() const { return n == 0; }
+    void clear() { n = 0; }
+    [[nodiscard]] size_t capacity() const { return v.size(); }
+    [[gnu::noinline]] void grow() { v.resize(std::max<size_t>(16, 2 * v.size())); }
+  };
+  std::vector<Bucket> buckets;  // own search: open voxels by key (empty between searches)
   std::vector<uint8_t> pdist8;    // pivot search: distance + 1, where the pivot limit is <= 254
   std::vector<uint16_t> pdist16;  // pivot search: distance + 1, otherwise
   QueueVector<uint32_t> pqueue; // pivot search: visited voxels (scratch indices) in distance order (kept until the next pivot)
