@@ -535,6 +535,13 @@ namespace {
 // mixed (the bone phantom), unchanged on plates.
 constexpr uint32_t kLandmarkReuse = 8;
 
+// f(std::integral_constant<int, n>) for n = 0 .. 5: the six 6-neighbours' steps as constants of
+// each call (the loops over them unrolled).
+template <class F>
+[[gnu::always_inline]] inline void for_six_neighbours(F&& f) {
+  [&]<int... N>(std::integer_sequence<int, N...>) { (f(std::integral_constant<int, N>{}), ...); }(std::make_integer_sequence<int, 6>{});
+}
+
 // Breadth-first search over L from scratch index `si` at padded position `src_pos` to the distance
 // `limit`: dist[v] = distance + 1 (entries must be 0 beforehand), `list` and `posq` the visited
 // voxels (scratch indices, positions) in distance order; returns their number. Processed layer by
@@ -594,12 +601,7 @@ size_t layered_bfs(const Prepared& P, const Scratch& S, T* dist, QueueVector<uin
           pq[tail++] = q;
         }
       };
-      step(std::integral_constant<int, 0>{});
-      step(std::integral_constant<int, 1>{});
-      step(std::integral_constant<int, 2>{});
-      step(std::integral_constant<int, 3>{});
-      step(std::integral_constant<int, 4>{});
-      step(std::integral_constant<int, 5>{});
+      for_six_neighbours(step);
     }
   }
   list.resize(tail);
@@ -871,12 +873,7 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
         if (dedup) queued[u] = tag | (e.g + 1);
       }
     };
-    expand(std::integral_constant<int, 0>{});
-    expand(std::integral_constant<int, 1>{});
-    expand(std::integral_constant<int, 2>{});
-    expand(std::integral_constant<int, 3>{});
-    expand(std::integral_constant<int, 4>{});
-    expand(std::integral_constant<int, 5>{});
+    for_six_neighbours(expand);
   }
   for (uint32_t k2 = lo; k2 <= hi && k2 < bk.size(); ++k2) bk[k2].clear();
   S.last_queued = nqueued;
