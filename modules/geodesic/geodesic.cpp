@@ -710,8 +710,8 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
   // h = the smallest lower bound over the remaining targets; each target's bound is the larger of
   // the 1-norm distance and its landmark bounds |f(c) - f(v)| (both consistent, so their max and
   // the min over targets are too: a closed voxel's g is final and the result is that of plain A*).
-  // One target left (most searches): its fields as a short list of byte arrays (the 16-bit pivot
-  // distances go the general way), no minimum over targets.
+  // One target left (most searches): its fields as a short list of byte arrays, no minimum over
+  // targets (with 16-bit pivot distances among its fields it goes the general way below).
   struct OneField {
     const uint8_t* f;
     int32_t fc, clip;
@@ -735,15 +735,6 @@ int64_t own_bfs_impl(const Prepared& P, Scratch& S, uint32_t src, int64_t src_po
       for (int i = 0; i < n_one; ++i) {
         const uint32_t r = one[i].f[idx];
         d = std::max(d, std::abs(one[i].fc - (r ? static_cast<int32_t>(r) - 1 : one[i].clip)));
-      }
-      return static_cast<uint32_t>(d);
-    }
-    if (nrem == 1) {
-      const Tgt& c = rem[0];
-      int32_t d = std::abs(x - c.x) + std::abs(y - c.y) + std::abs(z - c.z);
-      for (uint32_t lmk = c.lmask; lmk; lmk &= lmk - 1) {
-        const int s2 = std::countr_zero(lmk);
-        d = std::max(d, std::abs(c.fc[s2] - f_val(s2, idx)));
       }
       return static_cast<uint32_t>(d);
     }
