@@ -220,6 +220,11 @@ void fill_initial_queue(std::vector<PlaneScan>& planes, const Levels<T>& levels,
 
 template <class T, class E>
 inline void Removal<T, E>::remove(int64_t t) {
+  remove_with(t, (st_[t] & kBorder) ? 0u : th_.neighbourhood(t));
+}
+
+template <class T, class E>
+inline void Removal<T, E>::remove_with(int64_t t, uint32_t word) {
   uint8_t* const st = st_;
   const bool border = st[t] & kBorder;
   st[t] &= kBorder;
@@ -241,7 +246,7 @@ inline void Removal<T, E>::remove(int64_t t) {
   } else {
     // The object neighbours only: the bits of the neighbourhood word, in the order of off_ (and of
     // neighbours()).
-    for (uint32_t nb = th_.neighbourhood(t); nb != 0; nb &= nb - 1)
+    for (uint32_t nb = word; nb != 0; nb &= nb - 1)
       touch(t + th_.off_[static_cast<size_t>(std::countr_zero(nb))]);
   }
 }
@@ -265,7 +270,7 @@ void Removal<T, E>::run_basic() {
     st[t] &= static_cast<uint8_t>(~kQueued);
     ++stats_.tests;
     uint32_t nb = 0;
-    if (th_.deletable(t, nb)) remove(t);
+    if (th_.deletable(t, nb)) remove_with(t, nb);
     progress();
   }
 }
@@ -331,8 +336,8 @@ int64_t Removal<T, E>::check(const BigVector<E>& tv, const BigVector<uint8_t>& t
       }
       for (int k = 0; k < np; ++k) {
         const int64_t j = pending[k];
-        if (th.deletable_with(static_cast<int64_t>(tv[static_cast<size_t>(j)]), words[k]))
-          dirs[static_cast<size_t>(j)] = static_cast<uint8_t>(candidate_directions(words[k]));
+        dirs[static_cast<size_t>(j)] =
+            static_cast<uint8_t>(th.deletable_directions(static_cast<int64_t>(tv[static_cast<size_t>(j)]), words[k]));
       }
     }
     fresh.fetch_add(tested, std::memory_order_relaxed);
@@ -391,7 +396,7 @@ void Removal<T, E>::recheck(BigVector<E>& tv, BigVector<uint8_t>& dirs, int64_t 
       }
       ++stats_.tests;
       uint32_t nb = 0;
-      if (th.deletable(t, nb)) remove(t);
+      if (th.deletable(t, nb)) remove_with(t, nb);
     } else {
       // Re-queued in place (requeue_w_ <= j): end points are never cached.
       const uint8_t c = (d & 64u) ? uint8_t{0} : static_cast<uint8_t>(kCacheValid | (d & 63u));

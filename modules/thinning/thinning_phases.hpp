@@ -21,6 +21,9 @@
 #include <memory>
 #include <type_traits>
 #include <vector>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "skel/big_vector.hpp"
 #include "skel/interrupter.hpp"
@@ -278,6 +281,30 @@ public:
     // off_, the order neighbour_bit uses). Fewer address computations than 26 single offsets.
     const uint8_t* p = st_ + i;
     uint32_t w = 0;
+#if defined(__SSE2__)
+    // Rows 0-7 as eight 4-byte loads (bytes x-1 .. x+2) in two vectors; kObject (bit 0 of each byte)
+    // shifted to bit 7 and collected by one movemask per vector: bit 4r + c = row r, byte c. Three
+    // shift-and-mask steps drop byte 3 of every row (4 bits per row -> 3); row 8 as below.
+    static_assert(kObject == 1);
+    {
+      auto load = [&](int r) {
+        int32_t v;
+        std::memcpy(&v, p + row_[static_cast<size_t>(r)] - 1, 4);
+        return v;
+      };
+      const __m128i a = _mm_setr_epi32(load(0), load(1), load(2), load(3));
+      const __m128i b = _mm_setr_epi32(load(4), load(5), load(6), load(7));
+      uint32_t m = static_cast<uint32_t>(_mm_movemask_epi8(_mm_slli_epi16(a, 7))) |
+                   static_cast<uint32_t>(_mm_movemask_epi8(_mm_slli_epi16(b, 7))) << 16;
+      m = (m & 0x07070707u) | ((m >> 1) & 0x38383838u);  // two rows per byte, 6 bits
+      m = (m & 0x003F003Fu) | ((m >> 2) & 0x0FC00FC0u);  // four rows per 16 bits, 12 bits
+      m = (m & 0x00000FFFu) | ((m >> 4) & 0x00FFF000u);  // eight rows, 24 bits
+      uint32_t v;  // row 8 from x-2 (x+2 of the voxel (nx-2, ny-2, nz-2) is one byte past the array)
+      std::memcpy(&v, p + row_[8] - 2, 4);
+      v = (v >> 8) & 0x010101u;  // x86: little-endian
+      w = m | (((v * 0x10204u) >> 16) & 7u) << 24;
+    }
+#else
     if constexpr (std::endian::native == std::endian::little) {
       // One 4-byte load per row: bytes x-1, x, x+1 (and x+2, unused); kObject is bit 0 of each byte,
       // and one multiplication moves bits 0, 8, 16 to 16, 17, 18 (the other products land below bit
@@ -301,6 +328,7 @@ public:
         w |= bits << (3 * r);
       }
     }
+#endif
     return (w & 0x1FFFu) | ((w >> 1) & 0x3FFE000u);
   }
 
@@ -367,21 +395,40 @@ public:
     if (l_ > 0 && std::popcount(nb) == 1 && importance(i) > l_) return false;
     return true;
   }
-  // The slot of simple()'s cache that configuration nb uses (for a prefetch hint).
-  [[nodiscard]] const void* simple_slot(uint32_t nb) const { return &cache_[(nb * 0x9E3779B1u) >> (32 - kCacheBits)]; }
-
-  // The exact simple test behind a small direct-mapped cache of recent answers (thinning meets the
-  // same configurations over and over). Each slot packs the 26-bit configuration, a valid bit and
-  // the answer in one relaxed atomic word, so the parallel check may share it; only speed depends
-  // on its contents, never the answer.
-  [[nodiscard]] bool simple(uint32_t nb) const {
-    std::atomic<uint32_t>& slot = cache_[(nb * 0x9E3779B1u) >> (32 - kCacheBits)];
-    const uint32_t c = slot.load(std::memory_order_relaxed);
-    if ((c & ((1u << 27) - 1)) == (nb | (1u << 26))) return (c >> 27) & 1u;
-    const bool r = is_simple_direct(nb);
-    slot.store(nb | (1u << 26) | (static_cast<uint32_t>(r) << 27), std::memory_order_relaxed);
-    return r;
+  // deletable_with() and, if deletable, candidate_directions(nb) (never 0); 0 if not deletable. The
+  // directions come from the simple test's cache.
+  [[nodiscard]] uint32_t deletable_directions(int64_t i, uint32_t nb) const {
+    const uint32_t code = topology_code(nb);
+    if (!(code & 64u)) return 0;
+    const bool end = std::popcount(nb) == 1;
+    if (l_ > 0 && end && importance(i) > l_) return 0;
+    uint32_t d = code & 63u;
+    if (d == 0) d = 63u;
+    return end ? d | 64u : d;
   }
+  // The slot of simple()'s cache that configuration nb uses (for a prefetch hint).
+  [[nodiscard]] const void* simple_slot(uint32_t nb) const { return &cache_[slot_hash(nb) >> kTagBits]; }
+
+  [[nodiscard]] bool simple(uint32_t nb) const { return (topology_code(nb) >> 6) & 1u; }
+
+  // The exact simple test and the sub-iteration directions behind a small direct-mapped cache of
+  // recent answers (thinning meets the same configurations over and over): bit 6 = simple, bits 0-5 =
+  // directions_of(nb) (for a simple nb). A slot is addressed by the top kCacheBits bits of a 26-bit
+  // bijective hash of nb and keeps the remaining kTagBits bits (which with the address give nb back),
+  // a valid bit and the code in one relaxed atomic word, so the parallel check may share it; only
+  // speed depends on its contents, never the answer.
+  [[nodiscard]] uint32_t topology_code(uint32_t nb) const {
+    const uint32_t h = slot_hash(nb);
+    std::atomic<uint32_t>& slot = cache_[h >> kTagBits];
+    const uint32_t key = (h & ((1u << kTagBits) - 1)) | (1u << kTagBits);
+    const uint32_t c = slot.load(std::memory_order_relaxed);
+    if ((c & ((2u << kTagBits) - 1)) == key) return c >> (kTagBits + 1);
+    const uint32_t code = is_simple_direct(nb) ? 64u | directions_of(nb) : 0u;
+    slot.store(key | code << (kTagBits + 1), std::memory_order_relaxed);
+    return code;
+  }
+  // Odd multiplier modulo 2^26: a bijection of the 26-bit configurations.
+  static uint32_t slot_hash(uint32_t nb) { return (nb * 0x9E3779B1u) & ((1u << 26) - 1); }
 
   // Importance of the local end point i (thesis §2.3.1): the number of voxels p_0 = i, p_1, ... that
   // are local end points in turn, each after removing its predecessors; counted up to l + 1.
@@ -431,7 +478,7 @@ public:
   std::array<std::array<int, 3>, 26> d_{};
   std::array<int64_t, 6> f6_{};
   std::array<int64_t, 9> row_{};  // index offsets of the nine rows of the 3x3x3 neighbourhood
-  static constexpr int kCacheBits = 15;
+  static constexpr int kCacheBits = 15, kTagBits = 26 - kCacheBits;
   std::unique_ptr<std::atomic<uint32_t>[]> cache_{new std::atomic<uint32_t>[size_t{1} << kCacheBits]()};
 };
 
@@ -568,6 +615,9 @@ public:
 
   // Removes t and queues its unqueued object neighbours (marking all of them kDirty).
   inline void remove(int64_t t);
+  // The same with t's neighbourhood word `nb` already at hand (deletable() gave it; unused for a
+  // voxel on the array's faces).
+  inline void remove_with(int64_t t, uint32_t nb);
 
 private:
   static constexpr int64_t kProgressTests = int64_t{1} << 21;
