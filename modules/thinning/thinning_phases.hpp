@@ -270,7 +270,6 @@ public:
           d_[static_cast<size_t>(k)] = {dx, dy, dz};
           ++k;
         }
-    f6_ = {1, -1, nx_, -nx_, nx_ * ny_, -nx_ * ny_};
     for (int r = 0; r < 9; ++r) row_[static_cast<size_t>(r)] = nx_ * ((r % 3 - 1) + ny_ * (r / 3 - 1));
   }
 
@@ -382,12 +381,13 @@ public:
   // slot (simple_slot) between them. gather: false if i is certainly not deletable (its six face
   // neighbours are object), else its neighbourhood word in `nb`.
   bool gather(int64_t i, uint32_t& nb) const {
-    if (!(st_[i] & kBorder)) {
-      const uint8_t* p = st_ + i;
-      if (p[f6_[0]] & p[f6_[1]] & p[f6_[2]] & p[f6_[3]] & p[f6_[4]] & p[f6_[5]] & kObject) return false;
-    }
+    // The six face neighbours in the word (outside the array: 0).
+    constexpr uint32_t kFaces = 1u << neighbour_bit(-1, 0, 0) | 1u << neighbour_bit(1, 0, 0) |
+                                1u << neighbour_bit(0, -1, 0) | 1u << neighbour_bit(0, 1, 0) |
+                                1u << neighbour_bit(0, 0, -1) | 1u << neighbour_bit(0, 0, 1);
+    static_assert(kFaces == ((1u << 4) | (1u << 10) | (1u << 12) | (1u << 13) | (1u << 15) | (1u << 21)));
     nb = neighbourhood(i);
-    return true;
+    return (nb & kFaces) != kFaces;
   }
   // The rest of deletable() for the word `nb` that gather() gave for i.
   [[nodiscard]] bool deletable_with(int64_t i, uint32_t nb) const {
@@ -476,7 +476,6 @@ public:
   int l_;
   std::array<int64_t, 26> off_{};
   std::array<std::array<int, 3>, 26> d_{};
-  std::array<int64_t, 6> f6_{};
   std::array<int64_t, 9> row_{};  // index offsets of the nine rows of the 3x3x3 neighbourhood
   static constexpr int kCacheBits = 15, kTagBits = 26 - kCacheBits;
   std::unique_ptr<std::atomic<uint32_t>[]> cache_{new std::atomic<uint32_t>[size_t{1} << kCacheBits]()};
