@@ -246,8 +246,13 @@ inline void Removal<T, E>::remove_with(int64_t t, uint32_t word) {
   } else {
     // The object neighbours only: the bits of the neighbourhood word, in the order of off_ (and of
     // neighbours()).
-    for (uint32_t nb = word; nb != 0; nb &= nb - 1)
-      touch(t + th_.off_[static_cast<size_t>(std::countr_zero(nb))]);
+    for (uint32_t nb = word; nb != 0; nb &= nb - 1) {
+      const int64_t s = t + th_.off_[static_cast<size_t>(std::countr_zero(nb))];
+      const uint8_t b = st[s];  // an object voxel: its bit is set
+      const bool fresh = !(b & (kQueued | kLocked));
+      st[s] = static_cast<uint8_t>(b | kDirty | (fresh ? kQueued : 0));
+      if (fresh) push(levels_.level(s), s);
+    }
   }
 }
 
