@@ -226,7 +226,48 @@ TEST(ThinningPhases, NeighbourhoodWordsFromRowLoadsEqualSingleVoxelReads) {
             if (whole) {
               EXPECT_EQ(a, b);
             }
+            // The check's one-call form: candidate_directions of a deletable voxel, else 0.
+            uint32_t c = 0;
+            if (th.gather(i, c)) {
+              EXPECT_EQ(th.deletable_directions(i, c), whole ? candidate_directions(c) : 0u);
+            }
           }
+    }
+  }
+}
+
+TEST(ThinningPhases, CachedSimpleTestAndDirectionsEqualTheDirectOnes) {
+  // Thinner::topology_code keeps the simple test's answer and directions_of in a direct-mapped cache
+  // whose slots store part of a bijective hash of the configuration: random configurations (many
+  // sharing a slot: 2^20 of them for 2^15 slots), each asked twice, the second time mostly a hit,
+  // and the configurations in between evicting each other, must give the direct answers.
+  VolumeU8 st(Dims{3, 3, 3}, 0);
+  const Thinner th(st.data(), st.dims(), 0);
+  uint64_t state = 777;
+  auto next = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<uint32_t>(state >> 38);  // 26 bits
+  };
+  int simple = 0;
+  for (int k = 0; k < (1 << 20); ++k) {
+    const uint32_t nb = next();
+    const uint32_t want = is_simple_direct(nb) ? 64u | directions_of(nb) : 0u;
+    simple += want != 0;
+    ASSERT_EQ(th.topology_code(nb), want) << nb;
+    ASSERT_EQ(th.topology_code(nb), want) << nb;
+    ASSERT_EQ(th.simple(nb), want != 0) << nb;
+  }
+  EXPECT_GT(simple, 0);
+  // Configurations of one slot (the same top 15 bits of the hash, every 11-bit tag), in turn: the
+  // hash's multiplier inverted modulo 2^32 by Newton's iteration.
+  uint32_t inv = 0x9E3779B1u;
+  for (int k = 0; k < 5; ++k) inv *= 2u - 0x9E3779B1u * inv;
+  ASSERT_EQ(inv * 0x9E3779B1u, 1u);
+  for (const uint32_t slot : {0u, 12345u, (1u << 15) - 1}) {
+    for (uint32_t tag = 0; tag < (1u << 11); ++tag) {
+      const uint32_t nb = (((slot << 11) | tag) * inv) & ((1u << 26) - 1);
+      ASSERT_EQ(Thinner::slot_hash(nb) >> 11, slot);
+      ASSERT_EQ(th.topology_code(nb), is_simple_direct(nb) ? 64u | directions_of(nb) : 0u) << nb;
     }
   }
 }
