@@ -267,7 +267,6 @@ public:
         for (int dx = -1; dx <= 1; ++dx) {
           if (dx == 0 && dy == 0 && dz == 0) continue;
           off_[static_cast<size_t>(k)] = dx + nx_ * (dy + ny_ * dz);
-          d_[static_cast<size_t>(k)] = {dx, dy, dz};
           ++k;
         }
     for (int r = 0; r < 9; ++r) row_[static_cast<size_t>(r)] = nx_ * ((r % 3 - 1) + ny_ * (r / 3 - 1));
@@ -353,13 +352,8 @@ public:
   int neighbours(int64_t i, int64_t* out) const {
     int c = 0;
     if (st_[i] & kBorder) {
-      int64_t x, y, z;
-      decode(i, x, y, z);
-      for (int k = 0; k < 26; ++k) {
-        const auto& d = d_[static_cast<size_t>(k)];
-        const int64_t a = x + d[0], b = y + d[1], e = z + d[2];
-        if (a < 0 || b < 0 || e < 0 || a >= nx_ || b >= ny_ || e >= nz_) continue;
-        const int64_t j = i + off_[static_cast<size_t>(k)];
+      for (uint32_t v = inside(i); v != 0; v &= v - 1) {
+        const int64_t j = i + off_[static_cast<size_t>(std::countr_zero(v))];
         if (st_[j] & kObject) out[c++] = j;
       }
     } else {
@@ -459,23 +453,29 @@ public:
   }
 
   [[nodiscard]] uint32_t neighbourhood_slow(int64_t i) const {
-    int64_t x, y, z;
-    decode(i, x, y, z);
     uint32_t nb = 0;
-    for (int k = 0; k < 26; ++k) {
-      const auto& d = d_[static_cast<size_t>(k)];
-      const int64_t a = x + d[0], b = y + d[1], e = z + d[2];
-      if (a < 0 || b < 0 || e < 0 || a >= nx_ || b >= ny_ || e >= nz_) continue;
+    for (uint32_t v = inside(i); v != 0; v &= v - 1) {
+      const int k = std::countr_zero(v);
       nb |= static_cast<uint32_t>(st_[i + off_[static_cast<size_t>(k)]] & kObject) << k;
     }
     return nb;
+  }
+  // The neighbours of i inside the array, as the bits of a neighbourhood word: the cube's planes
+  // along each axis that the array holds (two divisions for the coordinates).
+  [[nodiscard]] uint32_t inside(int64_t i) const {
+    const int64_t z = i / (nx_ * ny_), r = i - z * (nx_ * ny_), y = r / nx_, x = r - y * nx_;
+    constexpr uint32_t x0 = cube::plane_mask(0, 0), x1 = cube::plane_mask(0, 1), x2 = cube::plane_mask(0, 2);
+    constexpr uint32_t y0 = cube::plane_mask(1, 0), y1 = cube::plane_mask(1, 1), y2 = cube::plane_mask(1, 2);
+    constexpr uint32_t z0 = cube::plane_mask(2, 0), z1 = cube::plane_mask(2, 1), z2 = cube::plane_mask(2, 2);
+    const uint32_t w = (x1 | (x > 0 ? x0 : 0u) | (x < nx_ - 1 ? x2 : 0u)) & (y1 | (y > 0 ? y0 : 0u) | (y < ny_ - 1 ? y2 : 0u)) &
+                       (z1 | (z > 0 ? z0 : 0u) | (z < nz_ - 1 ? z2 : 0u));
+    return (w & 0x1FFFu) | ((w >> 14) << 13);  // the centre (bit 13) dropped
   }
 
   uint8_t* st_;
   int64_t nx_, ny_, nz_;
   int l_;
   std::array<int64_t, 26> off_{};
-  std::array<std::array<int, 3>, 26> d_{};
   std::array<int64_t, 9> row_{};  // index offsets of the nine rows of the 3x3x3 neighbourhood
   static constexpr int kCacheBits = 15, kTagBits = 26 - kCacheBits;
   std::unique_ptr<std::atomic<uint32_t>[]> cache_{new std::atomic<uint32_t>[size_t{1} << kCacheBits]()};
