@@ -49,8 +49,8 @@ turn (counted up to l + 1). The end-point rule is applied when a voxel is tested
 not re-examined if its branch later changes beyond its 26-neighbourhood.
 The simple test is exact: a bit-parallel evaluation of Characterization 2 on the 27-bit 3x3x3 word (the
 26- and 6-component growth are masked shifts; tested against a direct reference implementation on 10^7
-random and all structured neighbourhoods), behind a 128 KiB per-run cache of recent answers; no
-global table, no warm-up.
+random and all structured neighbourhoods), behind a 128 KiB per-run cache of recent answers (simple or
+not, and the sub-iteration directions of fig. 2.17); no global table, no warm-up.
 
 Priorities are ranked into integer levels (integers with a small range: value - min; otherwise the rank
 among the distinct values of object voxels), and a bucket queue with one FIFO per level gives the
