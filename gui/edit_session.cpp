@@ -85,6 +85,7 @@ void GraphEditSession::open_journal(const QString& path, Resume resume, QStringL
     if (report) report->append("previous journal kept as " + bak);
   } else if (entries > 0) {
     const graph::Journal j = graph::read_journal(str(path));
+    if (report && !j.dropped.empty()) report->append(qstr(j.dropped));
     // Replay without journaling (the entries are in the file already); mirror the resulting undo
     // history on the QUndoStack so Ctrl+Z continues where the last session stopped.
     std::vector<QString> done, undone;

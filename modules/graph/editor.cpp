@@ -183,7 +183,9 @@ std::string EditOp::to_yaml() const {
   return s + "}";
 }
 
-Journal parse_journal(const std::string& text, const std::string& name) {
+namespace {
+
+Journal parse_whole_journal(const std::string& text, const std::string& name) {
   YAML::Node root;
   auto where = [&](const YAML::Node& n) {
     return name + ":" + std::to_string(n.Mark().line + 1) + ":" + std::to_string(n.Mark().column + 1);
@@ -285,6 +287,29 @@ Journal parse_journal(const std::string& text, const std::string& name) {
     j.ops.push_back(std::move(o));
   }
   return j;
+}
+
+}  // namespace
+
+// The editor appends each entry as one whole line with one write(); a SIGKILL can still cut that
+// write short (Linux stops a write to a regular file between pages when a fatal signal is pending),
+// leaving a last line without its newline. Such a journal reads as the entries before it, and the
+// cut line is reported in `dropped`. A last line without a newline that parses (a hand-written
+// journal, or a write cut just before its newline) is kept.
+Journal parse_journal(const std::string& text, const std::string& name) {
+  const size_t cut = text.empty() || text.back() == '\n' ? std::string::npos : text.rfind('\n');
+  if (cut == std::string::npos) return parse_whole_journal(text, name);
+  try {
+    return parse_whole_journal(text, name);
+  } catch (const InputError&) {
+    // Broken before its last line too: that earlier error propagates (the YAML parser would otherwise
+    // report the cut line's syntax first and hide it).
+    Journal j = parse_whole_journal(text.substr(0, cut + 1), name);
+    const auto line = static_cast<size_t>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(cut), '\n')) + 2;
+    j.dropped = name + ":" + std::to_string(line) + ": the last line is incomplete (no newline; an append cut short, e.g. by a kill) and was not replayed: '" +
+                text.substr(cut + 1, 80) + (text.size() - cut - 1 > 80 ? "...'" : "'");
+    return j;
+  }
 }
 
 Journal read_journal(const std::filesystem::path& path) {
@@ -407,6 +432,27 @@ void GraphEditor::set_journal(const std::filesystem::path& path, double toleranc
     o << "# Skelflow edit journal: replay with graph.apply_edits (docs/editing.md).\n"
       << "# Elements are addressed by physical position; one operation per line.\n"
       << "skelflow_edits: 1\ntolerance: " << fmt(tolerance) << "\nops:\n";
+    if (!o.flush()) throw InputError("cannot write the edit journal " + path.string());
+    return;
+  }
+  // Appending to an existing journal: its last line must end in a newline, or the next entry would
+  // be glued to it. A line cut short by a kill (parse_journal drops it) is cut off the file; a whole
+  // last entry without its newline gets one.
+  std::string text;
+  {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    text = ss.str();
+  }
+  if (text.empty() || text.back() == '\n') return;
+  const Journal j = parse_journal(text, path.string());
+  if (!j.dropped.empty()) {
+    std::filesystem::resize_file(path, text.rfind('\n') + 1, ec);
+    if (ec) throw InputError("cannot cut the incomplete last line off the edit journal " + path.string() + ": " + ec.message());
+  } else {
+    std::ofstream o(path, std::ios::app);
+    o << "\n";
     if (!o.flush()) throw InputError("cannot write the edit journal " + path.string());
   }
 }

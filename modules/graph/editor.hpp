@@ -61,6 +61,9 @@ struct EditOp {
 struct Journal {
   double tolerance = 1.0;  // default match distance for addressing by position (physical units)
   std::vector<EditOp> ops;
+  // Set when the last line had no newline and did not parse (an append cut short by a kill): that
+  // line was left out; the message names the file and line.
+  std::string dropped;
 };
 Journal read_journal(const std::filesystem::path& path);
 Journal parse_journal(const std::string& text, const std::string& name = "<journal>");

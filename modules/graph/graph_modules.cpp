@@ -104,6 +104,7 @@ plus the undo records of the journal's steps.)");
   void run(RunContext& ctx) override {
     auto in = ctx.input<SpatialGraph>("graph");
     graph::Journal j = graph::read_journal(ctx.input_path("journal"));
+    if (!j.dropped.empty()) ctx.warn(j.dropped);
     double tol = ctx.param<double>("tolerance");
     if (tol <= 0) tol = j.tolerance;
     graph::EditContext ec;

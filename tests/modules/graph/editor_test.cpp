@@ -326,6 +326,74 @@ TEST(GraphEditor, JournalWithNoOperationsYetIsEmpty) {
   EXPECT_THROW(parse_journal("skelflow_edits: 1\nops: 3\n", "j.yaml"), InputError);
 }
 
+// A kill can cut the editor's one-line append short (found by the SIGKILL test in CI: "edits_47.yaml:71:1:
+// YAML syntax error: end of sequence flow not found"). The cut last line is left out and named; a
+// whole last entry without its newline is kept; an error before the last line is still an error;
+// appending to such a journal first cuts the broken line off (or ends the whole one with a newline).
+TEST(GraphEditor, JournalWithALastLineCutShortReadsTheEntriesBeforeIt) {
+  const std::string header = "# Skelflow edit journal\nskelflow_edits: 1\ntolerance: 0.5\nops:\n";
+  const std::string e1 = "- {op: connect, from: [1, 2, 3], to: [4, 5, 6]}\n", e2 = "- {op: undo}\n";
+  const std::string torn = "- {op: move_node, from: [1, 2, 3], to: [1.5, 2";
+  const Journal j = parse_journal(header + e1 + e2 + torn, "j.yaml");
+  ASSERT_EQ(j.ops.size(), 2u);
+  EXPECT_EQ(j.ops[0].op, EditKind::connect);
+  EXPECT_EQ(j.ops[1].op, EditKind::undo);
+  EXPECT_DOUBLE_EQ(j.tolerance, 0.5);
+  EXPECT_NE(j.dropped.find("j.yaml:7: the last line is incomplete"), std::string::npos) << j.dropped;
+  EXPECT_NE(j.dropped.find(torn), std::string::npos) << j.dropped;
+  // Cut anywhere inside the last entry: always the two entries before it.
+  const std::string whole = "- {op: move_node, from: [1, 2, 3], to: [1.5, 2, 3]}";
+  for (size_t n = 1; n < whole.size(); ++n) {
+    const Journal c = parse_journal(header + e1 + e2 + whole.substr(0, n), "j.yaml");
+    EXPECT_EQ(c.ops.size(), 2u) << n;
+  }
+  // Only the newline missing: the entry is whole and kept.
+  const Journal k = parse_journal(header + e1 + e2 + whole, "j.yaml");
+  ASSERT_EQ(k.ops.size(), 3u);
+  EXPECT_EQ(k.ops[2].op, EditKind::move_node);
+  EXPECT_TRUE(k.dropped.empty());
+  // An error before the last line is reported as before, not hidden by the cut line.
+  try {
+    parse_journal(header + "- {op: delete_edge}\n" + torn, "j.yaml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("j.yaml:5:3: op delete_edge needs 'at'"), std::string::npos) << e.what();
+  }
+
+  // Appending: the editor cuts the broken line off before its first entry.
+  const fs::path dir = fs::path(SKEL_BINARY_DIR) / "tests" / "scratch" / "editing_cut";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const SpatialGraph base = random_graph(5, 20, 20);
+  auto write = [](const fs::path& p, const std::string& text) {
+    std::ofstream o(p, std::ios::binary);
+    o << text;
+  };
+  const fs::path jp = dir / "edits.yaml";
+  write(jp, header + e2 + torn);
+  {
+    GraphEditor ed(base);
+    ed.set_journal(jp, 0.5);
+    ed.move_node(1, {7, 8, 9});
+  }
+  Journal a = read_journal(jp);
+  EXPECT_TRUE(a.dropped.empty()) << a.dropped;
+  ASSERT_EQ(a.ops.size(), 2u);
+  EXPECT_EQ(a.ops[0].op, EditKind::undo);
+  EXPECT_EQ(a.ops[1].op, EditKind::move_node);
+  // A whole last entry without its newline: kept, and the next entry goes on its own line.
+  write(jp, header + e2 + "- {op: redo}");
+  {
+    GraphEditor ed(base);
+    ed.set_journal(jp, 0.5);
+    ed.move_node(2, {7, 8, 9});
+  }
+  a = read_journal(jp);
+  ASSERT_EQ(a.ops.size(), 3u);
+  EXPECT_EQ(a.ops[1].op, EditKind::redo);
+  EXPECT_EQ(a.ops[2].op, EditKind::move_node);
+}
+
 TEST(DanglingEnds, FindsFacingEndsAndEdgePoints) {
   SpatialGraph g;
   // Segment A ends at (10,0,0) pointing +x; segment B starts at (13,0,0) continuing +x: a gap of 3.
