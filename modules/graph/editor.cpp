@@ -12,6 +12,7 @@
 #include <map>
 #include <numbers>
 #include <numeric>
+#include <optional>
 #include <queue>
 #include <sstream>
 
@@ -185,6 +186,15 @@ std::string EditOp::to_yaml() const {
 
 namespace {
 
+// The whole file as text; nullopt when it cannot be opened.
+std::optional<std::string> file_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
 Journal parse_whole_journal(const std::string& text, const std::string& name) {
   YAML::Node root;
   auto where = [&](const YAML::Node& n) {
@@ -313,11 +323,9 @@ Journal parse_journal(const std::string& text, const std::string& name) {
 }
 
 Journal read_journal(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path.string() + ": edit journal not found");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_journal(ss.str(), path.string());
+  const std::optional<std::string> text = file_text(path);
+  if (!text) throw InputError(path.string() + ": edit journal not found");
+  return parse_journal(*text, path.string());
 }
 
 // ---------------------------------------------------------------- dangling ends
@@ -438,13 +446,7 @@ void GraphEditor::set_journal(const std::filesystem::path& path, double toleranc
   // Appending to an existing journal: its last line must end in a newline, or the next entry would
   // be glued to it. A line cut short by a kill (parse_journal drops it) is cut off the file; a whole
   // last entry without its newline gets one.
-  std::string text;
-  {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    text = ss.str();
-  }
+  const std::string text = file_text(path).value_or(std::string());
   if (text.empty() || text.back() == '\n') return;
   const Journal j = parse_journal(text, path.string());
   if (!j.dropped.empty()) {
