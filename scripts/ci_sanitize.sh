@@ -1,25 +1,32 @@
 #!/usr/bin/env bash
 # The test suite under AddressSanitizer + UndefinedBehaviorSanitizer, GUI and benchmarks off, in its
 # own build dir (build-asan/).
-#   scripts/ci_sanitize.sh [--inputs] [--build-dir DIR]
-#     (default)  every test (the whole suite: 750 tests)
+#   scripts/ci_sanitize.sh [--inputs] [--opt LEVEL] [--build-dir DIR]
+#     (default)  every test (the whole suite: 750 tests), compiled at -O1
 #     --inputs   only the tests labelled `inputs` (CMake target skel_input_tests): what reads users'
 #                files — tests/modules/io, the golden error messages of tests/errors (malformed
 #                pipelines and files through the real `skelflow`) and fuzz_corpus_<target> (every
 #                seed of fuzz/corpus/ through its fuzz target, so the corpus is a sanitizer
-#                regression suite without clang). `.ci/run` runs this mode by default.
+#                regression suite without clang). `.ci/run` runs this mode by default. Compiled at
+#                -O0: half the build time of -O1 (below), and these tests run no faster at -O1.
+#     --opt LEVEL  the optimisation level (0, 1, 2, g) instead of the mode's own. The build dir keeps
+#                one level: another one recompiles it.
 # With SKEL_CI_FUZZ_SECONDS=N (default 0: off, it needs a second, clang build of the readers) each
 # libFuzzer target also fuzzes for N s.
 # Time (docs/reliability.md "Time"), measured cold on the idle 2-core VM on 2026-12-07: the whole
-# suite 1 508 s of build and 844 s of tests (25 + 14 min, 6.6 GB); --inputs 879 s and 138 s
-# (15 + 2 min, 3.8 GB).
+# suite at -O1 1 508 s of build and 844 s of tests (25 + 14 min, 6.6 GB); --inputs at -O1 868-879 s
+# and 138-142 s (15 + 2 min, 3.7 GB), at -O0 443 s and 113 s (7.4 + 1.9 min, 2.6 GB).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir="$here/build-asan"
 mode=all
+opt=
 while [ $# -gt 0 ]; do
   case "$1" in
     --inputs) mode=inputs ;;
+    --opt)
+      opt=$2; shift
+      case "$opt" in 0|1|2|g) ;; *) echo "ci_sanitize.sh: --opt must be 0, 1, 2 or g, not '$opt'" >&2; exit 2 ;; esac ;;
     --build-dir) build_dir=$2; shift ;;
     *) echo "ci_sanitize.sh: unknown option $1" >&2; exit 2 ;;
   esac
@@ -27,9 +34,17 @@ while [ $# -gt 0 ]; do
 done
 jobs=$(nproc)
 start=$(date +%s)
-# -O1 -g1 (Debug type with its flags replaced): ASan's usual level. With ASan + UBSan one file took
-# 8 s of CPU at -O1 -g1 against 30 s at the tree's -O3 -g (5.7 s without sanitizers).
-cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DEBUG=-O1 -g1 -DNDEBUG" \
+# -O1 -g1 or -O0 -g1 (Debug type with its flags replaced; -g1: file:line in the reports). -O1 is
+# ASan's usual level, which the whole suite's compute-heavy tests need. With ASan + UBSan at -O1 some
+# files compile very slowly (modules/io/volume_tiff.cpp: 77 s, against 18 s at -O0 and 24 s at the
+# normal tree's -O3 -g1), so the inputs subset, whose tests are file reading and small pipelines,
+# builds at -O0: it finds what -O1 finds (no access is optimised away) and its tests took 113 s there
+# against 142 s at -O1.
+if [ -z "$opt" ]; then
+  opt=1
+  [ $mode = inputs ] && opt=0
+fi
+cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DEBUG=-O$opt -g1 -DNDEBUG" \
   -DSKEL_SANITIZE=ON -DSKEL_BUILD_GUI=OFF -DSKEL_BUILD_BENCH=OFF >/dev/null
 ctest_filter=()
 if [ $mode = inputs ]; then
@@ -48,7 +63,7 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 # symbolizing), since a sanitizer report there is the verdict on a user's file, not a test failure.
 ctest --test-dir "$build_dir" -j "$jobs" --output-on-failure --timeout 2400 "${ctest_filter[@]}"
 tested=$(date +%s)
-echo "sanitizers ($mode): build $((built - start)) s, tests $((tested - built)) s"
+echo "sanitizers ($mode, -O$opt): build $((built - start)) s, tests $((tested - built)) s"
 seconds=${SKEL_CI_FUZZ_SECONDS:-0}
 if [ "$seconds" -gt 0 ]; then
   if command -v clang++ >/dev/null; then
