@@ -4,10 +4,11 @@
 #   scripts/ci_sanitize.sh [--inputs] [--opt LEVEL] [--build-dir DIR]
 #     (default)  every test (the whole suite: 750 tests), compiled at -O1
 #     --inputs   only the tests labelled `inputs` (CMake target skel_input_tests): what reads users'
-#                files — tests/modules/io, the golden error messages of tests/errors (malformed
-#                pipelines and files through the real `skelflow`) and fuzz_corpus_<target> (every
-#                seed of fuzz/corpus/ through its fuzz target, so the corpus is a sanitizer
-#                regression suite without clang). `.ci/run` runs this mode by default. Compiled at
+#                pipelines and files — tests/modules/io, the golden error messages of tests/errors
+#                (malformed pipelines and files through the real `skelflow`), tests/framework (the
+#                pipeline loader, parameters, staged outputs, journals), tests/cli (the command line
+#                end to end, kill and resume) and fuzz_corpus_<target> (every seed of fuzz/corpus/
+#                through its fuzz target, so the corpus is a sanitizer regression suite without clang). `.ci/run` runs this mode by default. Compiled at
 #                -O0: half the build time of -O1 (below), and these tests run no faster at -O1.
 #     --opt LEVEL  the optimisation level (0, 1, 2, g) instead of the mode's own. The build dir keeps
 #                one level: another one recompiles it.

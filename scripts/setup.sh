@@ -5,8 +5,8 @@
 #     (no command)  install + configure + build everything
 #     demo          install + build the CLI + run the vessel pipeline (pipelines/vessel_network.yaml); results go to out/demo/
 #     test          install + build everything + run the whole test suite (ctest); CI (.ci/run) then
-#                   runs scripts/ci_sanitize.sh --inputs: the tests of what reads users' files again
-#                   under ASan + UBSan in build-asan/
+#                   runs scripts/ci_sanitize.sh --inputs: the tests of what reads users' pipelines
+#                   and files again under ASan + UBSan in build-asan/
 # clang and libclang-rt-14-dev (libFuzzer) are for the fuzz targets: scripts/fuzz.sh, fuzz/README.md.
 # libasan8 (gcc's AddressSanitizer runtime; build-essential pulls it in) is also needed at run time by
 # skelflow-hdf5-probe, the HDF5 structure probe's helper (modules/io/hdf5_probe.hpp).
