@@ -16,7 +16,8 @@
 # libFuzzer target also fuzzes for N s.
 # Time (docs/reliability.md "Time"), measured cold on the idle 2-core VM on 2026-12-07: the whole
 # suite at -O1 1 508 s of build and 844 s of tests (25 + 14 min, 6.6 GB); --inputs at -O1 868-879 s
-# and 138-142 s (15 + 2 min, 3.7 GB), at -O0 443 s and 113 s (7.4 + 1.9 min, 2.6 GB).
+# and 138-142 s (15 + 2 min, 3.7 GB), at -O0 443 s and 113 s (7.4 + 1.9 min, 2.6 GB); with
+# tests/framework and tests/cli in the subset (362 tests, session 24) 548 s and 211 s (2.8 GB).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build_dir="$here/build-asan"
