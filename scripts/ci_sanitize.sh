@@ -8,8 +8,9 @@
 #                (malformed pipelines and files through the real `skelflow`), tests/framework (the
 #                pipeline loader, parameters, staged outputs, journals), tests/cli (the command line
 #                end to end, kill and resume) and fuzz_corpus_<target> (every seed of fuzz/corpus/
-#                through its fuzz target, so the corpus is a sanitizer regression suite without clang). `.ci/run` runs this mode by default. Compiled at
-#                -O0: half the build time of -O1 (below), and these tests run no faster at -O1.
+#                through its fuzz target, so the corpus is a sanitizer regression suite without
+#                clang). `.ci/run` runs this mode by default. Compiled at -O0: half the build time
+#                of -O1 (below), and these tests run no faster at -O1.
 #     --opt LEVEL  the optimisation level (0, 1, 2, g) instead of the mode's own. The build dir keeps
 #                one level: another one recompiles it.
 # With SKEL_CI_FUZZ_SECONDS=N (default 0: off, it needs a second, clang build of the readers) each
