@@ -10,8 +10,10 @@
 //      check, the choice of a sub-iteration direction and a sequential recheck);
 //   5. collect_skeleton, count_skeleton (kept end points, locked and interior voxels, and the
 //      fig. 2.23 components, in one walk), finish_state (flags back to 0/1).
-// The per-voxel steps (Thinner, Levels::level, candidate_directions, Removal::remove) are inline so
-// that the loops of the phases keep them inlined.
+// The per-voxel steps (Thinner, Levels::level, candidate_directions, Removal::remove) are defined
+// here, inline, so that the compiler may inline them into the loops of the phases. gcc 12 keeps some
+// as calls (Thinner::neighbourhood, deletable, Removal::remove_with); forcing them inline
+// measured no faster (bench/RESULTS.md, "A parallel `flag`").
 #include <algorithm>
 #include <array>
 #include <atomic>
